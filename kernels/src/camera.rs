@@ -1,0 +1,182 @@
+//! The camera as the kernels see it: a validated view-projection matrix for one extent.
+//!
+//! Convention: `clip = M · [X, 1]` with the clip `w` equal to the distance of `X` along the
+//! camera's view axis (what `glam::Mat4::perspective_rh` / `_lh` times a view matrix gives).
+//! Normalised device coordinates run from −1 (left, bottom) to +1 (right, top); pixel
+//! `(i, j)` has its centre at `(i + 0.5, j + 0.5)` with `j` counting rows from the top.
+//!
+//! From the same matrix the model also derives the ray through every pixel centre scaled to
+//! unit view depth, so a world position can be rebuilt from a depth value
+//! (`X = centre + depth · ray(x, y)`); the compact G-buffer layout relies on that.
+
+use glam::{DMat3, DVec3, Mat4};
+
+use crate::frame::{Extent, FrameError};
+
+/// A validated perspective camera for one frame extent.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraModel {
+    /// Rows of the view-projection matrix (row `i` dotted with `[X, 1]` gives clip component `i`).
+    pub rows: [[f32; 4]; 4],
+    /// Camera centre in world space.
+    pub centre: [f32; 3],
+    /// Ray at pixel coordinate (0, 0) (the top-left image corner), at unit view depth.
+    pub ray_origin_corner: [f32; 3],
+    /// Change of the unit-depth ray per pixel to the right.
+    pub ray_dx: [f32; 3],
+    /// Change of the unit-depth ray per pixel down.
+    pub ray_dy: [f32; 3],
+    /// The frame extent the pixel mapping refers to.
+    pub extent: Extent,
+}
+
+impl CameraModel {
+    /// Validates `view_proj` for frames of `extent`.
+    ///
+    /// Refuses ([`FrameError::SingularCamera`]) matrices that are not finite or are singular,
+    /// and matrices whose x, y and w rows do not define a pinhole (needed to rebuild positions
+    /// from depth), such as orthographic projections.
+    pub fn new(view_proj: Mat4, extent: Extent) -> Result<Self, FrameError> {
+        let m = view_proj.as_dmat4();
+        if !m.is_finite() {
+            return Err(FrameError::SingularCamera);
+        }
+        let det = m.determinant();
+        if !det.is_finite() || det == 0.0 {
+            return Err(FrameError::SingularCamera);
+        }
+        let row = |i: usize| m.row(i);
+        let (r0, r1, r3) = (row(0), row(1), row(3));
+        // Rows x, y and w restricted to xyz: A · X = (x_clip, y_clip, w) − translation.
+        let a =
+            DMat3::from_cols(DVec3::new(r0.x, r1.x, r3.x), DVec3::new(r0.y, r1.y, r3.y), DVec3::new(r0.z, r1.z, r3.z));
+        let det_a = a.determinant();
+        // Relative test: a pinhole's A is well conditioned; an orthographic one has a zero row.
+        let scale = a.x_axis.length() * a.y_axis.length() * a.z_axis.length();
+        if !det_a.is_finite() || det_a.abs() <= 1e-12 * scale || scale == 0.0 {
+            return Err(FrameError::SingularCamera);
+        }
+        let b = a.inverse();
+        let centre = b * DVec3::new(-r0.w, -r1.w, -r3.w);
+        // ray(nx, ny) = B · (nx, ny, 1): linear in the pixel coordinate.
+        let (w, h) = (extent.width() as f64, extent.height() as f64);
+        let corner = b * DVec3::new(-1.0, 1.0, 1.0);
+        let dx = b * DVec3::new(2.0 / w, 0.0, 0.0);
+        let dy = b * DVec3::new(0.0, -2.0 / h, 0.0);
+        let to_f32 = |v: DVec3| [v.x as f32, v.y as f32, v.z as f32];
+        let all = [centre, corner, dx, dy];
+        if all.iter().any(|v| !v.is_finite()) {
+            return Err(FrameError::SingularCamera);
+        }
+        let rows = [0, 1, 2, 3].map(|i| row(i).as_vec4().to_array());
+        if rows.iter().flatten().any(|v| !v.is_finite()) {
+            return Err(FrameError::SingularCamera);
+        }
+        Ok(Self {
+            rows,
+            centre: to_f32(centre),
+            ray_origin_corner: to_f32(corner),
+            ray_dx: to_f32(dx),
+            ray_dy: to_f32(dy),
+            extent,
+        })
+    }
+
+    /// The view-projection matrix.
+    pub fn view_proj(&self) -> Mat4 {
+        Mat4::from_cols_array_2d(&self.rows).transpose()
+    }
+
+    /// Clip coordinates of a world point, evaluated in the fixed order every kernel uses.
+    #[inline(always)]
+    pub fn clip(&self, p: [f32; 3]) -> [f32; 4] {
+        let r = &self.rows;
+        let dot = |i: usize| r[i][0] * p[0] + r[i][1] * p[1] + r[i][2] * p[2] + r[i][3];
+        [dot(0), dot(1), dot(2), dot(3)]
+    }
+
+    /// Continuous pixel coordinate of a world point (centres at `i + 0.5`) and its view
+    /// depth; `None` behind the camera or for non-finite input.
+    pub fn project(&self, p: [f32; 3]) -> Option<([f32; 2], f32)> {
+        let [cx, cy, _, cw] = self.clip(p);
+        if !(cw > 0.0) {
+            return None;
+        }
+        let (hw, hh) = self.half_extent();
+        let s = [(cx / cw) * hw + hw, (-(cy / cw)) * hh + hh];
+        (s[0].is_finite() && s[1].is_finite()).then_some((s, cw))
+    }
+
+    /// Half the width and height as f32 (the viewport scale).
+    #[inline(always)]
+    pub fn half_extent(&self) -> (f32, f32) {
+        (self.extent.width() as f32 * 0.5, self.extent.height() as f32 * 0.5)
+    }
+
+    /// The unit-view-depth ray through continuous pixel coordinate `(px, py)`.
+    #[inline(always)]
+    pub fn ray(&self, px: f32, py: f32) -> [f32; 3] {
+        let (o, dx, dy) = (self.ray_origin_corner, self.ray_dx, self.ray_dy);
+        [0, 1, 2].map(|i| o[i] + px * dx[i] + py * dy[i])
+    }
+
+    /// World position of pixel `(x, y)`'s centre at view depth `depth`.
+    #[inline(always)]
+    pub fn unproject_pixel(&self, x: usize, y: usize, depth: f32) -> [f32; 3] {
+        let r = self.ray(x as f32 + 0.5, y as f32 + 0.5);
+        [0, 1, 2].map(|i| self.centre[i] + depth * r[i])
+    }
+}
+
+/// A right-handed OpenGL-style perspective view-projection looking from `eye` towards
+/// `target` (clip `w` = view depth), for tests, fuzzing and callers without a camera type of
+/// their own.
+pub fn look_at_perspective(eye: glam::Vec3, target: glam::Vec3, up: glam::Vec3, vfov_rad: f32, extent: Extent) -> Mat4 {
+    let aspect = extent.width() as f32 / extent.height() as f32;
+    glam::camera::rh::proj::opengl::perspective(vfov_rad, aspect, 0.01, 1000.0)
+        * glam::camera::rh::view::look_at_mat4(eye, target, up)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    fn camera() -> CameraModel {
+        let e = Extent::new(64, 48).unwrap();
+        CameraModel::new(look_at_perspective(Vec3::new(1.0, 2.0, 3.0), Vec3::new(0.0, 0.5, -4.0), Vec3::Y, 1.0, e), e)
+            .unwrap()
+    }
+
+    #[test]
+    fn unproject_then_project_round_trips() {
+        let cam = camera();
+        for &(x, y, d) in &[(0usize, 0usize, 1.0f32), (63, 47, 7.5), (17, 30, 0.3), (40, 2, 120.0)] {
+            let p = cam.unproject_pixel(x, y, d);
+            let (s, w) = cam.project(p).unwrap();
+            assert!((s[0] - (x as f32 + 0.5)).abs() < 2e-3, "{s:?}");
+            assert!((s[1] - (y as f32 + 0.5)).abs() < 2e-3, "{s:?}");
+            assert!((w - d).abs() <= 1e-4 * d, "{w} vs {d}");
+        }
+    }
+
+    #[test]
+    fn centre_projects_to_w_zero() {
+        let cam = camera();
+        let c = cam.clip(cam.centre);
+        assert!(c[3].abs() < 1e-4, "{c:?}");
+        assert!((Vec3::from(cam.centre) - Vec3::new(1.0, 2.0, 3.0)).length() < 1e-5);
+    }
+
+    #[test]
+    fn singular_and_non_finite_cameras_are_refused() {
+        let e = Extent::new(8, 8).unwrap();
+        assert_eq!(CameraModel::new(Mat4::ZERO, e), Err(FrameError::SingularCamera));
+        let mut nan = Mat4::IDENTITY;
+        nan.x_axis.x = f32::NAN;
+        assert_eq!(CameraModel::new(nan, e), Err(FrameError::SingularCamera));
+        // Orthographic: invertible, but its w row has no xyz part, so no pinhole.
+        let ortho = glam::camera::rh::proj::opengl::orthographic(-1.0, 1.0, -1.0, 1.0, 0.1, 10.0);
+        assert_eq!(CameraModel::new(ortho, e), Err(FrameError::SingularCamera));
+    }
+}

@@ -1,0 +1,317 @@
+//! G-buffer views and the two layouts the reprojection kernel reads.
+//!
+//! A G-buffer holds, per pixel, the view-axis depth, the world position and the shading
+//! normal of the surface the pixel-centre primary ray hit (`depth = +inf` where it hit
+//! nothing). The kernels read it through [`SurfaceLayout`], which has two implementations:
+//!
+//! * [`GBuffer`]: seven f32 planes (depth, position xyz, normal xyz). 28 bytes per pixel. The
+//!   reference layout and what an engine with its own position buffer hands over.
+//! * [`CompactGBuffer`]: an f32 depth plane and a u32 plane of octahedral normals (two 16-bit
+//!   signed-normalised components). 8 bytes per pixel. The world position is rebuilt from the
+//!   depth and the camera (`X = centre + depth · ray(pixel)`), which reproduces the hit point
+//!   to f32 rounding because G-buffer rays go through pixel centres; the octahedral normal is
+//!   within 0.004° of the stored one. Reprojection is memory bound, so this layout is the
+//!   fast one (measured in BENCHMARKS.md).
+//!
+//! Each layout gives one pixel as a scalar [`Surfel`] (the reference path), eight consecutive
+//! pixels of a row, or eight gathered pixels as [`Surfels`]; the three agree bit for bit.
+
+use crate::camera::CameraModel;
+use crate::frame::{Extent, FrameError, Plane, same_extent};
+use crate::simd::{F32s, LANES, TapCoords, lane_offsets};
+use wide::{i32x8, u32x8};
+
+/// One pixel's surface.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Surfel {
+    pub depth: f32,
+    pub position: [f32; 3],
+    pub normal: [f32; 3],
+}
+
+/// `LANES` pixels' surfaces.
+#[derive(Clone, Copy, Debug)]
+pub struct Surfels {
+    pub depth: F32s,
+    pub position: [F32s; 3],
+    pub normal: [F32s; 3],
+}
+
+impl Surfels {
+    /// Lane `i` as a scalar surfel.
+    pub fn lane(&self, i: usize) -> Surfel {
+        Surfel {
+            depth: self.depth.to_array()[i],
+            position: self.position.map(|v| v.to_array()[i]),
+            normal: self.normal.map(|v| v.to_array()[i]),
+        }
+    }
+}
+
+/// Read access to a G-buffer in one of the layouts above.
+pub trait SurfaceLayout: Sync {
+    /// Extent of every plane.
+    fn extent(&self) -> Extent;
+    /// The surface at pixel `(x, y)`. Panics outside the extent.
+    fn surfel(&self, x: usize, y: usize) -> Surfel;
+    /// Pixels `x .. x + LANES` of row `y`. Panics unless `x + LANES <= width`.
+    fn surfels_row(&self, x: usize, y: usize) -> Surfels;
+    /// The pixels at `taps` (already clamped into the extent).
+    fn surfels_gather(&self, taps: &TapCoords) -> Surfels;
+    /// Bytes read per pixel (for roofline figures).
+    fn bytes_per_pixel(&self) -> usize;
+}
+
+/// The full-precision G-buffer of one eye and frame: seven f32 planes.
+#[derive(Clone, Copy)]
+pub struct GBuffer<'a> {
+    pub depth: Plane<'a>,
+    pub position: [Plane<'a>; 3],
+    pub normal: [Plane<'a>; 3],
+}
+
+impl<'a> GBuffer<'a> {
+    /// Combines the seven planes, checking that their extents agree.
+    pub fn new(depth: Plane<'a>, position: [Plane<'a>; 3], normal: [Plane<'a>; 3]) -> Result<Self, FrameError> {
+        for p in &position {
+            same_extent("world-position plane", depth.extent(), p.extent())?;
+        }
+        for n in &normal {
+            same_extent("normal plane", depth.extent(), n.extent())?;
+        }
+        Ok(Self { depth, position, normal })
+    }
+}
+
+#[inline(always)]
+fn load_row(p: &Plane<'_>, x: usize, y: usize) -> F32s {
+    crate::simd::load(p.row(y), x)
+}
+
+impl SurfaceLayout for GBuffer<'_> {
+    fn extent(&self) -> Extent {
+        self.depth.extent()
+    }
+
+    fn surfel(&self, x: usize, y: usize) -> Surfel {
+        Surfel {
+            depth: self.depth.get(x, y),
+            position: self.position.map(|p| p.get(x, y)),
+            normal: self.normal.map(|p| p.get(x, y)),
+        }
+    }
+
+    #[inline(always)]
+    fn surfels_row(&self, x: usize, y: usize) -> Surfels {
+        Surfels {
+            depth: load_row(&self.depth, x, y),
+            position: self.position.map(|p| load_row(&p, x, y)),
+            normal: self.normal.map(|p| load_row(&p, x, y)),
+        }
+    }
+
+    #[inline(always)]
+    fn surfels_gather(&self, taps: &TapCoords) -> Surfels {
+        Surfels {
+            depth: taps.gather_f32(&self.depth),
+            position: self.position.map(|p| taps.gather_f32(&p)),
+            normal: self.normal.map(|p| taps.gather_f32(&p)),
+        }
+    }
+
+    fn bytes_per_pixel(&self) -> usize {
+        7 * 4
+    }
+}
+
+/// Depth plus octahedral normals; positions rebuilt from depth through `camera`.
+#[derive(Clone, Copy)]
+pub struct CompactGBuffer<'a> {
+    pub depth: Plane<'a>,
+    /// [`encode_normal`] of each pixel's shading normal.
+    pub normal: Plane<'a, u32>,
+    /// The camera that rendered this G-buffer (its extent must match).
+    pub camera: CameraModel,
+}
+
+impl<'a> CompactGBuffer<'a> {
+    /// Combines the planes and the camera, checking that their extents agree.
+    pub fn new(depth: Plane<'a>, normal: Plane<'a, u32>, camera: CameraModel) -> Result<Self, FrameError> {
+        same_extent("normal plane", depth.extent(), normal.extent())?;
+        same_extent("camera extent", depth.extent(), camera.extent)?;
+        Ok(Self { depth, normal, camera })
+    }
+
+    #[inline(always)]
+    fn positions(&self, depth: F32s, px: F32s, py: F32s) -> [F32s; 3] {
+        let c = &self.camera;
+        [0, 1, 2].map(|i| {
+            let ray =
+                F32s::splat(c.ray_origin_corner[i]) + px * F32s::splat(c.ray_dx[i]) + py * F32s::splat(c.ray_dy[i]);
+            F32s::splat(c.centre[i]) + depth * ray
+        })
+    }
+}
+
+impl SurfaceLayout for CompactGBuffer<'_> {
+    fn extent(&self) -> Extent {
+        self.depth.extent()
+    }
+
+    fn surfel(&self, x: usize, y: usize) -> Surfel {
+        let depth = self.depth.get(x, y);
+        Surfel {
+            depth,
+            position: self.camera.unproject_pixel(x, y, depth),
+            normal: decode_normal(self.normal.get(x, y)),
+        }
+    }
+
+    #[inline(always)]
+    fn surfels_row(&self, x: usize, y: usize) -> Surfels {
+        let depth = load_row(&self.depth, x, y);
+        let px = F32s::splat(x as f32) + lane_offsets() + F32s::splat(0.5);
+        let py = F32s::splat(y as f32 + 0.5);
+        let row = self.normal.row(y);
+        let packed: [u32; LANES] = row[x..x + LANES].try_into().expect("LANES normals");
+        Surfels { depth, position: self.positions(depth, px, py), normal: decode_normals(u32x8::from(packed)) }
+    }
+
+    #[inline(always)]
+    fn surfels_gather(&self, taps: &TapCoords) -> Surfels {
+        let depth = taps.gather_f32(&self.depth);
+        let px = F32s::from(taps.x.map(|v| v as f32)) + F32s::splat(0.5);
+        let py = F32s::from(taps.y.map(|v| v as f32)) + F32s::splat(0.5);
+        let packed = u32x8::from(taps.gather(&self.normal));
+        Surfels { depth, position: self.positions(depth, px, py), normal: decode_normals(packed) }
+    }
+
+    fn bytes_per_pixel(&self) -> usize {
+        4 + 4
+    }
+}
+
+/// The encoded value of "no normal" (a background pixel or a non-finite normal); it decodes
+/// to NaN so that reprojection treats it as invalid. −32768 lies outside the symmetric
+/// signed-normalised range, so no real normal encodes to it.
+pub const NO_NORMAL: u32 = 0x8000_8000;
+
+const SNORM_MAX: f32 = 32767.0;
+
+/// Octahedral encoding of a normal into two 16-bit signed-normalised components
+/// (x in the low half, y in the high half). Zero-length or non-finite input gives
+/// [`NO_NORMAL`]. Not performance critical: the G-buffer pass calls it once per pixel.
+pub fn encode_normal(n: [f32; 3]) -> u32 {
+    let l1 = n[0].abs() + n[1].abs() + n[2].abs();
+    if !l1.is_finite() || l1 == 0.0 {
+        return NO_NORMAL;
+    }
+    let (mut px, mut py) = (n[0] / l1, n[1] / l1);
+    if n[2] < 0.0 {
+        let sign = |v: f32| if v >= 0.0 { 1.0 } else { -1.0 };
+        (px, py) = ((1.0 - py.abs()) * sign(px), (1.0 - px.abs()) * sign(py));
+    }
+    let q = |v: f32| (v.clamp(-1.0, 1.0) * SNORM_MAX).round() as i16 as u16 as u32;
+    q(px) | (q(py) << 16)
+}
+
+/// Scalar decoding of [`encode_normal`]: a unit vector, or NaN for [`NO_NORMAL`].
+pub fn decode_normal(packed: u32) -> [f32; 3] {
+    let lo = packed as u16 as i16;
+    let hi = (packed >> 16) as u16 as i16;
+    if lo == i16::MIN || hi == i16::MIN {
+        return [f32::NAN; 3];
+    }
+    let mut x = lo as f32 * (1.0 / SNORM_MAX);
+    let mut y = hi as f32 * (1.0 / SNORM_MAX);
+    let z = 1.0 - x.abs() - y.abs();
+    let t = (-z).max(0.0);
+    x += if x >= 0.0 { -t } else { t };
+    y += if y >= 0.0 { -t } else { t };
+    let len = (x * x + y * y + z * z).sqrt();
+    [x / len, y / len, z / len]
+}
+
+/// SIMD decoding, lane for lane equal to [`decode_normal`].
+#[inline(always)]
+pub fn decode_normals(packed: u32x8) -> [F32s; 3] {
+    let bits: i32x8 = bytemuck::cast(packed);
+    let lo: i32x8 = (bits << 16) >> 16; // arithmetic shift sign-extends the low half
+    let hi: i32x8 = bits >> 16;
+    let invalid_lo: F32s = bytemuck::cast(lo.simd_eq(i32x8::splat(i16::MIN as i32)));
+    let invalid_hi: F32s = bytemuck::cast(hi.simd_eq(i32x8::splat(i16::MIN as i32)));
+    let invalid = invalid_lo | invalid_hi;
+    let scale = F32s::splat(1.0 / SNORM_MAX);
+    let mut x = lo.round_float() * scale;
+    let mut y = hi.round_float() * scale;
+    let z = F32s::ONE - x.abs() - y.abs();
+    let t = (-z).max(F32s::ZERO);
+    x += x.simd_ge(F32s::ZERO).select(-t, t);
+    y += y.simd_ge(F32s::ZERO).select(-t, t);
+    let len = (x * x + y * y + z * z).sqrt();
+    let nan = F32s::splat(f32::NAN);
+    [invalid.select(nan, x / len), invalid.select(nan, y / len), invalid.select(nan, z / len)]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn unit(v: [f32; 3]) -> [f32; 3] {
+        let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        v.map(|c| c / l)
+    }
+
+    #[test]
+    fn octahedral_round_trip_is_within_a_hundredth_of_a_degree() {
+        let mut state = 0x1234_5678u32;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state as f32 / u32::MAX as f32 * 2.0 - 1.0
+        };
+        let mut worst: f32 = 1.0;
+        for i in 0..20_000 {
+            let n = match i {
+                0 => [0.0, 0.0, 1.0],
+                1 => [0.0, 0.0, -1.0],
+                2 => [1.0, 0.0, 0.0],
+                3 => [0.0, -1.0, 0.0],
+                _ => unit([next(), next(), next()]),
+            };
+            let d = decode_normal(encode_normal(n));
+            let cos = n[0] * d[0] + n[1] * d[1] + n[2] * d[2];
+            worst = worst.min(cos);
+        }
+        assert!(worst >= (0.01f32).to_radians().cos(), "worst cos {worst}");
+    }
+
+    #[test]
+    fn simd_decoding_equals_scalar_bitwise() {
+        let mut values = vec![NO_NORMAL, 0, 0x7fff_7fff, 0x8001_8001, 0x0000_8000, 0x8000_0000, u32::MAX, 1];
+        let mut s = 99u32;
+        for _ in 0..4096 {
+            s = s.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            values.push(s);
+        }
+        for chunk in values.chunks_exact(LANES) {
+            let simd = decode_normals(u32x8::from(<[u32; LANES]>::try_from(chunk).unwrap()));
+            for (i, &v) in chunk.iter().enumerate() {
+                let scalar = decode_normal(v);
+                for c in 0..3 {
+                    let a = simd[c].to_array()[i];
+                    assert!(a.to_bits() == scalar[c].to_bits() || (a.is_nan() && scalar[c].is_nan()), "{v:#x}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn invalid_normals_encode_to_the_sentinel() {
+        assert_eq!(encode_normal([0.0; 3]), NO_NORMAL);
+        assert_eq!(encode_normal([f32::NAN, 0.0, 1.0]), NO_NORMAL);
+        assert_eq!(encode_normal([f32::INFINITY, 0.0, 1.0]), NO_NORMAL);
+        assert!(decode_normal(NO_NORMAL)[0].is_nan());
+    }
+}

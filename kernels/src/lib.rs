@@ -1,0 +1,26 @@
+//! # stereotrace-kernels
+//!
+//! The hand-vectorized kernels of stereotrace: bilinear resampling, backward reprojection
+//! (stereo and temporal are one kernel with different cameras), EMA accumulation and stereo
+//! blending. Each kernel has a scalar reference and a SIMD body (`wide`, 8 lanes) in the
+//! same module; the scalar one is always compiled and public, and the two agree bit for bit
+//! (see the determinism policy in [`simd`]).
+//!
+//! Callers own every buffer. Views are validated once at the boundary ([`frame`]); inside,
+//! kernels do not fail, do not panic and do not allocate. Parallel kernels split their output
+//! into row bands and run them with rayon on the caller's current pool (use
+//! `ThreadPool::install` to choose it).
+
+pub mod accumulate;
+mod bands;
+pub mod bilinear;
+pub mod camera;
+pub mod check;
+pub mod frame;
+pub mod gbuffer;
+pub mod reproject;
+pub mod simd;
+
+pub use camera::CameraModel;
+pub use frame::{Extent, FrameError, Plane, PlaneBuf, PlaneMut, RgbBuf, RgbPlanes, RgbPlanesMut};
+pub use gbuffer::{CompactGBuffer, GBuffer, SurfaceLayout};

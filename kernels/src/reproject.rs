@@ -1,0 +1,746 @@
+//! Backward reprojection with bilinear taps, discard tests and reason codes.
+//!
+//! Stereo and temporal reprojection are this one kernel with different cameras: for stereo
+//! the source is the other eye at the same frame, for temporal the same eye at the previous
+//! frame. For every target pixel `p` with surface `X` (world position), `n` (normal):
+//!
+//! 1. Project `X` with the source view-projection: clip `(cx, cy, cz, cw)`, with `cw` the view
+//!    depth `X` would have in the source camera. `sx = (cx/cw)·W/2 + W/2`,
+//!    `sy = −(cy/cw)·H/2 + H/2` (continuous pixel coordinates, centres at `i + 0.5`).
+//! 2. Bilinear footprint of `(sx, sy)` ([`crate::bilinear`]): four taps and weights.
+//! 3. Each tap with a non-zero weight is tested, in this order: in frame; source surface
+//!    present (`depth ≠ +inf`), else a depth/position failure (a disocclusion against the
+//!    background); source surface and sample finite, else invalid; world-position distance
+//!    `|X_tap − X| ≤ position` and relative depth `|d_tap − cw| ≤ depth_relative · cw`, else
+//!    a depth/position failure; normals `n_tap · n ≥ normal_cos`, else a normal failure.
+//! 4. [`TapPolicy::Renormalize`] (default) keeps the accepted taps and divides by their total
+//!    weight; [`TapPolicy::Strict`] rejects the pixel when any participating tap failed.
+//!    A pixel with no accepted tap is discarded: its channels are written as 0 and its
+//!    weight as 0.
+//! 5. Every pixel gets a [`Reason`]. Target-side reasons come first (background, invalid,
+//!    projection out of frame); a discarded pixel's reason is the most informative failure
+//!    among its taps: depth/position, then normal, then invalid, then out of frame.
+//!
+//! The kernel reads one to four source channels (colour RGB, plus an optional extra channel,
+//! for example a per-pixel history length) and writes the same number of target channels,
+//! a reason code per pixel and, optionally, the accepted weight `Σ_accepted wᵢ` in [0, 1].
+//!
+//! Schedule: full-width row bands (see `bands`). Within a row the SIMD body takes 8 pixels
+//! at a time. When the 8 footprints are coherent (same source row, consecutive source
+//! columns, all taps in frame), which is the common case for stereo pairs and smooth camera
+//! motion, each tap is two unaligned vector loads per plane instead of 8-lane gathers; the
+//! values loaded are the same, so the result is too. Tail: the remaining `width % 8` pixels of
+//! a row go through the scalar reference.
+
+use crate::bands::{SharedRows, for_each_band};
+use crate::bilinear::{Footprint, Footprints, renormalise, renormalise_simd};
+use crate::camera::CameraModel;
+use crate::frame::{Extent, FrameError, Plane, PlaneMut, RgbPlanes, RgbPlanesMut, same_extent};
+use crate::gbuffer::{SurfaceLayout, Surfel, Surfels};
+use crate::simd::{F32s, LANES, TapCoords, lane_offsets, load, store};
+
+/// Why a pixel was or was not reprojected. Stored as one byte per pixel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[repr(u8)]
+pub enum Reason {
+    /// Reprojected: at least one tap accepted (all of them under the strict policy).
+    Reprojected = 0,
+    /// Discarded: depth or world position differs too much (occlusion / disocclusion).
+    /// The paper's Figure 6 colours this yellow.
+    DepthOrPosition = 1,
+    /// Discarded: shading normals differ too much (green in Figure 6).
+    Normal = 2,
+    /// Discarded: the footprint falls outside the source frame (purple in Figure 6).
+    OutOfFrame = 3,
+    /// The target pixel shows background (no surface: `depth = +inf`).
+    Background = 4,
+    /// The target or every usable tap holds non-finite or non-positive data (NaN in a
+    /// G-buffer, a non-finite source sample).
+    Invalid = 5,
+}
+
+/// Number of [`Reason`] values.
+pub const REASON_COUNT: usize = 6;
+
+impl Reason {
+    /// Every reason in code order.
+    pub const ALL: [Reason; REASON_COUNT] = [
+        Reason::Reprojected,
+        Reason::DepthOrPosition,
+        Reason::Normal,
+        Reason::OutOfFrame,
+        Reason::Background,
+        Reason::Invalid,
+    ];
+
+    /// The reason stored as `code`, if it is one.
+    pub fn from_code(code: u8) -> Option<Self> {
+        Self::ALL.get(code as usize).copied()
+    }
+
+    /// A short lower-case name for tables.
+    pub fn name(self) -> &'static str {
+        match self {
+            Reason::Reprojected => "reprojected",
+            Reason::DepthOrPosition => "depth/position",
+            Reason::Normal => "normal",
+            Reason::OutOfFrame => "out of frame",
+            Reason::Background => "background",
+            Reason::Invalid => "invalid",
+        }
+    }
+}
+
+/// Pixels per reason, indexed by the reason code.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ReasonCounts(pub [u64; REASON_COUNT]);
+
+impl ReasonCounts {
+    pub fn get(&self, reason: Reason) -> u64 {
+        self.0[reason as usize]
+    }
+
+    pub fn total(&self) -> u64 {
+        self.0.iter().sum()
+    }
+
+    /// Pixels that were not reprojected although they show a surface (what must be traced
+    /// because reprojection failed, as opposed to background).
+    pub fn discarded(&self) -> u64 {
+        self.total() - self.get(Reason::Reprojected) - self.get(Reason::Background)
+    }
+
+    fn merged(mut self, other: Self) -> Self {
+        for (a, b) in self.0.iter_mut().zip(other.0) {
+            *a += b;
+        }
+        self
+    }
+}
+
+/// Per-scene discard thresholds (the paper sets them "manually based on the scale of each
+/// test scene").
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Tolerances {
+    /// Largest accepted world-space distance between a tap's surface point and `X`
+    /// (scene units; `+inf` disables the test).
+    pub position: f32,
+    /// Largest accepted `|d_tap − d_expected| / d_expected` (`+inf` disables).
+    pub depth_relative: f32,
+    /// Smallest accepted cosine between the tap's and the target's normals (−1 disables).
+    pub normal_cos: f32,
+}
+
+impl Tolerances {
+    /// Tolerances with the normal threshold given as an angle in degrees.
+    pub fn new(position: f32, depth_relative: f32, normal_max_degrees: f32) -> Self {
+        Self { position, depth_relative, normal_cos: normal_max_degrees.to_radians().cos() }
+    }
+
+    /// Refuses NaN, negative tolerances and cosines outside [−1, 1].
+    pub fn validate(&self) -> Result<(), FrameError> {
+        if !(self.position >= 0.0) {
+            return Err(FrameError::InvalidParameter("position tolerance must be >= 0"));
+        }
+        if !(self.depth_relative >= 0.0) {
+            return Err(FrameError::InvalidParameter("relative depth tolerance must be >= 0"));
+        }
+        if !(-1.0..=1.0).contains(&self.normal_cos) {
+            return Err(FrameError::InvalidParameter("normal cosine threshold must be in [-1, 1]"));
+        }
+        Ok(())
+    }
+}
+
+impl Default for Tolerances {
+    /// Room-scale defaults: 5 cm, 2 % depth, 25°.
+    fn default() -> Self {
+        Self::new(0.05, 0.02, 25.0)
+    }
+}
+
+/// What to do with a pixel some of whose taps failed.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum TapPolicy {
+    /// Keep the accepted taps and renormalise their weights (default).
+    #[default]
+    Renormalize,
+    /// Discard the pixel if any participating tap failed.
+    Strict,
+}
+
+/// Parameters of one reprojection call.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ReprojectParams {
+    pub tolerances: Tolerances,
+    pub policy: TapPolicy,
+    /// Rows per parallel band.
+    pub band_rows: usize,
+}
+
+impl Default for ReprojectParams {
+    fn default() -> Self {
+        Self { tolerances: Tolerances::default(), policy: TapPolicy::Renormalize, band_rows: 16 }
+    }
+}
+
+/// The most channels one call reprojects.
+pub const MAX_CHANNELS: usize = 4;
+
+/// Source data of a reprojection.
+pub struct ReprojectInput<'a, L: SurfaceLayout> {
+    /// The G-buffer of the frame being filled.
+    pub target: &'a L,
+    /// The G-buffer of the frame the samples come from.
+    pub source: &'a L,
+    /// The camera that rendered `source`.
+    pub source_camera: &'a CameraModel,
+    /// The samples to carry over.
+    pub colour: RgbPlanes<'a>,
+    /// An optional fourth channel reprojected the same way (e.g. history length).
+    pub extra: Option<Plane<'a>>,
+}
+
+/// Where a reprojection writes.
+pub struct ReprojectOutput<'a> {
+    pub colour: RgbPlanesMut<'a>,
+    /// Must be present exactly when the input has an extra channel.
+    pub extra: Option<PlaneMut<'a>>,
+    /// One [`Reason`] code per pixel.
+    pub reason: PlaneMut<'a, u8>,
+    /// Optional accepted weight per pixel.
+    pub weight: Option<PlaneMut<'a>>,
+}
+
+impl ReprojectOutput<'_> {
+    /// A shorter-lived view of the same buffers.
+    pub fn reborrow(&mut self) -> ReprojectOutput<'_> {
+        ReprojectOutput {
+            colour: self.colour.reborrow(),
+            extra: self.extra.as_mut().map(|p| p.reborrow()),
+            reason: self.reason.reborrow(),
+            weight: self.weight.as_mut().map(|p| p.reborrow()),
+        }
+    }
+}
+
+/// Validated, flattened form of the input that the row bodies read.
+struct Prepared<'a, L: SurfaceLayout> {
+    target: &'a L,
+    source: &'a L,
+    camera: &'a CameraModel,
+    channels: [Plane<'a>; MAX_CHANNELS],
+    channel_count: usize,
+    source_extent: Extent,
+    position2: f32,
+    depth_relative: f32,
+    normal_cos: f32,
+    strict: bool,
+}
+
+fn prepare<'a, L: SurfaceLayout>(
+    input: &ReprojectInput<'a, L>,
+    params: &ReprojectParams,
+) -> Result<Prepared<'a, L>, FrameError> {
+    params.tolerances.validate()?;
+    let source = input.source.extent();
+    same_extent("source colour", source, input.colour.extent())?;
+    same_extent("source camera extent", source, input.source_camera.extent)?;
+    if let Some(extra) = &input.extra {
+        same_extent("extra source channel", source, extra.extent())?;
+    }
+    let c = input.colour;
+    let tol = params.tolerances;
+    Ok(Prepared {
+        target: input.target,
+        source: input.source,
+        camera: input.source_camera,
+        channels: [c.r, c.g, c.b, input.extra.unwrap_or(c.r)],
+        channel_count: if input.extra.is_some() { 4 } else { 3 },
+        source_extent: source,
+        position2: tol.position * tol.position,
+        depth_relative: tol.depth_relative,
+        normal_cos: tol.normal_cos,
+        strict: params.policy == TapPolicy::Strict,
+    })
+}
+
+fn check_output<L: SurfaceLayout>(p: &Prepared<'_, L>, out: &ReprojectOutput<'_>) -> Result<(), FrameError> {
+    let target = p.target.extent();
+    same_extent("output colour", target, out.colour.extent())?;
+    same_extent("reason plane", target, out.reason.extent())?;
+    if let Some(w) = &out.weight {
+        same_extent("weight plane", target, w.extent())?;
+    }
+    match (&out.extra, p.channel_count) {
+        (Some(extra), 4) => same_extent("extra output channel", target, extra.extent()),
+        (None, 3) => Ok(()),
+        _ => Err(FrameError::InvalidParameter("extra channel must be given on both input and output")),
+    }
+}
+
+/// Output rows shared between the parallel bands.
+struct Rows<'a> {
+    channels: [Option<SharedRows<'a, f32>>; MAX_CHANNELS],
+    reason: SharedRows<'a, u8>,
+    weight: Option<SharedRows<'a, f32>>,
+}
+
+/// Mutable slices of one output row.
+struct RowOut<'r> {
+    channels: [&'r mut [f32]; MAX_CHANNELS],
+    count: usize,
+    reason: &'r mut [u8],
+    weight: Option<&'r mut [f32]>,
+}
+
+impl<'a> Rows<'a> {
+    fn new(out: ReprojectOutput<'a>) -> Self {
+        let ReprojectOutput { colour, extra, reason, weight } = out;
+        let RgbPlanesMut { r, g, b } = colour;
+        Self {
+            channels: [Some(r), Some(g), Some(b), extra].map(|p| p.map(SharedRows::new)),
+            reason: SharedRows::new(reason),
+            weight: weight.map(SharedRows::new),
+        }
+    }
+
+    /// # Safety
+    /// Row `y` must not be borrowed elsewhere (each band takes only its own rows).
+    unsafe fn row(&self, y: usize) -> RowOut<'a> {
+        let mut count = 0;
+        let channels = core::array::from_fn(|c| match &self.channels[c] {
+            Some(rows) => {
+                count += 1;
+                // SAFETY: forwarded from the caller.
+                unsafe { rows.row(y) }
+            }
+            // An absent extra channel: an empty row that is never indexed.
+            None => Default::default(),
+        });
+        RowOut {
+            channels,
+            count,
+            // SAFETY: forwarded from the caller.
+            reason: unsafe { self.reason.row(y) },
+            // SAFETY: forwarded from the caller.
+            weight: self.weight.as_ref().map(|w| unsafe { w.row(y) }),
+        }
+    }
+}
+
+/// Scalar reference reprojection. Returns the number of pixels per reason.
+pub fn reproject_scalar<L: SurfaceLayout>(
+    input: &ReprojectInput<'_, L>,
+    out: ReprojectOutput<'_>,
+    params: &ReprojectParams,
+) -> Result<ReasonCounts, FrameError> {
+    let prepared = prepare(input, params)?;
+    check_output(&prepared, &out)?;
+    Ok(run(&prepared, out, params.band_rows, |p, y, mut row| {
+        let mut counts = ReasonCounts::default();
+        for x in 0..row.reason.len() {
+            write_pixel(p, x, y, &mut row, &mut counts);
+        }
+        counts
+    }))
+}
+
+/// SIMD reprojection, bit-identical to [`reproject_scalar`]. Returns the number of pixels
+/// per reason.
+pub fn reproject<L: SurfaceLayout>(
+    input: &ReprojectInput<'_, L>,
+    mut out: ReprojectOutput<'_>,
+    params: &ReprojectParams,
+) -> Result<ReasonCounts, FrameError> {
+    let prepared = prepare(input, params)?;
+    check_output(&prepared, &out)?;
+    let counts = run(&prepared, out.reborrow(), params.band_rows, |p, y, mut row| {
+        let mut counts = ReasonCounts::default();
+        let width = row.reason.len();
+        let mut x = 0;
+        while x + LANES <= width {
+            let lanes = reproject_lanes(p, x, y);
+            for c in 0..row.count {
+                store(row.channels[c], x, lanes.channels[c]);
+            }
+            if let Some(w) = row.weight.as_deref_mut() {
+                store(w, x, lanes.weight);
+            }
+            let codes = lanes.reason.to_array();
+            for (dst, code) in row.reason[x..x + LANES].iter_mut().zip(codes) {
+                *dst = code as u8;
+            }
+            let reprojected = lanes.ok_bits.count_ones();
+            counts.0[Reason::Reprojected as usize] += u64::from(reprojected);
+            if reprojected != LANES as u32 {
+                for (i, code) in codes.iter().enumerate() {
+                    if lanes.ok_bits & (1 << i) == 0 {
+                        counts.0[*code as usize] += 1;
+                    }
+                }
+            }
+            x += LANES;
+        }
+        for x in x..width {
+            write_pixel(p, x, y, &mut row, &mut counts);
+        }
+        counts
+    });
+    #[cfg(feature = "check-scalar")]
+    check_against_scalar(input, &out, params, counts);
+    Ok(counts)
+}
+
+#[cfg(feature = "check-scalar")]
+fn check_against_scalar<L: SurfaceLayout>(
+    input: &ReprojectInput<'_, L>,
+    out: &ReprojectOutput<'_>,
+    params: &ReprojectParams,
+    counts: ReasonCounts,
+) {
+    use crate::check::assert_planes_equal;
+    use crate::frame::{PlaneBuf, RgbBuf};
+    let extent = out.reason.extent();
+    let mut colour = RgbBuf::new(extent, 0.0);
+    let mut extra = out.extra.as_ref().map(|_| PlaneBuf::new(extent, 0.0f32));
+    let mut reason = PlaneBuf::new(extent, 0u8);
+    let mut weight = out.weight.as_ref().map(|_| PlaneBuf::new(extent, 0.0f32));
+    let reference = reproject_scalar(
+        input,
+        ReprojectOutput {
+            colour: colour.view_mut(),
+            extra: extra.as_mut().map(|p| p.view_mut()),
+            reason: reason.view_mut(),
+            weight: weight.as_mut().map(|p| p.view_mut()),
+        },
+        params,
+    )
+    .expect("validated input");
+    assert_eq!(counts, reference, "reason counts differ");
+    let simd = out.colour.as_planes().channels();
+    for (c, plane) in colour.view().channels().iter().enumerate() {
+        assert_planes_equal("reprojected colour", c, &simd[c], plane);
+    }
+    if let (Some(a), Some(b)) = (&out.extra, &extra) {
+        assert_planes_equal("reprojected extra channel", 3, &a.as_plane(), &b.view());
+    }
+    assert_planes_equal("reason", 0, &out.reason.as_plane(), &reason.view());
+    if let (Some(a), Some(b)) = (&out.weight, &weight) {
+        assert_planes_equal("weight", 0, &a.as_plane(), &b.view());
+    }
+}
+
+fn run<L, F>(p: &Prepared<'_, L>, out: ReprojectOutput<'_>, band_rows: usize, body: F) -> ReasonCounts
+where
+    L: SurfaceLayout,
+    F: for<'r> Fn(&Prepared<'_, L>, usize, RowOut<'r>) -> ReasonCounts + Sync,
+{
+    let height = out.reason.height();
+    let rows = Rows::new(out);
+    for_each_band(
+        height,
+        band_rows,
+        |range| {
+            let mut counts = ReasonCounts::default();
+            for y in range {
+                // SAFETY: `for_each_band` hands each row to exactly one band.
+                let row = unsafe { rows.row(y) };
+                counts = counts.merged(body(p, y, row));
+            }
+            counts
+        },
+        ReasonCounts::merged,
+    )
+}
+
+/// Writes the scalar reference result for pixel `(x, y)`.
+#[inline]
+fn write_pixel<L: SurfaceLayout>(
+    p: &Prepared<'_, L>,
+    x: usize,
+    y: usize,
+    row: &mut RowOut<'_>,
+    counts: &mut ReasonCounts,
+) {
+    let (reason, values, weight) = reproject_pixel_prepared(p, x, y);
+    for c in 0..row.count {
+        row.channels[c][x] = values[c];
+    }
+    if let Some(w) = row.weight.as_deref_mut() {
+        w[x] = weight;
+    }
+    row.reason[x] = reason as u8;
+    counts.0[reason as usize] += 1;
+}
+
+/// The scalar reference for one target pixel: its reason, its channels (the first three
+/// are colour, the fourth the extra channel if the input has one) and its accepted weight.
+pub fn reproject_pixel<L: SurfaceLayout>(
+    input: &ReprojectInput<'_, L>,
+    params: &ReprojectParams,
+    x: usize,
+    y: usize,
+) -> Result<(Reason, [f32; MAX_CHANNELS], f32), FrameError> {
+    let prepared = prepare(input, params)?;
+    let e = prepared.target.extent();
+    if x >= e.width() || y >= e.height() {
+        return Err(FrameError::InvalidParameter("pixel outside the target extent"));
+    }
+    Ok(reproject_pixel_prepared(&prepared, x, y))
+}
+
+/// Whether a surfel is a usable surface: finite, in front of its camera, with a normal.
+#[inline(always)]
+fn usable(s: &Surfel) -> bool {
+    s.depth.is_finite()
+        && s.depth > 0.0
+        && s.position.iter().all(|v| v.is_finite())
+        && s.normal.iter().all(|v| v.is_finite())
+}
+
+fn reproject_pixel_prepared<L: SurfaceLayout>(
+    p: &Prepared<'_, L>,
+    x: usize,
+    y: usize,
+) -> (Reason, [f32; MAX_CHANNELS], f32) {
+    const NONE: [f32; MAX_CHANNELS] = [0.0; MAX_CHANNELS];
+    let t = p.target.surfel(x, y);
+    if t.depth == f32::INFINITY {
+        return (Reason::Background, NONE, 0.0);
+    }
+    if !usable(&t) {
+        return (Reason::Invalid, NONE, 0.0);
+    }
+    let [cx, cy, _, cw] = p.camera.clip(t.position);
+    if !(cw > 0.0) {
+        return (Reason::OutOfFrame, NONE, 0.0);
+    }
+    let (hw, hh) = p.camera.half_extent();
+    let sx = (cx / cw) * hw + hw;
+    let sy = (-(cy / cw)) * hh + hh;
+    let Some(fp) = Footprint::new(sx, sy, p.source_extent) else {
+        return (Reason::OutOfFrame, NONE, 0.0);
+    };
+    let weights = fp.weights();
+    let in_frame = fp.in_frame(p.source_extent);
+    let depth_tolerance = p.depth_relative * cw;
+
+    let mut sum = NONE;
+    let mut total = 0.0f32;
+    let (mut any_accepted, mut any_failed) = (false, false);
+    let (mut fail_geometry, mut fail_normal, mut fail_invalid) = (false, false, false);
+    for (tap, &(tx, ty)) in fp.taps().iter().enumerate() {
+        if weights[tap] == 0.0 {
+            continue;
+        }
+        if !in_frame[tap] {
+            any_failed = true;
+            continue;
+        }
+        let (tx, ty) = (tx as usize, ty as usize);
+        let s = p.source.surfel(tx, ty);
+        let mut values = NONE;
+        for c in 0..p.channel_count {
+            values[c] = p.channels[c].get(tx, ty);
+        }
+        let verdict = if s.depth == f32::INFINITY {
+            TapVerdict::Geometry
+        } else if !usable(&s) || !values[..p.channel_count].iter().all(|v| v.is_finite()) {
+            TapVerdict::Invalid
+        } else {
+            let d = [0, 1, 2].map(|i| s.position[i] - t.position[i]);
+            let distance2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+            let cos = s.normal[0] * t.normal[0] + s.normal[1] * t.normal[1] + s.normal[2] * t.normal[2];
+            if !(distance2 <= p.position2) || !((s.depth - cw).abs() <= depth_tolerance) {
+                TapVerdict::Geometry
+            } else if !(cos >= p.normal_cos) {
+                TapVerdict::Normal
+            } else {
+                TapVerdict::Accepted
+            }
+        };
+        match verdict {
+            TapVerdict::Accepted => {
+                any_accepted = true;
+                for c in 0..MAX_CHANNELS {
+                    sum[c] += weights[tap] * values[c];
+                }
+                total += weights[tap];
+            }
+            TapVerdict::Geometry => fail_geometry = true,
+            TapVerdict::Normal => fail_normal = true,
+            TapVerdict::Invalid => fail_invalid = true,
+        }
+        any_failed |= verdict != TapVerdict::Accepted;
+    }
+    let ok = any_accepted && !(p.strict && any_failed);
+    if ok {
+        return (Reason::Reprojected, sum.map(|s| renormalise(s, total)), total.min(1.0));
+    }
+    let reason = if fail_geometry {
+        Reason::DepthOrPosition
+    } else if fail_normal {
+        Reason::Normal
+    } else if fail_invalid {
+        Reason::Invalid
+    } else {
+        Reason::OutOfFrame
+    };
+    (reason, NONE, 0.0)
+}
+
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum TapVerdict {
+    Accepted,
+    Geometry,
+    Normal,
+    Invalid,
+}
+
+/// Results for `LANES` pixels.
+struct Lanes {
+    channels: [F32s; MAX_CHANNELS],
+    weight: F32s,
+    /// Reason codes as floats (exact small integers).
+    reason: F32s,
+    /// Bit `i` set where lane `i` was reprojected.
+    ok_bits: u32,
+}
+
+#[inline(always)]
+fn usable_simd(s: &Surfels) -> F32s {
+    let finite = |v: F32s| v.is_finite();
+    finite(s.depth)
+        & s.depth.simd_gt(F32s::ZERO)
+        & finite(s.position[0])
+        & finite(s.position[1])
+        & finite(s.position[2])
+        & finite(s.normal[0])
+        & finite(s.normal[1])
+        & finite(s.normal[2])
+}
+
+/// The SIMD body for target pixels `x .. x + LANES` of row `y`.
+#[inline(always)]
+fn reproject_lanes<L: SurfaceLayout>(p: &Prepared<'_, L>, x: usize, y: usize) -> Lanes {
+    let zero = F32s::ZERO;
+    let inf = F32s::splat(f32::INFINITY);
+    let t = p.target.surfels_row(x, y);
+    let background = t.depth.simd_eq(inf);
+    let usable_target = usable_simd(&t);
+    let invalid_target = !background & !usable_target;
+
+    let r = &p.camera.rows;
+    let clip = |i: usize| {
+        F32s::splat(r[i][0]) * t.position[0]
+            + F32s::splat(r[i][1]) * t.position[1]
+            + F32s::splat(r[i][2]) * t.position[2]
+            + F32s::splat(r[i][3])
+    };
+    let (cx, cy, cw) = (clip(0), clip(1), clip(3));
+    let in_front = cw.simd_gt(zero);
+    let (hw, hh) = p.camera.half_extent();
+    let (hw, hh) = (F32s::splat(hw), F32s::splat(hh));
+    let sx = (cx / cw) * hw + hw;
+    let sy = (-(cy / cw)) * hh + hh;
+    let mut fp = Footprints::new(sx, sy, p.source_extent);
+    // Lanes that already have a reason take no further part.
+    let active = usable_target & in_front & fp.inside;
+    fp.inside = active;
+    let weights = fp.weights();
+    let in_frame = fp.in_frame(p.source_extent);
+    let depth_tolerance = F32s::splat(p.depth_relative) * cw;
+    let position2 = F32s::splat(p.position2);
+    let normal_cos = F32s::splat(p.normal_cos);
+
+    let coherent = coherent_row(&fp, active, p.source_extent);
+    let mut sum = [zero; MAX_CHANNELS];
+    let mut total = zero;
+    let (mut any_accepted, mut any_failed) = (zero, zero);
+    let (mut fail_geometry, mut fail_normal, mut fail_invalid) = (zero, zero, zero);
+    for (tap, &(tx, ty)) in fp.taps().iter().enumerate() {
+        let participates = active & weights[tap].simd_gt(zero);
+        if participates.none() {
+            continue;
+        }
+        let tap_in_frame = participates & in_frame[tap];
+        any_failed |= participates & !in_frame[tap];
+        let (s, values) = match coherent {
+            Some((x0, y0)) => {
+                let (sx0, sy0) = (x0 + (tap & 1), y0 + (tap >> 1));
+                let mut values = [zero; MAX_CHANNELS];
+                for c in 0..p.channel_count {
+                    values[c] = load(p.channels[c].row(sy0), sx0);
+                }
+                (p.source.surfels_row(sx0, sy0), values)
+            }
+            None => {
+                let coords = TapCoords::clamped(tx, ty, p.source_extent.width(), p.source_extent.height());
+                let mut values = [zero; MAX_CHANNELS];
+                for c in 0..p.channel_count {
+                    values[c] = coords.gather_f32(&p.channels[c]);
+                }
+                (p.source.surfels_gather(&coords), values)
+            }
+        };
+        let tap_background = s.depth.simd_eq(inf);
+        let mut finite_values = usable_simd(&s);
+        for value in values.iter().take(p.channel_count) {
+            finite_values &= value.is_finite();
+        }
+        let d = [0, 1, 2].map(|i| s.position[i] - t.position[i]);
+        let distance2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        let cos = s.normal[0] * t.normal[0] + s.normal[1] * t.normal[1] + s.normal[2] * t.normal[2];
+        let geometry_ok = distance2.simd_le(position2) & (s.depth - cw).abs().simd_le(depth_tolerance);
+        let normal_ok = cos.simd_ge(normal_cos);
+
+        let is_invalid = !tap_background & !finite_values;
+        let usable_tap = !tap_background & finite_values;
+        let geometry_fail = tap_background | (usable_tap & !geometry_ok);
+        let normal_fail = usable_tap & geometry_ok & !normal_ok;
+        let accepted = tap_in_frame & usable_tap & geometry_ok & normal_ok;
+
+        fail_geometry |= tap_in_frame & geometry_fail;
+        fail_normal |= tap_in_frame & normal_fail;
+        fail_invalid |= tap_in_frame & is_invalid;
+        any_failed |= tap_in_frame & !accepted;
+        any_accepted |= accepted;
+        for c in 0..MAX_CHANNELS {
+            sum[c] += accepted.select(weights[tap] * values[c], zero);
+        }
+        total += accepted.select(weights[tap], zero);
+    }
+    let ok = if p.strict { any_accepted & !any_failed } else { any_accepted };
+    let code = |r: Reason| F32s::splat(r as u8 as f32);
+    let discard_reason = fail_geometry.select(
+        code(Reason::DepthOrPosition),
+        fail_normal.select(code(Reason::Normal), fail_invalid.select(code(Reason::Invalid), code(Reason::OutOfFrame))),
+    );
+    let reason = background.select(
+        code(Reason::Background),
+        invalid_target.select(code(Reason::Invalid), ok.select(code(Reason::Reprojected), discard_reason)),
+    );
+    Lanes {
+        channels: sum.map(|s| ok.select(renormalise_simd(s, total), zero)),
+        weight: ok.select(total.min(F32s::ONE), zero),
+        reason,
+        ok_bits: ok.to_bitmask(),
+    }
+}
+
+/// If every active lane's footprint starts on the same source row at consecutive columns
+/// and all lanes are active, with all four taps of all lanes inside the frame, returns the
+/// first lane's `(x0, y0)`: the taps can then be loaded as contiguous rows.
+#[inline(always)]
+fn coherent_row(fp: &Footprints, active: F32s, extent: Extent) -> Option<(usize, usize)> {
+    if !active.all() {
+        return None;
+    }
+    let x_base = fp.x0 - lane_offsets();
+    let x0 = x_base.to_array()[0];
+    let y0 = fp.y0.to_array()[0];
+    let same = x_base.simd_eq(F32s::splat(x0)) & fp.y0.simd_eq(F32s::splat(y0));
+    let fits = x0 >= 0.0 && y0 >= 0.0 && (x0 as usize) + LANES < extent.width() && (y0 as usize) + 1 < extent.height();
+    (same.all() && fits).then(|| (x0 as usize, y0 as usize))
+}

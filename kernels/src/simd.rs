@@ -1,0 +1,158 @@
+//! Lane types and the few helpers every kernel uses.
+//!
+//! # Determinism policy
+//! Kernels compute `a * b + c` as two rounded operations through [`mad`]; nothing in a
+//! kernel is fused or approximated (no `mul_add`, no `recip`, no `recip_sqrt`). Rust never
+//! contracts `a * b + c` on its own, so a scalar reference written in the same operation order
+//! gives bit-identical results, which is what the agreement tests check. `wide`'s `mul_add`
+//! fuses on some targets and not others, and its `recip` is an approximation on x86.
+//!
+//! # Width
+//! [`F32s`] is `wide::f32x8`: one AVX register at the x86-64-v3 baseline, two SSE halves at
+//! the SSE2 baseline. The kernels are written for [`LANES`] lanes and never assume more.
+
+pub use wide::{f32x8, i32x8, u32x8};
+
+use crate::frame::Plane;
+
+/// The float lane type every kernel uses.
+pub type F32s = f32x8;
+/// The matching integer lane type.
+pub type I32s = i32x8;
+
+/// Lanes per vector.
+pub const LANES: usize = 8;
+
+/// Lane indices `0, 1, …, 7` as floats.
+#[inline(always)]
+pub fn lane_offsets() -> F32s {
+    F32s::from([0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0])
+}
+
+/// `a * b + c`, rounded twice (see the determinism policy).
+#[inline(always)]
+pub fn mad(a: F32s, b: F32s, c: F32s) -> F32s {
+    a * b + c
+}
+
+/// Scalar twin of [`mad`].
+#[inline(always)]
+pub fn mad1(a: f32, b: f32, c: f32) -> f32 {
+    a * b + c
+}
+
+/// Clamps to ±`f32::MAX` (infinities become the largest finite value); NaN stays NaN.
+#[inline(always)]
+pub fn clamp_finite1(v: f32) -> f32 {
+    if v < -f32::MAX {
+        -f32::MAX
+    } else if v > f32::MAX {
+        f32::MAX
+    } else {
+        v
+    }
+}
+
+/// SIMD twin of [`clamp_finite1`] (compare-and-select, so NaN passes through exactly as in
+/// the scalar version; `wide`'s `min`/`max` would replace it).
+#[inline(always)]
+pub fn clamp_finite(v: F32s) -> F32s {
+    let max = F32s::splat(f32::MAX);
+    let v = v.simd_gt(max).select(max, v);
+    v.simd_lt(-max).select(-max, v)
+}
+
+/// Loads `LANES` consecutive elements starting at `i`. Panics if fewer remain.
+#[inline(always)]
+pub fn load(slice: &[f32], i: usize) -> F32s {
+    let chunk: [f32; LANES] = slice[i..i + LANES].try_into().expect("LANES elements");
+    F32s::from(chunk)
+}
+
+/// Stores `v` into `LANES` consecutive elements starting at `i`. Panics if fewer remain.
+#[inline(always)]
+pub fn store(slice: &mut [f32], i: usize, v: F32s) {
+    slice[i..i + LANES].copy_from_slice(&v.to_array());
+}
+
+/// Pixel coordinates of `LANES` taps, clamped into a plane's extent so that loading them
+/// cannot go out of bounds. Build once per tap, use for every plane of the same extent.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TapCoords {
+    pub x: [u32; LANES],
+    pub y: [u32; LANES],
+}
+
+impl TapCoords {
+    /// Clamps float pixel coordinates (exact integers, or anything: NaN becomes 0) into
+    /// `[0, width − 1] × [0, height − 1]`.
+    #[inline(always)]
+    pub fn clamped(x: F32s, y: F32s, width: usize, height: usize) -> Self {
+        let xmax = F32s::splat((width - 1) as f32);
+        let ymax = F32s::splat((height - 1) as f32);
+        // max(NaN, 0) picks 0 in wide's `max` (it checks the right-hand side for NaN).
+        let xc = x.max(F32s::ZERO).min(xmax).to_array();
+        let yc = y.max(F32s::ZERO).min(ymax).to_array();
+        Self { x: xc.map(|v| v as u32), y: yc.map(|v| v as u32) }
+    }
+
+    /// Loads the taps from `plane` (elements may be any `Copy` type).
+    #[inline(always)]
+    pub fn gather<T: Copy + Default>(&self, plane: &Plane<'_, T>) -> [T; LANES] {
+        let (w, h) = (plane.width() as u32, plane.height() as u32);
+        let mut out = [T::default(); LANES];
+        for i in 0..LANES {
+            // `min` keeps the load in bounds even for a plane of a smaller extent than the
+            // coordinates were clamped for; for matching extents it changes nothing.
+            let (x, y) = (self.x[i].min(w - 1), self.y[i].min(h - 1));
+            // SAFETY: x < width and y < height by the line above.
+            out[i] = unsafe { plane.get_unchecked(x as usize, y as usize) };
+        }
+        out
+    }
+
+    /// Loads float taps as a vector.
+    #[inline(always)]
+    pub fn gather_f32(&self, plane: &Plane<'_, f32>) -> F32s {
+        F32s::from(self.gather(plane))
+    }
+}
+
+/// Lane mask from per-lane booleans (all ones where true), for building masks in tests and
+/// in the few places a kernel decides per lane in scalar code.
+#[inline(always)]
+pub fn mask_from_bools(b: [bool; LANES]) -> F32s {
+    F32s::from(b.map(|t| if t { f32::from_bits(u32::MAX) } else { 0.0 }))
+}
+
+/// One bit per lane (bit `i` = lane `i`), for a mask produced by a comparison.
+#[inline(always)]
+pub fn bits(mask: F32s) -> u32 {
+    mask.to_bitmask()
+}
+
+/// True if the kernels were compiled for 8-wide AVX registers (x86-64-v3 or higher).
+pub const fn compiled_with_avx2() -> bool {
+    cfg!(all(target_arch = "x86_64", target_feature = "avx2", target_feature = "fma"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mad_is_not_fused() {
+        // With a fused multiply-add, 0.1 * 10 - 1 is the rounding error of 0.1 (≈1.49e-8);
+        // rounded twice it is exactly 0. The scalar twin must agree lane for lane.
+        let a = F32s::splat(0.1);
+        let r = mad(a, F32s::splat(10.0), F32s::splat(-1.0));
+        assert_eq!(r.to_array(), [mad1(0.1, 10.0, -1.0); LANES]);
+        assert_eq!(mad1(0.1, 10.0, -1.0), 0.0);
+    }
+
+    #[test]
+    fn masks_round_trip() {
+        let m = mask_from_bools([true, false, true, true, false, false, false, true]);
+        assert_eq!(bits(m), 0b1000_1101);
+    }
+}
