@@ -20,6 +20,7 @@ pub mod frame;
 pub mod gbuffer;
 pub mod reproject;
 pub mod simd;
+pub mod ssim;
 
 pub use camera::CameraModel;
 pub use frame::{Extent, FrameError, Plane, PlaneBuf, PlaneMut, RgbBuf, RgbPlanes, RgbPlanesMut};

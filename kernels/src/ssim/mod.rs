@@ -1,0 +1,339 @@
+//! SSIM and RMSE between two linear RGB images, in one fused pass.
+//!
+//! # Definition
+//! The paper's "SSIM over the RGB image as a 3D volume" is MATLAB's `ssim` on an H×W×3
+//! array, [`SsimVariant::Volume`]:
+//!
+//! * an 11-tap Gaussian window, σ = 1.5, along x, y **and** the channel axis
+//!   ([`gaussian_weights`]: `exp(−k²/2σ²)` for `k = −5‥5`, normalised to sum 1);
+//! * replicate padding on every axis (`imfilter(…, 'replicate')` / `imgaussfilt3`);
+//! * `μ`, `σ² = E[x²] − μ²`, `σxy = E[xy] − μxμy` from that filter, `C1 = (0.01·L)²`,
+//!   `C2 = (0.03·L)²`, `L = 1`, and the map
+//!   `((2μxμy + C1)(2σxy + C2)) / ((μx² + μy² + C1)(σx² + σy² + C2))`;
+//! * the result is the mean of the map over all H·W·3 voxels.
+//!
+//! Along the channel axis (length 3) the replicate-padded 11-tap window collapses to a fixed
+//! 3×3 matrix ([`channel_mixing_matrix`]): voxel `(p, c)` sees channel `c'` with weight
+//! `M[c][c'] = Σ { w_k : clamp(c + k, 0, 2) = c' }`. So the 3-D statistics are the per-channel
+//! 2-D windowed statistics mixed by `M`. Every `M` entry is positive: every 3-D window spans
+//! all three channels. The rows of `M` sum to 1, so on a grey image (all channels equal)
+//! the 3-D statistics equal the 2-D ones and the two variants give the same value; the
+//! kernels mix in the form `q_c + Σ_{c'≠c} M[c][c']·(q_c' − q_c)`, which keeps that equality
+//! exact in floating point too.
+//!
+//! [`SsimVariant::PerChannel`] is MATLAB's `ssim` on each channel separately (11×11 window),
+//! averaged over the channels. It is an explicit option, never a fallback: on colour images
+//! the two give very different numbers.
+//!
+//! RMSE is `sqrt(mean((x − y)²))` over all H·W·3 values.
+//!
+//! # Numerics
+//! Inputs are linear HDR radiance; fireflies reach 10³–10⁶. `E[x²] − μ²` in f32 loses every
+//! digit of a small variance under a large mean (at μ = 1000 one ulp of `E[x²]` is 0.06,
+//! against `C2 = 9·10⁻⁴`). The fast kernel keeps it well conditioned in four ways:
+//!
+//! 1. **Difference form.** With `d = x − y`, the map is
+//!    `(1 − μd²/(μx² + μy² + C1)) · (1 − σd²/(σx² + σy² + C2))`
+//!    (since `2μxμy = μx² + μy² − μd²` and `2σxy = σx² + σy² − σd²`). The deficits from 1
+//!    come from `d` directly, so nearly equal images (the case SSIM is used for) are
+//!    computed from small numbers, identical images give exactly 1, and swapping the
+//!    arguments gives bit-identical results.
+//! 2. **Local shift.** Variance is shift invariant: each tile (32 rows × 64 columns) and
+//!    channel subtracts a robust local level (median of 9 samples, so fireflies do not move
+//!    it) from `x` and `y`, and another from `d`, before squaring.
+//! 3. **Exact channel mixing.** The 3-D variances are mixed with the law of total variance,
+//!    `σ²₃ = Σ M·σ²_c' + Σ M·(μ_c' − μ₃)²`, so each channel may use its own shift.
+//! 4. **Conditioning check and refinement.** Every voxel's rounding error is estimated from
+//!    the magnitudes that were cancelled (`ε·(E[d'²] + deficit·E[x'² + y'²]) / (σx² + σy² + C2)`).
+//!    A voxel above [`REFINE_THRESHOLD`] is recomputed with its tile re-shifted to its own local
+//!    mean (up to two more passes), and if still above, by the exact f64 window formula.
+//!    [`SsimResult::refined`] counts them; on ordinary content it is zero or a small share.
+//!
+//! Variances are clamped at 0 and `σd²` at `2(σx² + σy²)` (its bound), so every voxel lies
+//! in [−1, 1]. Means are accumulated in f64, in a fixed order (bands, then tiles, then
+//! rows), so the result does not depend on the thread count.
+//!
+//! # Excluded samples
+//! A sample is *unusable* if it is NaN, ±∞, or larger than [`MAX_SAMPLE`] in magnitude (its
+//! square would overflow the f32 statistics). [`SsimResult::non_finite`] counts the
+//! unusable samples of both images (each of the H·W·3 positions counts once per image).
+//! * SSIM: a voxel whose window contains an unusable sample of either image is excluded from
+//!   the mean; [`SsimResult::voxels`] counts the voxels that were used. The window of a 3-D
+//!   voxel is its 11×11 neighbourhood in *all three* channels, the window of a per-channel
+//!   voxel only its own channel's.
+//! * RMSE: a position where either image's sample is unusable is excluded;
+//!   [`SsimResult::rmse_samples`] counts the positions that were used.
+//!
+//! With nothing usable, `ssim` (or `rmse`) is NaN and its count is 0.
+//!
+//! # Kernels
+//! [`ssim`] is the fused f32x8 kernel: per row band (on the caller's rayon pool) and
+//! 64-column tile, a horizontal pass per input row into a ring of 11 filtered rows (about
+//! 34 KB), then the vertical pass, the channel mixing, the map and the accumulation; the
+//! intermediates never leave L1/L2. [`ssim_scalar`] is the reference: f64, whole-image
+//! planes, centred (two-level) variances, exclusion by an explicit dilated mask. The two
+//! agree to about 1e-7 (the tests assert `|Δssim| ≤ 1e-6`, `|Δrmse| ≤ 1e-6·rmse`); they
+//! are not bitwise equal, since the summation orders and precisions differ by design.
+
+mod scalar;
+mod simd;
+
+use crate::frame::{FrameError, RgbPlanes, same_extent};
+
+pub use scalar::exact_voxel;
+
+/// Window radius: 11 taps.
+pub const RADIUS: usize = 5;
+/// Window length along each axis.
+pub const TAPS: usize = 2 * RADIUS + 1;
+/// Gaussian standard deviation (pixels, and channels for the 3-D window).
+pub const SIGMA: f64 = 1.5;
+/// Dynamic range `L` (linear radiance, MATLAB's value for floating point images).
+pub const DYNAMIC_RANGE: f64 = 1.0;
+/// `C1 = (0.01·L)²`.
+pub const C1: f64 = (0.01 * DYNAMIC_RANGE) * (0.01 * DYNAMIC_RANGE);
+/// `C2 = (0.03·L)²`.
+pub const C2: f64 = (0.03 * DYNAMIC_RANGE) * (0.03 * DYNAMIC_RANGE);
+/// Samples larger than this in magnitude are treated as non-finite (see the module docs).
+/// 10⁹ keeps every f32 statistic of the fast kernel finite (the largest intermediate,
+/// `(μx²+μy²+C1)·(σx²+σy²+C2)`, stays below 10³⁸) with three decades above the brightest
+/// fireflies.
+pub const MAX_SAMPLE: f32 = 1.0e9;
+/// Estimated per-voxel rounding error above which the fast kernel refines a voxel.
+pub const REFINE_THRESHOLD: f64 = 1.0e-5;
+/// `|Δssim|` that the `check-scalar` feature tolerates between [`ssim`] and [`ssim_scalar`]
+/// (looser than the tests' 1e-6 because fuzz inputs are adversarial).
+pub const CHECK_TOLERANCE: f64 = 1.0e-5;
+
+/// Which SSIM.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum SsimVariant {
+    /// The paper's: MATLAB `ssim` on the H×W×3 array (Gaussian window along x, y and the
+    /// channel axis).
+    #[default]
+    Volume,
+    /// MATLAB `ssim` on each channel separately (11×11 window), averaged over the channels.
+    PerChannel,
+}
+
+/// Parameters of [`ssim`] / [`ssim_scalar`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SsimParams {
+    pub variant: SsimVariant,
+    /// Rows per parallel band (rounded up so that a frame has at most 256 bands). Each band
+    /// recomputes 10 halo rows of the horizontal pass, so small bands cost time.
+    pub band_rows: usize,
+}
+
+impl Default for SsimParams {
+    /// The paper's 3-D variant, 32-row bands.
+    fn default() -> Self {
+        Self { variant: SsimVariant::Volume, band_rows: 32 }
+    }
+}
+
+impl SsimParams {
+    /// Default parameters for `variant`.
+    pub fn with_variant(variant: SsimVariant) -> Self {
+        Self { variant, ..Self::default() }
+    }
+}
+
+/// What [`ssim`] measured.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SsimResult {
+    /// Mean SSIM over the used voxels (per-channel variant: the mean of the per-channel
+    /// means). NaN if no voxel was usable.
+    pub ssim: f64,
+    /// Mean SSIM over the used voxels of each channel (for the 3-D variant, each channel's
+    /// slice of the 3-D map). NaN for a channel without usable voxels.
+    pub per_channel: [f64; 3],
+    /// RMSE over the positions where both samples are usable. NaN if there are none.
+    pub rmse: f64,
+    /// Voxels whose SSIM entered the mean (at most H·W·3).
+    pub voxels: u64,
+    /// Positions that entered the RMSE (at most H·W·3).
+    pub rmse_samples: u64,
+    /// Unusable input samples (NaN, ±∞, |v| > [`MAX_SAMPLE`]), both images together.
+    pub non_finite: u64,
+    /// Voxels whose first-pass value was ill-conditioned and was recomputed (counted in
+    /// `voxels` as well). Always 0 for [`ssim_scalar`].
+    pub refined: u64,
+}
+
+impl SsimResult {
+    /// H·W·3 minus the used voxels.
+    pub fn excluded_voxels(&self, extent: crate::frame::Extent) -> u64 {
+        3 * extent.pixels() as u64 - self.voxels
+    }
+}
+
+/// The 11 Gaussian window weights (σ = 1.5), normalised to sum 1, for offsets −5‥5.
+pub fn gaussian_weights() -> [f64; TAPS] {
+    let mut w = [0.0f64; TAPS];
+    for (i, w) in w.iter_mut().enumerate() {
+        let k = i as f64 - RADIUS as f64;
+        *w = (-(k * k) / (2.0 * SIGMA * SIGMA)).exp();
+    }
+    let sum: f64 = w.iter().sum();
+    w.map(|v| v / sum)
+}
+
+/// The channel-axis window of the 3-D variant: `M[c][c']` is the weight with which the
+/// replicate-padded 11-tap Gaussian centred on channel `c` reads channel `c'`.
+pub fn channel_mixing_matrix() -> [[f64; 3]; 3] {
+    let w = gaussian_weights();
+    let mut m = [[0.0f64; 3]; 3];
+    for (c, row) in m.iter_mut().enumerate() {
+        // Smallest weights first (|k| = 5, 4, …, 0): more accurate, and the matrix comes out
+        // exactly mirror-symmetric (`M[c][c'] = M[2−c][2−c']`).
+        for k in (0..=RADIUS as isize).rev() {
+            let pair = [-k, k];
+            for &k in if k == 0 { &pair[..1] } else { &pair[..] } {
+                let src = (c as isize + k).clamp(0, 2) as usize;
+                row[src] += w[(k + RADIUS as isize) as usize];
+            }
+        }
+    }
+    m
+}
+
+/// True if `v` is a usable sample (finite and within ±[`MAX_SAMPLE`]).
+#[inline(always)]
+pub fn usable(v: f32) -> bool {
+    v.abs() <= MAX_SAMPLE
+}
+
+/// Sums of one part of the image, merged in a fixed order.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct Partial {
+    sum: [f64; 3],
+    count: [u64; 3],
+    sq: f64,
+    sq_n: u64,
+    non_finite: u64,
+    refined: u64,
+}
+
+impl Partial {
+    fn merged(mut self, o: &Self) -> Self {
+        for c in 0..3 {
+            self.sum[c] += o.sum[c];
+            self.count[c] += o.count[c];
+        }
+        self.sq += o.sq;
+        self.sq_n += o.sq_n;
+        self.non_finite += o.non_finite;
+        self.refined += o.refined;
+        self
+    }
+
+    fn finish(&self, variant: SsimVariant) -> SsimResult {
+        let per_channel = [0, 1, 2].map(|c| self.sum[c] / self.count[c] as f64);
+        let voxels: u64 = self.count.iter().sum();
+        let total: f64 = self.sum.iter().sum();
+        let equal_counts = self.count[0] == self.count[1] && self.count[1] == self.count[2];
+        let ssim = match variant {
+            SsimVariant::Volume => total / voxels as f64,
+            // The mean of the channel means. With equal counts that is the overall mean;
+            // computing it the same way as the 3-D variant makes grey images give the same
+            // bits under both variants.
+            SsimVariant::PerChannel if equal_counts => total / voxels as f64,
+            SsimVariant::PerChannel => {
+                let used = per_channel.iter().filter(|v| !v.is_nan());
+                used.clone().sum::<f64>() / used.count() as f64
+            }
+        };
+        SsimResult {
+            ssim,
+            per_channel,
+            rmse: (self.sq / self.sq_n as f64).sqrt(),
+            voxels,
+            rmse_samples: self.sq_n,
+            non_finite: self.non_finite,
+            refined: self.refined,
+        }
+    }
+}
+
+fn check(a: &RgbPlanes<'_>, b: &RgbPlanes<'_>) -> Result<(), FrameError> {
+    same_extent("second image", a.extent(), b.extent())
+}
+
+/// SSIM ([`SsimParams::variant`]) and RMSE of `a` against `b`: the fused SIMD kernel, run in
+/// row bands on the current rayon pool. Symmetric in its arguments (bit for bit). See the
+/// module docs for the definition, the numerics and what is excluded.
+pub fn ssim(a: &RgbPlanes<'_>, b: &RgbPlanes<'_>, params: &SsimParams) -> Result<SsimResult, FrameError> {
+    check(a, b)?;
+    let result = simd::run(a, b, params);
+    #[cfg(feature = "check-scalar")]
+    {
+        let reference = ssim_scalar(a, b, params).expect("validated input");
+        assert_agrees(&result, &reference, CHECK_TOLERANCE);
+    }
+    Ok(result)
+}
+
+/// The scalar reference of [`ssim`]: f64 throughout, whole-image planes (allocates about
+/// 120 bytes per pixel), centred variances. Same definition and exclusions.
+pub fn ssim_scalar(a: &RgbPlanes<'_>, b: &RgbPlanes<'_>, params: &SsimParams) -> Result<SsimResult, FrameError> {
+    check(a, b)?;
+    Ok(scalar::run(a, b, params.variant).finish(params.variant))
+}
+
+/// Panics unless the counts agree exactly, `|Δssim| ≤ tol` (and per channel) and the RMSEs
+/// agree to `tol` relative. NaNs (nothing usable) must match.
+pub fn assert_agrees(fast: &SsimResult, reference: &SsimResult, tol: f64) {
+    let close = |a: f64, b: f64, t: f64| (a.is_nan() && b.is_nan()) || (a - b).abs() <= t;
+    assert_eq!(
+        (fast.voxels, fast.rmse_samples, fast.non_finite),
+        (reference.voxels, reference.rmse_samples, reference.non_finite),
+        "SSIM counts differ: fast {fast:?}, reference {reference:?}"
+    );
+    assert!(close(fast.ssim, reference.ssim, tol), "SSIM differs: fast {fast:?}, reference {reference:?}");
+    for c in 0..3 {
+        assert!(
+            close(fast.per_channel[c], reference.per_channel[c], tol),
+            "SSIM channel {c} differs: fast {fast:?}, reference {reference:?}"
+        );
+    }
+    assert!(
+        close(fast.rmse, reference.rmse, tol * reference.rmse.abs().max(f64::MIN_POSITIVE)),
+        "RMSE differs: fast {fast:?}, reference {reference:?}"
+    );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn weights_are_a_normalised_symmetric_gaussian() {
+        let w = gaussian_weights();
+        assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-15);
+        for k in 0..TAPS {
+            assert_eq!(w[k], w[TAPS - 1 - k]);
+        }
+        // exp(−1/4.5) between neighbours of the centre.
+        assert!((w[RADIUS + 1] / w[RADIUS] - (-1.0f64 / 4.5).exp()).abs() < 1e-15);
+    }
+
+    #[test]
+    fn mixing_matrix_is_stochastic_positive_and_mirror_symmetric() {
+        let m = channel_mixing_matrix();
+        let w = gaussian_weights();
+        for c in 0..3 {
+            assert!((m[c].iter().sum::<f64>() - 1.0).abs() < 1e-15);
+            for c2 in 0..3 {
+                assert!(m[c][c2] > 0.0);
+                assert_eq!(m[c][c2], m[2 - c][2 - c2]);
+            }
+        }
+        // Centre channel: the taps at offsets 0, and ±1..±5 pile up on the two edges.
+        assert_eq!(m[1][1], w[RADIUS]);
+        assert!((m[1][0] - w[..RADIUS].iter().sum::<f64>()).abs() < 1e-16);
+        // Edge channel: offsets −5..0 all land on channel 0.
+        assert!((m[0][0] - w[..=RADIUS].iter().sum::<f64>()).abs() < 1e-16);
+        assert_eq!(m[0][1], w[RADIUS + 1]);
+    }
+}
