@@ -23,7 +23,7 @@
 //!   nor counted as failing, and its value is never multiplied (so an infinite value under a
 //!   zero weight cannot turn into NaN).
 //!
-//! Renormalisation: `value = Σ_accepted wᵢ·vᵢ / Σ_accepted wᵢ`. The sum runs over the taps in
+//! Renormalisation: `value = Σ_accepted wᵢ·vᵢ · (1 / Σ_accepted wᵢ)`. The sum runs over the taps in
 //! the order 0‥3 in both the scalar reference and the SIMD body, so they agree bit for bit.
 //! Results are clamped to ±`f32::MAX`: finite inputs never give an infinite output.
 //!
@@ -171,16 +171,19 @@ fn snap_simd(u: F32s) -> (F32s, F32s) {
     (base, f)
 }
 
-/// Renormalises an accumulated value: `sum / total`, clamped to the finite range.
+/// Renormalises an accumulated value: `sum · (1 / total)`, clamped to the finite range.
+/// Callers compute `inv_total = 1 / total` once per pixel and scale every channel by it
+/// (one division instead of one per channel; the result is within an ulp of `sum / total`
+/// and exact when `total` is a power of two, e.g. 1).
 #[inline(always)]
-pub fn renormalise(sum: f32, total: f32) -> f32 {
-    clamp_finite1(sum / total)
+pub fn renormalise(sum: f32, inv_total: f32) -> f32 {
+    clamp_finite1(sum * inv_total)
 }
 
 /// SIMD twin of [`renormalise`].
 #[inline(always)]
-pub fn renormalise_simd(sum: F32s, total: F32s) -> F32s {
-    clamp_finite(sum / total)
+pub fn renormalise_simd(sum: F32s, inv_total: F32s) -> F32s {
+    clamp_finite(sum * inv_total)
 }
 
 /// Inputs of the whole-image resampling kernel.
@@ -311,10 +314,10 @@ pub fn resample_pixel(input: &ResampleInput<'_>, x: usize, y: usize) -> ([f32; 3
             continue;
         }
         let (tx, ty) = (tx as usize, ty as usize);
-        if let Some(valid) = &input.source_valid {
-            if valid.get(tx, ty) == 0 {
-                continue;
-            }
+        if let Some(valid) = &input.source_valid
+            && valid.get(tx, ty) == 0
+        {
+            continue;
         }
         let rgb = input.source.get(tx, ty);
         for c in 0..3 {
@@ -322,7 +325,12 @@ pub fn resample_pixel(input: &ResampleInput<'_>, x: usize, y: usize) -> ([f32; 3
         }
         total += weights[t];
     }
-    if total > 0.0 { (sum.map(|s| renormalise(s, total)), total.min(1.0)) } else { ([0.0; 3], 0.0) }
+    if total > 0.0 {
+        let inv_total = 1.0 / total;
+        (sum.map(|s| renormalise(s, inv_total)), total.min(1.0))
+    } else {
+        ([0.0; 3], 0.0)
+    }
 }
 
 /// The SIMD body for `LANES` output pixels starting at `(x, y)`.
@@ -352,7 +360,8 @@ fn resample_lanes(input: &ResampleInput<'_>, x: usize, y: usize) -> ([F32s; 3], 
         total += accept.select(weights[t], F32s::ZERO);
     }
     let any = total.simd_gt(F32s::ZERO);
-    let colour = sum.map(|s| any.select(renormalise_simd(s, total), F32s::ZERO));
+    let inv_total = F32s::ONE / total;
+    let colour = sum.map(|s| any.select(renormalise_simd(s, inv_total), F32s::ZERO));
     (colour, any.select(total.min(F32s::ONE), F32s::ZERO))
 }
 

@@ -103,7 +103,8 @@ impl CameraModel {
             return None;
         }
         let (hw, hh) = self.half_extent();
-        let s = [(cx / cw) * hw + hw, (-(cy / cw)) * hh + hh];
+        let inv_w = 1.0 / cw;
+        let s = [(cx * inv_w) * hw + hw, (-(cy * inv_w)) * hh + hh];
         (s[0].is_finite() && s[1].is_finite()).then_some((s, cw))
     }
 

@@ -190,6 +190,28 @@ impl<'a, T: Copy> Plane<'a, T> {
         self.data[y * self.stride + x]
     }
 
+    /// Pixels `x .. x + N` of row `y` as an array: one bounds check for all `N` (the
+    /// kernels' vector loads). Panics unless `x + N <= width` and `y < height`.
+    #[inline(always)]
+    pub fn lanes<const N: usize>(&self, x: usize, y: usize) -> [T; N] {
+        // A plain message: formatting x and y would spill them before every load.
+        assert!(x + N <= self.extent.width && y < self.extent.height, "vector load outside the plane");
+        // SAFETY: the row holds `width` elements from `y · stride` (construction checked the
+        // buffer length), and `x + N <= width` was just checked.
+        unsafe { core::ptr::read_unaligned(self.data.as_ptr().add(y * self.stride + x).cast::<[T; N]>()) }
+    }
+
+    /// [`Plane::lanes`] without the bounds check.
+    ///
+    /// # Safety
+    /// `x + N <= width` and `y < height`.
+    #[inline(always)]
+    pub unsafe fn lanes_unchecked<const N: usize>(&self, x: usize, y: usize) -> [T; N] {
+        debug_assert!(x + N <= self.extent.width && y < self.extent.height);
+        // SAFETY: the caller keeps the lanes inside the row (see `lanes`).
+        unsafe { core::ptr::read_unaligned(self.data.as_ptr().add(y * self.stride + x).cast::<[T; N]>()) }
+    }
+
     /// The pixel at `(x, y)` without bounds checks in release builds.
     ///
     /// # Safety

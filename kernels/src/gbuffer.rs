@@ -10,7 +10,7 @@
 //!   signed-normalised components). 8 bytes per pixel. The world position is rebuilt from the
 //!   depth and the camera (`X = centre + depth · ray(pixel)`), which reproduces the hit point
 //!   to f32 rounding because G-buffer rays go through pixel centres; the octahedral normal is
-//!   within 0.004° of the stored one. Reprojection is memory bound, so this layout is the
+//!   within 0.01° of the stored one (tested). Reprojection is memory bound, so this layout is the
 //!   fast one (measured in BENCHMARKS.md).
 //!
 //! Each layout gives one pixel as a scalar [`Surfel`] (the reference path), eight consecutive
@@ -55,19 +55,30 @@ pub trait SurfaceLayout: Sync {
     /// The surface at pixel `(x, y)`. Panics outside the extent.
     fn surfel(&self, x: usize, y: usize) -> Surfel;
     /// Pixels `x .. x + LANES` of row `y`. Panics unless `x + LANES <= width`.
-    fn surfels_row(&self, x: usize, y: usize) -> Surfels;
+    #[inline(always)]
+    fn surfels_row(&self, x: usize, y: usize) -> Surfels {
+        assert!(x + LANES <= self.extent().width() && y < self.extent().height(), "vector load outside the G-buffer");
+        // SAFETY: checked on the line above.
+        unsafe { self.surfels_row_unchecked(x, y) }
+    }
+    /// [`SurfaceLayout::surfels_row`] without the bounds check.
+    ///
+    /// # Safety
+    /// `x + LANES <= width` and `y < height`.
+    unsafe fn surfels_row_unchecked(&self, x: usize, y: usize) -> Surfels;
     /// The pixels at `taps` (already clamped into the extent).
     fn surfels_gather(&self, taps: &TapCoords) -> Surfels;
     /// Bytes read per pixel (for roofline figures).
     fn bytes_per_pixel(&self) -> usize;
 }
 
-/// The full-precision G-buffer of one eye and frame: seven f32 planes.
+/// The full-precision G-buffer of one eye and frame: seven f32 planes of one extent (the
+/// fields are private so that only [`GBuffer::new`], which checks the extents, builds one).
 #[derive(Clone, Copy)]
 pub struct GBuffer<'a> {
-    pub depth: Plane<'a>,
-    pub position: [Plane<'a>; 3],
-    pub normal: [Plane<'a>; 3],
+    depth: Plane<'a>,
+    position: [Plane<'a>; 3],
+    normal: [Plane<'a>; 3],
 }
 
 impl<'a> GBuffer<'a> {
@@ -81,11 +92,26 @@ impl<'a> GBuffer<'a> {
         }
         Ok(Self { depth, position, normal })
     }
+
+    pub fn depth(&self) -> Plane<'a> {
+        self.depth
+    }
+
+    pub fn position(&self) -> [Plane<'a>; 3] {
+        self.position
+    }
+
+    pub fn normal(&self) -> [Plane<'a>; 3] {
+        self.normal
+    }
 }
 
+/// # Safety
+/// `x + LANES <= width` and `y < height` of `p`.
 #[inline(always)]
-fn load_row(p: &Plane<'_>, x: usize, y: usize) -> F32s {
-    crate::simd::load(p.row(y), x)
+unsafe fn load_row(p: &Plane<'_>, x: usize, y: usize) -> F32s {
+    // SAFETY: forwarded from the caller.
+    F32s::from(unsafe { p.lanes_unchecked::<LANES>(x, y) })
 }
 
 impl SurfaceLayout for GBuffer<'_> {
@@ -102,11 +128,15 @@ impl SurfaceLayout for GBuffer<'_> {
     }
 
     #[inline(always)]
-    fn surfels_row(&self, x: usize, y: usize) -> Surfels {
-        Surfels {
-            depth: load_row(&self.depth, x, y),
-            position: self.position.map(|p| load_row(&p, x, y)),
-            normal: self.normal.map(|p| load_row(&p, x, y)),
+    unsafe fn surfels_row_unchecked(&self, x: usize, y: usize) -> Surfels {
+        // SAFETY (all loads): every plane has the G-buffer's extent (checked by `new`) and
+        // the caller keeps the lanes inside it.
+        unsafe {
+            Surfels {
+                depth: load_row(&self.depth, x, y),
+                position: self.position.map(|p| load_row(&p, x, y)),
+                normal: self.normal.map(|p| load_row(&p, x, y)),
+            }
         }
     }
 
@@ -124,14 +154,15 @@ impl SurfaceLayout for GBuffer<'_> {
     }
 }
 
-/// Depth plus octahedral normals; positions rebuilt from depth through `camera`.
+/// Depth plus octahedral normals; positions rebuilt from depth through `camera`. Built only
+/// by [`CompactGBuffer::new`], which checks that the extents agree.
 #[derive(Clone, Copy)]
 pub struct CompactGBuffer<'a> {
-    pub depth: Plane<'a>,
+    depth: Plane<'a>,
     /// [`encode_normal`] of each pixel's shading normal.
-    pub normal: Plane<'a, u32>,
-    /// The camera that rendered this G-buffer (its extent must match).
-    pub camera: CameraModel,
+    normal: Plane<'a, u32>,
+    /// The camera that rendered this G-buffer.
+    camera: CameraModel,
 }
 
 impl<'a> CompactGBuffer<'a> {
@@ -140,6 +171,18 @@ impl<'a> CompactGBuffer<'a> {
         same_extent("normal plane", depth.extent(), normal.extent())?;
         same_extent("camera extent", depth.extent(), camera.extent)?;
         Ok(Self { depth, normal, camera })
+    }
+
+    pub fn depth(&self) -> Plane<'a> {
+        self.depth
+    }
+
+    pub fn normal(&self) -> Plane<'a, u32> {
+        self.normal
+    }
+
+    pub fn camera(&self) -> &CameraModel {
+        &self.camera
     }
 
     #[inline(always)]
@@ -163,18 +206,22 @@ impl SurfaceLayout for CompactGBuffer<'_> {
         Surfel {
             depth,
             position: self.camera.unproject_pixel(x, y, depth),
-            normal: decode_normal(self.normal.get(x, y)),
+            normal: decode_normal_raw(self.normal.get(x, y)),
         }
     }
 
     #[inline(always)]
-    fn surfels_row(&self, x: usize, y: usize) -> Surfels {
-        let depth = load_row(&self.depth, x, y);
-        let px = F32s::splat(x as f32) + lane_offsets() + F32s::splat(0.5);
-        let py = F32s::splat(y as f32 + 0.5);
-        let row = self.normal.row(y);
-        let packed: [u32; LANES] = row[x..x + LANES].try_into().expect("LANES normals");
-        Surfels { depth, position: self.positions(depth, px, py), normal: decode_normals(u32x8::from(packed)) }
+    unsafe fn surfels_row_unchecked(&self, x: usize, y: usize) -> Surfels {
+        // SAFETY: both planes have the G-buffer's extent (checked by `new`) and the caller
+        // keeps the lanes inside it.
+        let depth = unsafe { load_row(&self.depth, x, y) };
+        // Coordinates are below MAX_DIMENSION, so the i32 conversion (one instruction; usize
+        // to f32 is several) is exact.
+        let px = F32s::splat(x as i32 as f32) + lane_offsets() + F32s::splat(0.5);
+        let py = F32s::splat(y as i32 as f32 + 0.5);
+        // SAFETY: as above.
+        let packed = u32x8::from(unsafe { self.normal.lanes_unchecked::<LANES>(x, y) });
+        Surfels { depth, position: self.positions(depth, px, py), normal: decode_normals_raw(packed) }
     }
 
     #[inline(always)]
@@ -183,7 +230,7 @@ impl SurfaceLayout for CompactGBuffer<'_> {
         let px = F32s::from(taps.x.map(|v| v as f32)) + F32s::splat(0.5);
         let py = F32s::from(taps.y.map(|v| v as f32)) + F32s::splat(0.5);
         let packed = u32x8::from(taps.gather(&self.normal));
-        Surfels { depth, position: self.positions(depth, px, py), normal: decode_normals(packed) }
+        Surfels { depth, position: self.positions(depth, px, py), normal: decode_normals_raw(packed) }
     }
 
     fn bytes_per_pixel(&self) -> usize {
@@ -217,6 +264,15 @@ pub fn encode_normal(n: [f32; 3]) -> u32 {
 
 /// Scalar decoding of [`encode_normal`]: a unit vector, or NaN for [`NO_NORMAL`].
 pub fn decode_normal(packed: u32) -> [f32; 3] {
+    let [x, y, z] = decode_normal_raw(packed);
+    let len = (x * x + y * y + z * z).sqrt();
+    [x / len, y / len, z / len]
+}
+
+/// [`decode_normal`] without the final normalisation (length between 1/√3 and 1). The
+/// reprojection kernel compares angles without normalising (see `reproject`), which saves a
+/// square root and three divisions per tap.
+pub fn decode_normal_raw(packed: u32) -> [f32; 3] {
     let lo = packed as u16 as i16;
     let hi = (packed >> 16) as u16 as i16;
     if lo == i16::MIN || hi == i16::MIN {
@@ -228,13 +284,20 @@ pub fn decode_normal(packed: u32) -> [f32; 3] {
     let t = (-z).max(0.0);
     x += if x >= 0.0 { -t } else { t };
     y += if y >= 0.0 { -t } else { t };
-    let len = (x * x + y * y + z * z).sqrt();
-    [x / len, y / len, z / len]
+    [x, y, z]
 }
 
 /// SIMD decoding, lane for lane equal to [`decode_normal`].
 #[inline(always)]
 pub fn decode_normals(packed: u32x8) -> [F32s; 3] {
+    let [x, y, z] = decode_normals_raw(packed);
+    let len = (x * x + y * y + z * z).sqrt();
+    [x / len, y / len, z / len]
+}
+
+/// SIMD decoding, lane for lane equal to [`decode_normal_raw`].
+#[inline(always)]
+pub fn decode_normals_raw(packed: u32x8) -> [F32s; 3] {
     let bits: i32x8 = bytemuck::cast(packed);
     let lo: i32x8 = (bits << 16) >> 16; // arithmetic shift sign-extends the low half
     let hi: i32x8 = bits >> 16;
@@ -245,12 +308,12 @@ pub fn decode_normals(packed: u32x8) -> [F32s; 3] {
     let mut x = lo.round_float() * scale;
     let mut y = hi.round_float() * scale;
     let z = F32s::ONE - x.abs() - y.abs();
-    let t = (-z).max(F32s::ZERO);
+    // z is never NaN here, so the plain max (no NaN fix-up) equals f32::max.
+    let t = (-z).fast_max(F32s::ZERO);
     x += x.simd_ge(F32s::ZERO).select(-t, t);
     y += y.simd_ge(F32s::ZERO).select(-t, t);
-    let len = (x * x + y * y + z * z).sqrt();
     let nan = F32s::splat(f32::NAN);
-    [invalid.select(nan, x / len), invalid.select(nan, y / len), invalid.select(nan, z / len)]
+    [invalid.select(nan, x), invalid.select(nan, y), invalid.select(nan, z)]
 }
 
 #[cfg(test)]
@@ -271,7 +334,7 @@ mod tests {
             state ^= state << 5;
             state as f32 / u32::MAX as f32 * 2.0 - 1.0
         };
-        let mut worst: f32 = 1.0;
+        let mut worst: f64 = 0.0;
         for i in 0..20_000 {
             let n = match i {
                 0 => [0.0, 0.0, 1.0],
@@ -281,10 +344,13 @@ mod tests {
                 _ => unit([next(), next(), next()]),
             };
             let d = decode_normal(encode_normal(n));
-            let cos = n[0] * d[0] + n[1] * d[1] + n[2] * d[2];
-            worst = worst.min(cos);
+            let (n, d) = (n.map(f64::from), d.map(f64::from));
+            let cross = [n[1] * d[2] - n[2] * d[1], n[2] * d[0] - n[0] * d[2], n[0] * d[1] - n[1] * d[0]];
+            let sin = (cross[0] * cross[0] + cross[1] * cross[1] + cross[2] * cross[2]).sqrt();
+            worst = worst.max(sin.asin().to_degrees());
         }
-        assert!(worst >= (0.01f32).to_radians().cos(), "worst cos {worst}");
+        // 16-bit components step 2/65534 in octahedral space: a few thousandths of a degree.
+        assert!(worst < 0.01, "worst error {worst} degrees");
     }
 
     #[test]
@@ -296,12 +362,17 @@ mod tests {
             values.push(s);
         }
         for chunk in values.chunks_exact(LANES) {
-            let simd = decode_normals(u32x8::from(<[u32; LANES]>::try_from(chunk).unwrap()));
-            for (i, &v) in chunk.iter().enumerate() {
-                let scalar = decode_normal(v);
-                for c in 0..3 {
-                    let a = simd[c].to_array()[i];
-                    assert!(a.to_bits() == scalar[c].to_bits() || (a.is_nan() && scalar[c].is_nan()), "{v:#x}");
+            let lanes = u32x8::from(<[u32; LANES]>::try_from(chunk).unwrap());
+            for (simd, scalar) in [
+                (decode_normals(lanes), decode_normal as fn(u32) -> [f32; 3]),
+                (decode_normals_raw(lanes), decode_normal_raw),
+            ] {
+                for (i, &v) in chunk.iter().enumerate() {
+                    let scalar = scalar(v);
+                    for c in 0..3 {
+                        let a = simd[c].to_array()[i];
+                        assert!(a.to_bits() == scalar[c].to_bits() || (a.is_nan() && scalar[c].is_nan()), "{v:#x}");
+                    }
                 }
             }
         }

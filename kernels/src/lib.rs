@@ -17,10 +17,12 @@ pub mod bilinear;
 pub mod camera;
 pub mod check;
 pub mod frame;
+pub mod fuzzing;
 pub mod gbuffer;
 pub mod reproject;
 pub mod simd;
 pub mod ssim;
+pub mod synth;
 
 pub use camera::CameraModel;
 pub use frame::{Extent, FrameError, Plane, PlaneBuf, PlaneMut, RgbBuf, RgbPlanes, RgbPlanesMut};

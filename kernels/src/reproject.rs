@@ -12,7 +12,10 @@
 //!    present (`depth ≠ +inf`), else a depth/position failure (a disocclusion against the
 //!    background); source surface and sample finite, else invalid; world-position distance
 //!    `|X_tap − X| ≤ position` and relative depth `|d_tap − cw| ≤ depth_relative · cw`, else
-//!    a depth/position failure; normals `n_tap · n ≥ normal_cos`, else a normal failure.
+//!    a depth/position failure; normals within the angle `acos(normal_cos)`, else a normal
+//!    failure. The angle test does not need unit normals: with `d = n_tap · n` and
+//!    `q = |n_tap|²·|n|²` it checks `d ≥ 0 ∧ d² ≥ cos²·q` for `cos ≥ 0` and
+//!    `d ≥ 0 ∨ d² ≤ cos²·q` otherwise (no square root, no division).
 //! 4. [`TapPolicy::Renormalize`] (default) keeps the accepted taps and divides by their total
 //!    weight; [`TapPolicy::Strict`] rejects the pixel when any participating tap failed.
 //!    A pixel with no accepted tap is discarded: its channels are written as 0 and its
@@ -37,7 +40,7 @@ use crate::bilinear::{Footprint, Footprints, renormalise, renormalise_simd};
 use crate::camera::CameraModel;
 use crate::frame::{Extent, FrameError, Plane, PlaneMut, RgbPlanes, RgbPlanesMut, same_extent};
 use crate::gbuffer::{SurfaceLayout, Surfel, Surfels};
-use crate::simd::{F32s, LANES, TapCoords, lane_offsets, load, store};
+use crate::simd::{F32s, LANES, TapCoords, lane_offsets, store};
 
 /// Why a pixel was or was not reprojected. Stored as one byte per pixel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -232,9 +235,13 @@ struct Prepared<'a, L: SurfaceLayout> {
     channels: [Plane<'a>; MAX_CHANNELS],
     channel_count: usize,
     source_extent: Extent,
+    half_width: f32,
+    half_height: f32,
+    /// Squared position tolerance, clamped to f32::MAX (see `evaluate_taps`).
     position2: f32,
     depth_relative: f32,
-    normal_cos: f32,
+    normal_cos2: f32,
+    normal_cos_positive: bool,
     strict: bool,
 }
 
@@ -258,9 +265,12 @@ fn prepare<'a, L: SurfaceLayout>(
         channels: [c.r, c.g, c.b, input.extra.unwrap_or(c.r)],
         channel_count: if input.extra.is_some() { 4 } else { 3 },
         source_extent: source,
-        position2: tol.position * tol.position,
+        half_width: input.source_camera.half_extent().0,
+        half_height: input.source_camera.half_extent().1,
+        position2: (tol.position * tol.position).min(f32::MAX),
         depth_relative: tol.depth_relative,
-        normal_cos: tol.normal_cos,
+        normal_cos2: tol.normal_cos * tol.normal_cos,
+        normal_cos_positive: tol.normal_cos >= 0.0,
         strict: params.policy == TapPolicy::Strict,
     })
 }
@@ -356,40 +366,44 @@ pub fn reproject<L: SurfaceLayout>(
     let prepared = prepare(input, params)?;
     check_output(&prepared, &out)?;
     let counts = run(&prepared, out.reborrow(), params.band_rows, |p, y, mut row| {
-        let mut counts = ReasonCounts::default();
-        let width = row.reason.len();
-        let mut x = 0;
-        while x + LANES <= width {
-            let lanes = reproject_lanes(p, x, y);
-            for c in 0..row.count {
-                store(row.channels[c], x, lanes.channels[c]);
-            }
-            if let Some(w) = row.weight.as_deref_mut() {
-                store(w, x, lanes.weight);
-            }
-            let codes = lanes.reason.to_array();
-            for (dst, code) in row.reason[x..x + LANES].iter_mut().zip(codes) {
-                *dst = code as u8;
-            }
-            let reprojected = lanes.ok_bits.count_ones();
-            counts.0[Reason::Reprojected as usize] += u64::from(reprojected);
-            if reprojected != LANES as u32 {
-                for (i, code) in codes.iter().enumerate() {
-                    if lanes.ok_bits & (1 << i) == 0 {
-                        counts.0[*code as usize] += 1;
-                    }
-                }
-            }
-            x += LANES;
-        }
-        for x in x..width {
-            write_pixel(p, x, y, &mut row, &mut counts);
-        }
-        counts
+        if p.channel_count == 4 { simd_row::<L, 4>(p, y, &mut row) } else { simd_row::<L, 3>(p, y, &mut row) }
     });
     #[cfg(feature = "check-scalar")]
     check_against_scalar(input, &out, params, counts);
     Ok(counts)
+}
+
+/// One output row through the SIMD body (`C` channels), the tail through the scalar one.
+#[inline(always)]
+fn simd_row<L: SurfaceLayout, const C: usize>(p: &Prepared<'_, L>, y: usize, row: &mut RowOut<'_>) -> ReasonCounts {
+    let mut counts = ReasonCounts::default();
+    let width = row.reason.len();
+    let mut x = 0;
+    while x + LANES <= width {
+        let lanes = reproject_lanes::<L, C>(p, x, y);
+        for c in 0..C {
+            store(row.channels[c], x, lanes.channels[c]);
+        }
+        if let Some(w) = row.weight.as_deref_mut() {
+            store(w, x, lanes.weight);
+        }
+        let reasons = &mut row.reason[x..x + LANES];
+        if lanes.ok_bits == (1 << LANES) - 1 {
+            // The common case: every lane reprojected (code 0).
+            reasons.fill(Reason::Reprojected as u8);
+            counts.0[Reason::Reprojected as usize] += LANES as u64;
+        } else {
+            for (dst, code) in reasons.iter_mut().zip(lanes.reason.to_array()) {
+                *dst = code as u8;
+                counts.0[usize::from(*dst)] += 1;
+            }
+        }
+        x += LANES;
+    }
+    for x in x..width {
+        write_pixel(p, x, y, row, &mut counts);
+    }
+    counts
 }
 
 #[cfg(feature = "check-scalar")]
@@ -490,13 +504,33 @@ pub fn reproject_pixel<L: SurfaceLayout>(
     Ok(reproject_pixel_prepared(&prepared, x, y))
 }
 
-/// Whether a surfel is a usable surface: finite, in front of its camera, with a normal.
+/// Whether a surfel is a usable surface: finite, in front of its camera, with a non-zero
+/// normal (`normal_len2` is its squared length).
 #[inline(always)]
-fn usable(s: &Surfel) -> bool {
+fn usable(s: &Surfel, normal_len2: f32) -> bool {
     s.depth.is_finite()
         && s.depth > 0.0
         && s.position.iter().all(|v| v.is_finite())
         && s.normal.iter().all(|v| v.is_finite())
+        && normal_len2 > 0.0
+        && normal_len2.is_finite()
+}
+
+#[inline(always)]
+fn len2(v: [f32; 3]) -> f32 {
+    v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
+}
+
+#[inline(always)]
+fn len2_simd(v: [F32s; 3]) -> F32s {
+    v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
+}
+
+/// The angle test described in the module docs (scalar).
+#[inline(always)]
+fn normals_agree(dot: f32, q: f32, cos2: f32, cos_positive: bool) -> bool {
+    let bound = cos2 * q;
+    if cos_positive { dot >= 0.0 && dot * dot >= bound } else { dot >= 0.0 || dot * dot <= bound }
 }
 
 fn reproject_pixel_prepared<L: SurfaceLayout>(
@@ -509,22 +543,25 @@ fn reproject_pixel_prepared<L: SurfaceLayout>(
     if t.depth == f32::INFINITY {
         return (Reason::Background, NONE, 0.0);
     }
-    if !usable(&t) {
+    let t_len2 = len2(t.normal);
+    if !usable(&t, t_len2) {
         return (Reason::Invalid, NONE, 0.0);
     }
     let [cx, cy, _, cw] = p.camera.clip(t.position);
     if !(cw > 0.0) {
         return (Reason::OutOfFrame, NONE, 0.0);
     }
-    let (hw, hh) = p.camera.half_extent();
-    let sx = (cx / cw) * hw + hw;
-    let sy = (-(cy / cw)) * hh + hh;
+    let (hw, hh) = (p.half_width, p.half_height);
+    let inv_w = 1.0 / cw;
+    let sx = (cx * inv_w) * hw + hw;
+    let sy = (-(cy * inv_w)) * hh + hh;
     let Some(fp) = Footprint::new(sx, sy, p.source_extent) else {
         return (Reason::OutOfFrame, NONE, 0.0);
     };
     let weights = fp.weights();
     let in_frame = fp.in_frame(p.source_extent);
-    let depth_tolerance = p.depth_relative * cw;
+    // Clamped so that an infinite tap depth can never pass (see `evaluate_taps`).
+    let depth_tolerance = (p.depth_relative * cw).min(f32::MAX);
 
     let mut sum = NONE;
     let mut total = 0.0f32;
@@ -544,17 +581,18 @@ fn reproject_pixel_prepared<L: SurfaceLayout>(
         for c in 0..p.channel_count {
             values[c] = p.channels[c].get(tx, ty);
         }
+        let s_len2 = len2(s.normal);
         let verdict = if s.depth == f32::INFINITY {
             TapVerdict::Geometry
-        } else if !usable(&s) || !values[..p.channel_count].iter().all(|v| v.is_finite()) {
+        } else if !usable(&s, s_len2) || !values[..p.channel_count].iter().all(|v| v.is_finite()) {
             TapVerdict::Invalid
         } else {
             let d = [0, 1, 2].map(|i| s.position[i] - t.position[i]);
             let distance2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-            let cos = s.normal[0] * t.normal[0] + s.normal[1] * t.normal[1] + s.normal[2] * t.normal[2];
+            let dot = s.normal[0] * t.normal[0] + s.normal[1] * t.normal[1] + s.normal[2] * t.normal[2];
             if !(distance2 <= p.position2) || !((s.depth - cw).abs() <= depth_tolerance) {
                 TapVerdict::Geometry
-            } else if !(cos >= p.normal_cos) {
+            } else if !normals_agree(dot, s_len2 * t_len2, p.normal_cos2, p.normal_cos_positive) {
                 TapVerdict::Normal
             } else {
                 TapVerdict::Accepted
@@ -576,7 +614,8 @@ fn reproject_pixel_prepared<L: SurfaceLayout>(
     }
     let ok = any_accepted && !(p.strict && any_failed);
     if ok {
-        return (Reason::Reprojected, sum.map(|s| renormalise(s, total)), total.min(1.0));
+        let inv_total = 1.0 / total;
+        return (Reason::Reprojected, sum.map(|s| renormalise(s, inv_total)), total.min(1.0));
     }
     let reason = if fail_geometry {
         Reason::DepthOrPosition
@@ -599,8 +638,8 @@ enum TapVerdict {
 }
 
 /// Results for `LANES` pixels.
-struct Lanes {
-    channels: [F32s; MAX_CHANNELS],
+struct Lanes<const C: usize> {
+    channels: [F32s; C],
     weight: F32s,
     /// Reason codes as floats (exact small integers).
     reason: F32s,
@@ -608,124 +647,280 @@ struct Lanes {
     ok_bits: u32,
 }
 
+/// All-ones where every value is finite. `v · 0` is ±0 for finite `v` and NaN for ±inf or
+/// NaN, so one sum and one compare test them all (two instructions per value instead of
+/// the four of a bit-pattern test).
 #[inline(always)]
-fn usable_simd(s: &Surfels) -> F32s {
-    let finite = |v: F32s| v.is_finite();
-    finite(s.depth)
-        & s.depth.simd_gt(F32s::ZERO)
-        & finite(s.position[0])
-        & finite(s.position[1])
-        & finite(s.position[2])
-        & finite(s.normal[0])
-        & finite(s.normal[1])
-        & finite(s.normal[2])
+fn all_finite_simd<const N: usize>(values: [F32s; N]) -> F32s {
+    let mut poison = F32s::ZERO;
+    for v in values {
+        poison += v * F32s::ZERO;
+    }
+    poison.simd_eq(F32s::ZERO)
+}
+
+#[inline(always)]
+fn usable_simd(s: &Surfels, normal_len2: F32s) -> F32s {
+    let [p0, p1, p2] = s.position;
+    all_finite_simd([s.depth, p0, p1, p2, normal_len2]) & normal_len2.simd_gt(F32s::ZERO) & s.depth.simd_gt(F32s::ZERO)
+}
+
+/// Where the SIMD body loads a tap's surfels and samples from.
+trait TapSource {
+    /// Per-tap in-frame masks.
+    fn in_frame<L: SurfaceLayout>(&self, p: &Prepared<'_, L>, fp: &Footprints) -> [F32s; 4];
+    fn load<L: SurfaceLayout, const C: usize>(
+        &self,
+        p: &Prepared<'_, L>,
+        tap: usize,
+        fp: &Footprints,
+    ) -> (Surfels, [F32s; C]);
+}
+
+/// Coherent footprints: tap `t` of lane `i` is source pixel `(x0 + i + (t & 1), y0 + (t >> 1))`,
+/// so every plane is read with one unaligned vector load per tap.
+struct RowLoads {
+    x0: usize,
+    y0: usize,
+}
+
+impl TapSource for RowLoads {
+    /// `coherent_row` only picks this source when every tap of every lane is in frame.
+    #[inline(always)]
+    fn in_frame<L: SurfaceLayout>(&self, _: &Prepared<'_, L>, fp: &Footprints) -> [F32s; 4] {
+        [fp.inside; 4]
+    }
+
+    #[inline(always)]
+    fn load<L: SurfaceLayout, const C: usize>(
+        &self,
+        p: &Prepared<'_, L>,
+        tap: usize,
+        _: &Footprints,
+    ) -> (Surfels, [F32s; C]) {
+        let (x, y) = (self.x0 + (tap & 1), self.y0 + (tap >> 1));
+        // SAFETY: `coherent_row` built this source only with x0 + LANES < width and
+        // y0 + 1 < height of the source extent, which the source G-buffer and every channel
+        // share (checked in `prepare`), so every lane of every tap is inside.
+        unsafe {
+            let values = core::array::from_fn(|c| F32s::from(p.channels[c].lanes_unchecked::<LANES>(x, y)));
+            (p.source.surfels_row_unchecked(x, y), values)
+        }
+    }
+}
+
+/// Anything else: per-lane gathers from clamped coordinates.
+struct Gathers;
+
+impl TapSource for Gathers {
+    #[inline(always)]
+    fn in_frame<L: SurfaceLayout>(&self, p: &Prepared<'_, L>, fp: &Footprints) -> [F32s; 4] {
+        fp.in_frame(p.source_extent)
+    }
+
+    #[inline(always)]
+    fn load<L: SurfaceLayout, const C: usize>(
+        &self,
+        p: &Prepared<'_, L>,
+        tap: usize,
+        fp: &Footprints,
+    ) -> (Surfels, [F32s; C]) {
+        let (tx, ty) = fp.taps()[tap];
+        let coords = TapCoords::clamped(tx, ty, p.source_extent.width(), p.source_extent.height());
+        let values = core::array::from_fn(|c| coords.gather_f32(&p.channels[c]));
+        (p.source.surfels_gather(&coords), values)
+    }
+}
+
+/// The target side of `LANES` pixels: surface, projection into the source, footprint.
+struct TargetLanes {
+    surface: Surfels,
+    normal_len2: F32s,
+    /// Source view depth of the target point (clip w).
+    depth_in_source: F32s,
+    footprints: Footprints,
+    weights: [F32s; 4],
+    /// Lanes that go on to the tap tests.
+    active: F32s,
+    background: F32s,
+}
+
+/// Accumulated over the four taps of `LANES` pixels.
+struct TapTotals<const C: usize> {
+    sum: [F32s; C],
+    total: F32s,
+    any_accepted: F32s,
+    any_failed: F32s,
+}
+
+/// Why taps failed (only worked out for groups with a discarded pixel).
+#[derive(Default)]
+struct Failures {
+    geometry: F32s,
+    normal: F32s,
+    invalid: F32s,
 }
 
 /// The SIMD body for target pixels `x .. x + LANES` of row `y`.
+///
+/// Two passes keep the common case cheap. The first decides acceptance with the smallest
+/// predicate that is equivalent to the reference's (see [`accepts`]); only when some lane
+/// ends up discarded is the group evaluated again to classify why (a few percent of groups
+/// in the paper's scenes).
 #[inline(always)]
-fn reproject_lanes<L: SurfaceLayout>(p: &Prepared<'_, L>, x: usize, y: usize) -> Lanes {
+fn reproject_lanes<L: SurfaceLayout, const C: usize>(p: &Prepared<'_, L>, x: usize, y: usize) -> Lanes<C> {
+    let t = target_lanes(p, x, y);
+    let coherent = coherent_row(&t.footprints, t.active, p.source_extent);
+    let (totals, _) = match coherent {
+        Some((x0, y0)) => evaluate_taps::<L, C, _, false>(p, &t, &RowLoads { x0, y0 }),
+        None => evaluate_taps::<L, C, _, false>(p, &t, &Gathers),
+    };
+    let ok = if p.strict { totals.any_accepted & !totals.any_failed } else { totals.any_accepted };
+    let code = |r: Reason| F32s::splat(r as u8 as f32);
+    let reason = if (ok | t.background).all() {
+        t.background.select(code(Reason::Background), code(Reason::Reprojected))
+    } else {
+        let (_, failed) = match coherent {
+            Some((x0, y0)) => evaluate_taps::<L, C, _, true>(p, &t, &RowLoads { x0, y0 }),
+            None => evaluate_taps::<L, C, _, true>(p, &t, &Gathers),
+        };
+        let invalid_target = !t.background & !usable_simd(&t.surface, t.normal_len2);
+        let discard_reason = failed.geometry.select(
+            code(Reason::DepthOrPosition),
+            failed
+                .normal
+                .select(code(Reason::Normal), failed.invalid.select(code(Reason::Invalid), code(Reason::OutOfFrame))),
+        );
+        t.background.select(
+            code(Reason::Background),
+            invalid_target.select(code(Reason::Invalid), ok.select(code(Reason::Reprojected), discard_reason)),
+        )
+    };
     let zero = F32s::ZERO;
-    let inf = F32s::splat(f32::INFINITY);
-    let t = p.target.surfels_row(x, y);
-    let background = t.depth.simd_eq(inf);
-    let usable_target = usable_simd(&t);
-    let invalid_target = !background & !usable_target;
+    let inv_total = F32s::ONE / totals.total;
+    Lanes {
+        channels: totals.sum.map(|s| ok.select(renormalise_simd(s, inv_total), zero)),
+        weight: ok.select(totals.total.min(F32s::ONE), zero),
+        reason,
+        ok_bits: ok.to_bitmask(),
+    }
+}
 
+#[inline(always)]
+fn target_lanes<L: SurfaceLayout>(p: &Prepared<'_, L>, x: usize, y: usize) -> TargetLanes {
+    let surface = p.target.surfels_row(x, y);
+    let inf = F32s::splat(f32::INFINITY);
+    let background = surface.depth.simd_eq(inf);
+    let normal_len2 = len2_simd(surface.normal);
+    // Cheaper than `usable_simd` and equivalent for deciding which lanes go on: a non-finite
+    // position makes the projection NaN or infinite, which fails the footprint test below.
+    let plausible = surface.depth.simd_gt(F32s::ZERO)
+        & surface.depth.simd_lt(inf)
+        & normal_len2.simd_gt(F32s::ZERO)
+        & normal_len2.simd_lt(inf);
     let r = &p.camera.rows;
     let clip = |i: usize| {
-        F32s::splat(r[i][0]) * t.position[0]
-            + F32s::splat(r[i][1]) * t.position[1]
-            + F32s::splat(r[i][2]) * t.position[2]
+        F32s::splat(r[i][0]) * surface.position[0]
+            + F32s::splat(r[i][1]) * surface.position[1]
+            + F32s::splat(r[i][2]) * surface.position[2]
             + F32s::splat(r[i][3])
     };
     let (cx, cy, cw) = (clip(0), clip(1), clip(3));
-    let in_front = cw.simd_gt(zero);
-    let (hw, hh) = p.camera.half_extent();
-    let (hw, hh) = (F32s::splat(hw), F32s::splat(hh));
-    let sx = (cx / cw) * hw + hw;
-    let sy = (-(cy / cw)) * hh + hh;
-    let mut fp = Footprints::new(sx, sy, p.source_extent);
+    let (hw, hh) = (F32s::splat(p.half_width), F32s::splat(p.half_height));
+    let inv_w = F32s::ONE / cw;
+    let sx = (cx * inv_w) * hw + hw;
+    let sy = (-(cy * inv_w)) * hh + hh;
+    let mut footprints = Footprints::new(sx, sy, p.source_extent);
     // Lanes that already have a reason take no further part.
-    let active = usable_target & in_front & fp.inside;
-    fp.inside = active;
-    let weights = fp.weights();
-    let in_frame = fp.in_frame(p.source_extent);
-    let depth_tolerance = F32s::splat(p.depth_relative) * cw;
-    let position2 = F32s::splat(p.position2);
-    let normal_cos = F32s::splat(p.normal_cos);
-
-    let coherent = coherent_row(&fp, active, p.source_extent);
-    let mut sum = [zero; MAX_CHANNELS];
-    let mut total = zero;
-    let (mut any_accepted, mut any_failed) = (zero, zero);
-    let (mut fail_geometry, mut fail_normal, mut fail_invalid) = (zero, zero, zero);
-    for (tap, &(tx, ty)) in fp.taps().iter().enumerate() {
-        let participates = active & weights[tap].simd_gt(zero);
-        if participates.none() {
-            continue;
-        }
-        let tap_in_frame = participates & in_frame[tap];
-        any_failed |= participates & !in_frame[tap];
-        let (s, values) = match coherent {
-            Some((x0, y0)) => {
-                let (sx0, sy0) = (x0 + (tap & 1), y0 + (tap >> 1));
-                let mut values = [zero; MAX_CHANNELS];
-                for c in 0..p.channel_count {
-                    values[c] = load(p.channels[c].row(sy0), sx0);
-                }
-                (p.source.surfels_row(sx0, sy0), values)
-            }
-            None => {
-                let coords = TapCoords::clamped(tx, ty, p.source_extent.width(), p.source_extent.height());
-                let mut values = [zero; MAX_CHANNELS];
-                for c in 0..p.channel_count {
-                    values[c] = coords.gather_f32(&p.channels[c]);
-                }
-                (p.source.surfels_gather(&coords), values)
-            }
-        };
-        let tap_background = s.depth.simd_eq(inf);
-        let mut finite_values = usable_simd(&s);
-        for value in values.iter().take(p.channel_count) {
-            finite_values &= value.is_finite();
-        }
-        let d = [0, 1, 2].map(|i| s.position[i] - t.position[i]);
-        let distance2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-        let cos = s.normal[0] * t.normal[0] + s.normal[1] * t.normal[1] + s.normal[2] * t.normal[2];
-        let geometry_ok = distance2.simd_le(position2) & (s.depth - cw).abs().simd_le(depth_tolerance);
-        let normal_ok = cos.simd_ge(normal_cos);
-
-        let is_invalid = !tap_background & !finite_values;
-        let usable_tap = !tap_background & finite_values;
-        let geometry_fail = tap_background | (usable_tap & !geometry_ok);
-        let normal_fail = usable_tap & geometry_ok & !normal_ok;
-        let accepted = tap_in_frame & usable_tap & geometry_ok & normal_ok;
-
-        fail_geometry |= tap_in_frame & geometry_fail;
-        fail_normal |= tap_in_frame & normal_fail;
-        fail_invalid |= tap_in_frame & is_invalid;
-        any_failed |= tap_in_frame & !accepted;
-        any_accepted |= accepted;
-        for c in 0..MAX_CHANNELS {
-            sum[c] += accepted.select(weights[tap] * values[c], zero);
-        }
-        total += accepted.select(weights[tap], zero);
+    let active = plausible & cw.simd_gt(F32s::ZERO) & footprints.inside;
+    footprints.inside = active;
+    TargetLanes {
+        surface,
+        normal_len2,
+        depth_in_source: cw,
+        weights: footprints.weights(),
+        footprints,
+        active,
+        background,
     }
-    let ok = if p.strict { any_accepted & !any_failed } else { any_accepted };
-    let code = |r: Reason| F32s::splat(r as u8 as f32);
-    let discard_reason = fail_geometry.select(
-        code(Reason::DepthOrPosition),
-        fail_normal.select(code(Reason::Normal), fail_invalid.select(code(Reason::Invalid), code(Reason::OutOfFrame))),
-    );
-    let reason = background.select(
-        code(Reason::Background),
-        invalid_target.select(code(Reason::Invalid), ok.select(code(Reason::Reprojected), discard_reason)),
-    );
-    Lanes {
-        channels: sum.map(|s| ok.select(renormalise_simd(s, total), zero)),
-        weight: ok.select(total.min(F32s::ONE), zero),
-        reason,
-        ok_bits: ok.to_bitmask(),
+}
+
+/// Runs the tap tests over the four taps. With `CLASSIFY`, also records why taps failed.
+#[inline(always)]
+fn evaluate_taps<L: SurfaceLayout, const C: usize, S: TapSource, const CLASSIFY: bool>(
+    p: &Prepared<'_, L>,
+    t: &TargetLanes,
+    source: &S,
+) -> (TapTotals<C>, Failures) {
+    let zero = F32s::ZERO;
+    let depth_tolerance = (F32s::splat(p.depth_relative) * t.depth_in_source).min(F32s::splat(f32::MAX));
+    let mut acc = TapTotals { sum: [zero; C], total: zero, any_accepted: zero, any_failed: zero };
+    let mut failed = Failures::default();
+    let in_frame = source.in_frame(p, &t.footprints);
+    evaluate_tap::<L, C, S, CLASSIFY, 0>(p, t, source, &in_frame, depth_tolerance, &mut acc, &mut failed);
+    evaluate_tap::<L, C, S, CLASSIFY, 1>(p, t, source, &in_frame, depth_tolerance, &mut acc, &mut failed);
+    evaluate_tap::<L, C, S, CLASSIFY, 2>(p, t, source, &in_frame, depth_tolerance, &mut acc, &mut failed);
+    evaluate_tap::<L, C, S, CLASSIFY, 3>(p, t, source, &in_frame, depth_tolerance, &mut acc, &mut failed);
+    (acc, failed)
+}
+
+/// One tap of [`evaluate_taps`]; `TAP` is a constant so each of the four copies knows its
+/// offsets.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn evaluate_tap<L: SurfaceLayout, const C: usize, S: TapSource, const CLASSIFY: bool, const TAP: usize>(
+    p: &Prepared<'_, L>,
+    t: &TargetLanes,
+    source: &S,
+    in_frame: &[F32s; 4],
+    depth_tolerance: F32s,
+    acc: &mut TapTotals<C>,
+    failed: &mut Failures,
+) {
+    let zero = F32s::ZERO;
+    let tap = TAP;
+    let weight = t.weights[tap];
+    let participates = t.active & weight.simd_gt(zero);
+    if participates.none() {
+        return;
+    }
+    let tap_in_frame = participates & in_frame[tap];
+    let (s, values) = source.load::<L, C>(p, tap, &t.footprints);
+    let s_len2 = len2_simd(s.normal);
+    let tp = &t.surface.position;
+    let d = [s.position[0] - tp[0], s.position[1] - tp[1], s.position[2] - tp[2]];
+    let distance2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    let geometry_ok =
+        distance2.simd_le(F32s::splat(p.position2)) & (s.depth - t.depth_in_source).abs().simd_le(depth_tolerance);
+    let tn = &t.surface.normal;
+    let dot = s.normal[0] * tn[0] + s.normal[1] * tn[1] + s.normal[2] * tn[2];
+    let bound = F32s::splat(p.normal_cos2) * (s_len2 * t.normal_len2);
+    let facing = dot.simd_ge(zero);
+    let normal_ok =
+        if p.normal_cos_positive { facing & (dot * dot).simd_ge(bound) } else { facing | (dot * dot).simd_le(bound) };
+    // Equivalent to the reference's `usable ∧ finite samples ∧ geometry ∧ normal`: with
+    // thresholds clamped to f32::MAX, passing the geometry test already implies a finite
+    // tap depth and position (and so no background), and `s_len2 ≤ MAX` implies a finite
+    // normal. The sign of the depth is the one thing left to check.
+    let accepted = tap_in_frame
+        & geometry_ok
+        & normal_ok
+        & s.depth.simd_gt(zero)
+        & s_len2.simd_gt(zero)
+        & s_len2.simd_le(F32s::splat(f32::MAX))
+        & all_finite_simd(values);
+    acc.any_failed |= participates & !accepted;
+    acc.any_accepted |= accepted;
+    for c in 0..C {
+        acc.sum[c] += accepted.select(weight * values[c], zero);
+    }
+    acc.total += accepted.select(weight, zero);
+    if CLASSIFY {
+        let tap_background = s.depth.simd_eq(F32s::splat(f32::INFINITY));
+        let usable_tap = !tap_background & usable_simd(&s, s_len2) & all_finite_simd(values);
+        failed.geometry |= tap_in_frame & (tap_background | (usable_tap & !geometry_ok));
+        failed.normal |= tap_in_frame & usable_tap & geometry_ok & !normal_ok;
+        failed.invalid |= tap_in_frame & !tap_background & !usable_tap;
     }
 }
 
@@ -741,6 +936,8 @@ fn coherent_row(fp: &Footprints, active: F32s, extent: Extent) -> Option<(usize,
     let x0 = x_base.to_array()[0];
     let y0 = fp.y0.to_array()[0];
     let same = x_base.simd_eq(F32s::splat(x0)) & fp.y0.simd_eq(F32s::splat(y0));
-    let fits = x0 >= 0.0 && y0 >= 0.0 && (x0 as usize) + LANES < extent.width() && (y0 as usize) + 1 < extent.height();
-    (same.all() && fits).then(|| (x0 as usize, y0 as usize))
+    // All four taps of all lanes inside: columns x0 ..= x0 + LANES, rows y0 ..= y0 + 1.
+    let fits =
+        x0 >= 0.0 && y0 >= 0.0 && x0 + (LANES as f32) < extent.width() as f32 && y0 + 1.0 < extent.height() as f32;
+    (same.all() && fits).then_some((x0 as usize, y0 as usize))
 }

@@ -44,13 +44,7 @@ pub fn mad1(a: f32, b: f32, c: f32) -> f32 {
 /// Clamps to ±`f32::MAX` (infinities become the largest finite value); NaN stays NaN.
 #[inline(always)]
 pub fn clamp_finite1(v: f32) -> f32 {
-    if v < -f32::MAX {
-        -f32::MAX
-    } else if v > f32::MAX {
-        f32::MAX
-    } else {
-        v
-    }
+    v.clamp(-f32::MAX, f32::MAX)
 }
 
 /// SIMD twin of [`clamp_finite1`] (compare-and-select, so NaN passes through exactly as in

@@ -1,0 +1,336 @@
+//! Fuzz entry points: each takes arbitrary bytes, builds kernel inputs from them, runs the
+//! SIMD body and the scalar reference, and panics if a property fails:
+//!
+//! * no panic inside a kernel, and every refusal is a `FrameError`, never a crash;
+//! * SIMD output equals the scalar reference bit for bit;
+//! * no non-finite value is written from finite inputs;
+//! * weights lie in [0, 1], reason codes are valid and their counts add up.
+//!
+//! The cargo-fuzz targets in `fuzz/` are one-line shims over these, and `cargo test`
+//! replays the committed seed corpus through them (`kernels/tests/fuzz_corpus.rs`).
+//!
+//! Input format: a few leading bytes pick the extent, stride padding, cameras and
+//! tolerances; the rest is a list of 6-byte edits `(plane, index: u8 u8 → u16, value: f32)`
+//! applied over an analytic scene, so short inputs already reach deep into the kernels and
+//! every edit can place a NaN, an infinity, a subnormal or a huge value anywhere.
+
+use glam::{Mat4, Vec3};
+
+use crate::accumulate::{self, BlendParams, EmaInput, EmaParams, EmaState};
+use crate::bilinear::{self, ResampleInput, ResampleOutput};
+use crate::camera::{CameraModel, look_at_perspective};
+use crate::check::same_bits;
+use crate::frame::{Extent, FrameError, PlaneBuf, RgbBuf};
+use crate::gbuffer::SurfaceLayout;
+use crate::reproject::{self, Reason, ReprojectInput, ReprojectOutput, ReprojectParams, TapPolicy, Tolerances};
+use crate::synth::{AnalyticScene, SynthFrame, camera_at};
+
+/// Reads bytes front to back; yields zeros once exhausted.
+struct Bytes<'a>(&'a [u8]);
+
+impl Bytes<'_> {
+    fn u8(&mut self) -> u8 {
+        match self.0.split_first() {
+            Some((&b, rest)) => {
+                self.0 = rest;
+                b
+            }
+            None => 0,
+        }
+    }
+
+    fn f32(&mut self) -> f32 {
+        f32::from_bits(u32::from_le_bytes([self.u8(), self.u8(), self.u8(), self.u8()]))
+    }
+
+    /// A float in [lo, hi] from one byte.
+    fn unit(&mut self, lo: f32, hi: f32) -> f32 {
+        lo + (hi - lo) * f32::from(self.u8()) / 255.0
+    }
+
+    fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+}
+
+fn extent_from(bytes: &mut Bytes<'_>) -> Extent {
+    // 1×1 … 40×12, so 1×N and N×1 frames come up often.
+    let w = 1 + usize::from(bytes.u8() % 40);
+    let h = 1 + usize::from(bytes.u8() % 12);
+    Extent::new(w, h).expect("small extent")
+}
+
+/// A camera: mostly plausible (a perturbed look-at), sometimes raw matrix bits.
+fn camera_from(bytes: &mut Bytes<'_>, extent: Extent) -> Result<CameraModel, FrameError> {
+    match bytes.u8() % 4 {
+        0 => {
+            let m: [f32; 16] = core::array::from_fn(|_| bytes.f32());
+            CameraModel::new(Mat4::from_cols_array(&m), extent)
+        }
+        1 => {
+            // Rank-deficient: one row scaled into another.
+            let mut m = look_at_perspective(Vec3::ZERO, -Vec3::Z, Vec3::Y, 1.0, extent);
+            m.x_axis = m.y_axis * bytes.unit(-2.0, 2.0);
+            CameraModel::new(m, extent)
+        }
+        _ => {
+            let eye = Vec3::new(bytes.unit(-0.6, 0.6), bytes.unit(-0.4, 0.4), bytes.unit(-0.6, 0.6));
+            let target = eye + Vec3::new(bytes.unit(-0.5, 0.5), bytes.unit(-0.5, 0.5), -1.0);
+            let vfov = bytes.unit(0.2, 2.5);
+            CameraModel::new(look_at_perspective(eye, target, Vec3::Y, vfov, extent), extent)
+        }
+    }
+}
+
+/// Applies the trailing 6-byte edits to the frame's planes.
+fn apply_edits(bytes: &mut Bytes<'_>, frame: &mut SynthFrame) {
+    let pixels = frame.extent().pixels();
+    while !bytes.is_empty() {
+        let plane = bytes.u8() % 11;
+        let index = usize::from(u16::from_le_bytes([bytes.u8(), bytes.u8()])) % pixels;
+        let value = bytes.f32();
+        match plane {
+            0 => frame.depth.as_mut_slice()[index] = value,
+            1..=3 => frame.position[usize::from(plane - 1)].as_mut_slice()[index] = value,
+            4..=6 => frame.normal[usize::from(plane - 4)].as_mut_slice()[index] = value,
+            7 => frame.normal_oct.as_mut_slice()[index] = value.to_bits(),
+            8 => frame.colour.r.as_mut_slice()[index] = value,
+            9 => frame.colour.g.as_mut_slice()[index] = value,
+            _ => frame.colour.b.as_mut_slice()[index] = value,
+        }
+    }
+}
+
+fn all_finite(p: &PlaneBuf) -> bool {
+    p.as_slice().iter().all(|v| v.is_finite())
+}
+
+fn assert_bits(what: &str, a: &PlaneBuf, b: &PlaneBuf) {
+    for (i, (x, y)) in a.as_slice().iter().zip(b.as_slice()).enumerate() {
+        assert!(same_bits(*x, *y), "{what}: SIMD {x:?} != scalar {y:?} at index {i}");
+    }
+}
+
+/// Fuzzes backward reprojection (both layouts, both policies, with and without the extra
+/// channel).
+pub fn reproject(data: &[u8]) {
+    let mut bytes = Bytes(data);
+    let extent = extent_from(&mut bytes);
+    let source_extent = if bytes.u8() % 4 == 0 { extent_from(&mut bytes) } else { extent };
+    let scene = AnalyticScene::room(bytes.unit(1.0, 12.0));
+    let target_camera = camera_at(Vec3::new(bytes.unit(-0.3, 0.3), 0.0, 0.0), extent, bytes.unit(20.0, 100.0));
+    let source_camera = match camera_from(&mut bytes, source_extent) {
+        Ok(camera) => camera,
+        Err(e) => {
+            assert_eq!(e, FrameError::SingularCamera, "cameras fail only as singular");
+            return;
+        }
+    };
+    let tolerances = Tolerances {
+        position: if bytes.u8() % 8 == 0 { bytes.f32() } else { bytes.unit(0.0, 1.0) },
+        depth_relative: bytes.unit(0.0, 0.2),
+        normal_cos: bytes.unit(-1.0, 1.0),
+    };
+    let policy = if bytes.u8() % 2 == 0 { TapPolicy::Renormalize } else { TapPolicy::Strict };
+    let params = ReprojectParams { tolerances, policy, band_rows: 1 + usize::from(bytes.u8() % 8) };
+    let mut target = scene.render(&target_camera, [0.0; 3]);
+    let mut source = scene.render(&source_camera, [0.0; 3]);
+    let edit_source = bytes.u8() % 2 == 0;
+    apply_edits(&mut bytes, if edit_source { &mut source } else { &mut target });
+
+    let source_finite = [&source.colour.r, &source.colour.g, &source.colour.b].into_iter().all(all_finite);
+    let extra = PlaneBuf::from_vec((0..source_extent.pixels()).map(|i| (i % 7) as f32).collect(), source_extent)
+        .expect("extent matches");
+    let (tf, sf) = (target.gbuffer(), source.gbuffer());
+    check_reprojection(&tf, &sf, &source, None, &params, source_finite);
+    let (tc, sc) = (target.compact(), source.compact());
+    check_reprojection(&tc, &sc, &source, Some(&extra), &params, source_finite);
+}
+
+fn check_reprojection<L: SurfaceLayout>(
+    target: &L,
+    source: &L,
+    source_frame: &SynthFrame,
+    extra: Option<&PlaneBuf>,
+    params: &ReprojectParams,
+    source_finite: bool,
+) {
+    let input = ReprojectInput {
+        target,
+        source,
+        source_camera: &source_frame.camera,
+        colour: source_frame.colour.view(),
+        extra: extra.map(|p| p.view()),
+    };
+    let e = target.extent();
+    if let Err(refusal) = params.tolerances.validate() {
+        // Invalid tolerances are refused up front by both bodies, with the same error.
+        let mut colour = RgbBuf::new(e, 0.0);
+        let mut reason = PlaneBuf::new(e, 0u8);
+        let input = ReprojectInput { extra: None, ..input };
+        let out = ReprojectOutput { colour: colour.view_mut(), extra: None, reason: reason.view_mut(), weight: None };
+        assert_eq!(reproject::reproject(&input, out, params).err(), Some(refusal.clone()));
+        let out = ReprojectOutput { colour: colour.view_mut(), extra: None, reason: reason.view_mut(), weight: None };
+        assert_eq!(reproject::reproject_scalar(&input, out, params).err(), Some(refusal));
+        return;
+    }
+    let run = |simd: bool| {
+        let mut colour = RgbBuf::new(e, f32::NAN);
+        let mut extra_out = PlaneBuf::new(e, f32::NAN);
+        let mut reason = PlaneBuf::new(e, u8::MAX);
+        let mut weight = PlaneBuf::new(e, f32::NAN);
+        let out = ReprojectOutput {
+            colour: colour.view_mut(),
+            extra: extra.map(|_| extra_out.view_mut()),
+            reason: reason.view_mut(),
+            weight: Some(weight.view_mut()),
+        };
+        let counts = if simd {
+            reproject::reproject(&input, out, params)
+        } else {
+            reproject::reproject_scalar(&input, out, params)
+        };
+        (counts.expect("validated input"), colour, extra_out, reason, weight)
+    };
+    let (counts, colour, extra_out, reason, weight) = run(true);
+    let (counts_ref, colour_ref, extra_ref, reason_ref, weight_ref) = run(false);
+    assert_eq!(counts, counts_ref, "reason counts");
+    assert_eq!(reason, reason_ref, "reason codes");
+    for (a, b) in [(&colour.r, &colour_ref.r), (&colour.g, &colour_ref.g), (&colour.b, &colour_ref.b)] {
+        assert_bits("colour", a, b);
+    }
+    if extra.is_some() {
+        assert_bits("extra channel", &extra_out, &extra_ref);
+    }
+    assert_bits("weight", &weight, &weight_ref);
+    assert_eq!(counts.total(), e.pixels() as u64);
+    assert!(reason.as_slice().iter().all(|&c| Reason::from_code(c).is_some()));
+    assert!(weight.as_slice().iter().all(|w| (0.0..=1.0).contains(w)), "weights in [0, 1]");
+    if source_finite {
+        for p in [&colour.r, &colour.g, &colour.b] {
+            assert!(all_finite(p), "non-finite output from finite source samples");
+        }
+    }
+}
+
+/// Fuzzes the whole-image bilinear resampler.
+pub fn bilinear(data: &[u8]) {
+    let mut bytes = Bytes(data);
+    let source_extent = extent_from(&mut bytes);
+    let target_extent = extent_from(&mut bytes);
+    let mut source = RgbBuf::new(source_extent, 0.0);
+    for (i, v) in source.r.as_mut_slice().iter_mut().enumerate() {
+        *v = i as f32 * 0.25;
+    }
+    let mut map_x = PlaneBuf::new(target_extent, 0.0f32);
+    let mut map_y = PlaneBuf::new(target_extent, 0.0f32);
+    let (sw, sh) = (source_extent.width() as f32, source_extent.height() as f32);
+    for (i, (x, y)) in map_x.as_mut_slice().iter_mut().zip(map_y.as_mut_slice()).enumerate() {
+        *x = (i % target_extent.width()) as f32 * sw / target_extent.width() as f32;
+        *y = (i / target_extent.width()) as f32 * sh / target_extent.height() as f32;
+    }
+    let use_mask = bytes.u8() % 2 == 0;
+    let mut valid = PlaneBuf::new(source_extent, 1u8);
+    while !bytes.is_empty() {
+        let which = bytes.u8() % 6;
+        let index = usize::from(u16::from_le_bytes([bytes.u8(), bytes.u8()]));
+        let value = bytes.f32();
+        match which {
+            0 => map_x.as_mut_slice()[index % target_extent.pixels()] = value,
+            1 => map_y.as_mut_slice()[index % target_extent.pixels()] = value,
+            2 => source.r.as_mut_slice()[index % source_extent.pixels()] = value,
+            3 => source.g.as_mut_slice()[index % source_extent.pixels()] = value,
+            4 => source.b.as_mut_slice()[index % source_extent.pixels()] = value,
+            _ => valid.as_mut_slice()[index % source_extent.pixels()] = value.to_bits() as u8 & 1,
+        }
+    }
+    let source_finite = [&source.r, &source.g, &source.b].into_iter().all(all_finite);
+    let input = ResampleInput {
+        source: source.view(),
+        source_valid: use_mask.then(|| valid.view()),
+        map_x: map_x.view(),
+        map_y: map_y.view(),
+    };
+    let run = |simd: bool| {
+        let mut colour = RgbBuf::new(target_extent, f32::NAN);
+        let mut weight = PlaneBuf::new(target_extent, f32::NAN);
+        let out = ResampleOutput { colour: colour.view_mut(), weight: weight.view_mut() };
+        let result = if simd { bilinear::resample(&input, out) } else { bilinear::resample_scalar(&input, out) };
+        result.expect("validated input");
+        (colour, weight)
+    };
+    let (colour, weight) = run(true);
+    let (colour_ref, weight_ref) = run(false);
+    for (a, b) in [(&colour.r, &colour_ref.r), (&colour.g, &colour_ref.g), (&colour.b, &colour_ref.b)] {
+        assert_bits("resampled colour", a, b);
+    }
+    assert_bits("resample weight", &weight, &weight_ref);
+    assert!(weight.as_slice().iter().all(|w| (0.0..=1.0).contains(w)), "weights in [0, 1]");
+    if source_finite {
+        for p in [&colour.r, &colour.g, &colour.b] {
+            assert!(all_finite(p), "non-finite output from finite source samples");
+        }
+    }
+}
+
+/// Fuzzes the EMA and the stereo blend.
+pub fn accumulate(data: &[u8]) {
+    let mut bytes = Bytes(data);
+    let e = extent_from(&mut bytes);
+    let alpha = bytes.unit(0.0, 1.0).max(1e-6);
+    let ramp = bytes.u8() % 2 == 0;
+    let own_weight = bytes.unit(0.0, 1.0);
+    let mut new = RgbBuf::new(e, 1.0);
+    let mut history = RgbBuf::new(e, 2.0);
+    let mut len = PlaneBuf::new(e, 3.0f32);
+    let mut reason = PlaneBuf::new(e, Reason::Reprojected as u8);
+    while !bytes.is_empty() {
+        let which = bytes.u8() % 8;
+        let index = usize::from(u16::from_le_bytes([bytes.u8(), bytes.u8()])) % e.pixels();
+        let value = bytes.f32();
+        match which {
+            0 => new.r.as_mut_slice()[index] = value,
+            1 => new.g.as_mut_slice()[index] = value,
+            2 => new.b.as_mut_slice()[index] = value,
+            3 => history.r.as_mut_slice()[index] = value,
+            4 => history.g.as_mut_slice()[index] = value,
+            5 => history.b.as_mut_slice()[index] = value,
+            6 => len.as_mut_slice()[index] = value,
+            _ => reason.as_mut_slice()[index] = value.to_bits() as u8 % 6,
+        }
+    }
+    let history_finite = [&history.r, &history.g, &history.b].into_iter().all(all_finite);
+    let params = EmaParams { alpha, ramp, band_rows: 2 };
+    let input = EmaInput { new: new.view(), reason: reason.view(), has_new: None };
+    let run = |simd: bool| {
+        let (mut acc, mut n) = (history.clone(), len.clone());
+        let state = EmaState { accum: acc.view_mut(), history_len: Some(n.view_mut()) };
+        let stats =
+            if simd { accumulate::ema(&input, state, &params) } else { accumulate::ema_scalar(&input, state, &params) };
+        (stats.expect("validated input"), acc, n)
+    };
+    let (stats, acc, n) = run(true);
+    let (stats_ref, acc_ref, n_ref) = run(false);
+    assert_eq!(stats, stats_ref);
+    for (a, b) in [(&acc.r, &acc_ref.r), (&acc.g, &acc_ref.g), (&acc.b, &acc_ref.b), (&n, &n_ref)] {
+        assert_bits("EMA", a, b);
+    }
+    if history_finite {
+        for p in [&acc.r, &acc.g, &acc.b] {
+            assert!(all_finite(p), "a non-finite sample entered the history");
+        }
+    }
+    let blend_params = BlendParams { own_weight, band_rows: 3 };
+    let run = |simd: bool| {
+        let mut out = history.clone();
+        let f = if simd { accumulate::blend } else { accumulate::blend_scalar };
+        let stats = f(&new.view(), out.view_mut(), &reason.view(), &blend_params).expect("validated input");
+        (stats, out)
+    };
+    let (stats, out) = run(true);
+    let (stats_ref, out_ref) = run(false);
+    assert_eq!(stats, stats_ref);
+    for (a, b) in [(&out.r, &out_ref.r), (&out.g, &out_ref.g), (&out.b, &out_ref.b)] {
+        assert_bits("blend", a, b);
+    }
+}

@@ -1,0 +1,128 @@
+//! A second frame through the same buffers allocates nothing: reprojection (both layouts,
+//! stereo and temporal), EMA, blend and resampling, on a two-thread rayon pool.
+//!
+//! A counting global allocator sees every allocation in the process, on every thread, so
+//! this file holds a single test (the test harness itself allocates between tests).
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use glam::Vec3;
+use stereotrace_kernels::accumulate::{self, BlendParams, EmaInput, EmaParams, EmaState};
+use stereotrace_kernels::bilinear::{self, ResampleInput, ResampleOutput};
+use stereotrace_kernels::frame::{Extent, PlaneBuf, RgbBuf};
+use stereotrace_kernels::reproject::{self, ReprojectInput, ReprojectOutput, ReprojectParams};
+use stereotrace_kernels::synth::{AnalyticScene, camera_at};
+
+struct Counting;
+
+static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
+
+// SAFETY: forwards to the system allocator unchanged; only counts.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        // SAFETY: same contract as the caller's.
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: same contract as the caller's.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        // SAFETY: same contract as the caller's.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+#[test]
+fn second_frame_allocates_nothing() {
+    let e = Extent::new(203, 77).unwrap();
+    let scene = AnalyticScene::room(6.0);
+    let left_prev = scene.render(&camera_at(Vec3::new(-0.03, 0.0, 0.02), e, 60.0), [0.0; 3]);
+    let left = scene.render(&camera_at(Vec3::new(-0.0325, 0.0, 0.0), e, 60.0), [0.0; 3]);
+    let right = scene.render(&camera_at(Vec3::new(0.0325, 0.0, 0.0), e, 60.0), [0.0; 3]);
+    let mut reprojected = RgbBuf::new(e, 0.0);
+    let mut history = RgbBuf::new(e, 0.0);
+    let mut history_len = PlaneBuf::new(e, 0.0f32);
+    let mut len_out = PlaneBuf::new(e, 0.0f32);
+    let mut reason = PlaneBuf::new(e, 0u8);
+    let mut weight = PlaneBuf::new(e, 0.0f32);
+    let map_x = PlaneBuf::from_vec((0..e.pixels()).map(|i| (i % e.width()) as f32 * 0.97 + 0.3).collect(), e).unwrap();
+    let map_y = PlaneBuf::from_vec((0..e.pixels()).map(|i| (i / e.width()) as f32 * 1.01).collect(), e).unwrap();
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+    let params = ReprojectParams::default();
+
+    let mut frame = || {
+        // Stereo, compact layout.
+        let (t, s) = (left.compact(), right.compact());
+        let input = ReprojectInput {
+            target: &t,
+            source: &s,
+            source_camera: &right.camera,
+            colour: right.colour.view(),
+            extra: None,
+        };
+        let out = ReprojectOutput {
+            colour: reprojected.view_mut(),
+            extra: None,
+            reason: reason.view_mut(),
+            weight: Some(weight.view_mut()),
+        };
+        reproject::reproject(&input, out, &params).unwrap();
+        accumulate::blend(&left.colour.view(), reprojected.view_mut(), &reason.view(), &BlendParams::default())
+            .unwrap();
+        // Temporal, full layout, with a history-length channel and the alpha ramp.
+        let (t, s) = (left.gbuffer(), left_prev.gbuffer());
+        let input = ReprojectInput {
+            target: &t,
+            source: &s,
+            source_camera: &left_prev.camera,
+            colour: left_prev.colour.view(),
+            extra: Some(history_len.view()),
+        };
+        let out = ReprojectOutput {
+            colour: history.view_mut(),
+            extra: Some(len_out.view_mut()),
+            reason: reason.view_mut(),
+            weight: None,
+        };
+        reproject::reproject(&input, out, &params).unwrap();
+        let ema_in = EmaInput { new: left.colour.view(), reason: reason.view(), has_new: None };
+        let state = EmaState { accum: history.view_mut(), history_len: Some(len_out.view_mut()) };
+        accumulate::ema(&ema_in, state, &EmaParams { ramp: true, ..EmaParams::default() }).unwrap();
+        // Scalar references share the schedule, so they must not allocate either.
+        let (t, s) = (left.compact(), right.compact());
+        let input = ReprojectInput {
+            target: &t,
+            source: &s,
+            source_camera: &right.camera,
+            colour: right.colour.view(),
+            extra: None,
+        };
+        let out =
+            ReprojectOutput { colour: reprojected.view_mut(), extra: None, reason: reason.view_mut(), weight: None };
+        reproject::reproject_scalar(&input, out, &params).unwrap();
+        let input =
+            ResampleInput { source: right.colour.view(), source_valid: None, map_x: map_x.view(), map_y: map_y.view() };
+        bilinear::resample(&input, ResampleOutput { colour: reprojected.view_mut(), weight: weight.view_mut() })
+            .unwrap();
+        let capacities = (reprojected.r.capacity(), history.r.capacity(), reason.capacity());
+        history_len.as_mut_slice().copy_from_slice(len_out.as_slice());
+        capacities
+    };
+
+    let (first, second) = pool.install(|| {
+        let warm = frame();
+        let before = ALLOCATIONS.load(Ordering::SeqCst);
+        let again = frame();
+        let after = ALLOCATIONS.load(Ordering::SeqCst);
+        assert_eq!(warm, again, "buffer capacities must not change");
+        (before, after)
+    });
+    assert_eq!(second - first, 0, "the second frame allocated {} times", second - first);
+}

@@ -1,0 +1,770 @@
+//! Reprojection, bilinear and accumulation: SIMD against the scalar reference, and the
+//! kernels against closed-form expectations on analytic scenes.
+
+use glam::Vec3;
+use stereotrace_kernels::accumulate::{self, AccumulateStats, BlendParams, EmaInput, EmaParams, EmaState};
+use stereotrace_kernels::bilinear::{self, ResampleInput, ResampleOutput};
+use stereotrace_kernels::check::same_bits;
+use stereotrace_kernels::frame::{Extent, Plane, PlaneBuf, PlaneMut, RgbBuf, RgbPlanes, RgbPlanesMut};
+use stereotrace_kernels::gbuffer::{GBuffer, SurfaceLayout};
+use stereotrace_kernels::reproject::{
+    self, Reason, ReasonCounts, ReprojectInput, ReprojectOutput, ReprojectParams, TapPolicy, Tolerances,
+};
+use stereotrace_kernels::synth::{AnalyticScene, EDGE_VALUES, Rect, Rng, SynthFrame, Texture, camera_at, focal_pixels};
+use stereotrace_kernels::{CameraModel, FrameError};
+
+fn extent(w: usize, h: usize) -> Extent {
+    Extent::new(w, h).unwrap()
+}
+
+/// All outputs of one reprojection call.
+#[derive(Debug)]
+struct Reprojected {
+    counts: ReasonCounts,
+    colour: RgbBuf,
+    extra: PlaneBuf,
+    reason: PlaneBuf<u8>,
+    weight: PlaneBuf,
+}
+
+fn run_reprojection<L: SurfaceLayout>(
+    input: &ReprojectInput<'_, L>,
+    params: &ReprojectParams,
+    simd: bool,
+) -> Result<Reprojected, FrameError> {
+    let e = input.target.extent();
+    let mut colour = RgbBuf::new(e, -7.0);
+    let mut extra = PlaneBuf::new(e, -7.0);
+    let mut reason = PlaneBuf::new(e, 99u8);
+    let mut weight = PlaneBuf::new(e, -7.0);
+    let out = ReprojectOutput {
+        colour: colour.view_mut(),
+        extra: input.extra.map(|_| extra.view_mut()),
+        reason: reason.view_mut(),
+        weight: Some(weight.view_mut()),
+    };
+    let counts =
+        if simd { reproject::reproject(input, out, params)? } else { reproject::reproject_scalar(input, out, params)? };
+    Ok(Reprojected { counts, colour, extra, reason, weight })
+}
+
+fn assert_same_planes(what: &str, a: &PlaneBuf, b: &PlaneBuf) {
+    let e = a.extent();
+    for (i, (x, y)) in a.as_slice().iter().zip(b.as_slice()).enumerate() {
+        assert!(same_bits(*x, *y), "{what}: {x:?} vs {y:?} at ({}, {})", i % e.width(), i / e.width());
+    }
+}
+
+fn assert_same(a: &Reprojected, b: &Reprojected) {
+    assert_eq!(a.counts, b.counts);
+    assert_eq!(a.reason, b.reason);
+    assert_same_planes("red", &a.colour.r, &b.colour.r);
+    assert_same_planes("green", &a.colour.g, &b.colour.g);
+    assert_same_planes("blue", &a.colour.b, &b.colour.b);
+    assert_same_planes("extra", &a.extra, &b.extra);
+    assert_same_planes("weight", &a.weight, &b.weight);
+}
+
+/// Stereo pair of the standard room, right eye is the source.
+fn stereo_room(e: Extent, baseline: f32) -> (SynthFrame, SynthFrame) {
+    let scene = AnalyticScene::room(6.0);
+    let left = scene.render(&camera_at(Vec3::new(-baseline / 2.0, 0.0, 0.0), e, 60.0), [0.0; 3]);
+    let right = scene.render(&camera_at(Vec3::new(baseline / 2.0, 0.0, 0.0), e, 60.0), [0.0; 3]);
+    (left, right)
+}
+
+fn input_for<'a, L: SurfaceLayout>(
+    target: &'a L,
+    source: &'a L,
+    source_frame: &'a SynthFrame,
+    extra: Option<Plane<'a>>,
+) -> ReprojectInput<'a, L> {
+    ReprojectInput { target, source, source_camera: &source_frame.camera, colour: source_frame.colour.view(), extra }
+}
+
+/// Test tolerances. The test images are small, so one pixel spans decimetres at these
+/// depths: the world-position tolerance must exceed a pixel's footprint or every tap fails.
+fn params(policy: TapPolicy) -> ReprojectParams {
+    ReprojectParams { tolerances: Tolerances::new(0.5, 0.03, 25.0), policy, band_rows: 3 }
+}
+
+#[test]
+fn simd_equals_scalar_on_stereo_and_temporal_pairs_at_awkward_widths() {
+    for &(w, h) in &[(1, 1), (1, 5), (7, 3), (8, 2), (9, 4), (17, 5), (33, 7), (64, 9)] {
+        let e = extent(w, h);
+        for &baseline in &[0.065f32, 0.4, 2.0] {
+            let (left, right) = stereo_room(e, baseline);
+            let extra = PlaneBuf::from_vec((0..e.pixels()).map(|i| (i % 13) as f32).collect(), e).unwrap();
+            for policy in [TapPolicy::Renormalize, TapPolicy::Strict] {
+                let p = params(policy);
+                let (tf, sf) = (left.gbuffer(), right.gbuffer());
+                let input = input_for(&tf, &sf, &right, Some(extra.view()));
+                let a = run_reprojection(&input, &p, true).unwrap();
+                let b = run_reprojection(&input, &p, false).unwrap();
+                assert_same(&a, &b);
+                let (tc, sc) = (left.compact(), right.compact());
+                let input = input_for(&tc, &sc, &right, None);
+                let a = run_reprojection(&input, &p, true).unwrap();
+                let b = run_reprojection(&input, &p, false).unwrap();
+                assert_same(&a, &b);
+            }
+        }
+    }
+}
+
+/// Replaces a random share of every G-buffer and colour value with edge values.
+fn corrupt(frame: &mut SynthFrame, rng: &mut Rng, share: f32) {
+    let mut planes: Vec<&mut PlaneBuf> = vec![&mut frame.depth];
+    planes.extend(frame.position.iter_mut());
+    planes.extend(frame.normal.iter_mut());
+    planes.extend([&mut frame.colour.r, &mut frame.colour.g, &mut frame.colour.b]);
+    for plane in planes {
+        for v in plane.as_mut_slice() {
+            if rng.next_f32() < share {
+                *v = EDGE_VALUES[rng.below(EDGE_VALUES.len())];
+            }
+        }
+    }
+    for v in frame.normal_oct.as_mut_slice() {
+        if rng.next_f32() < share {
+            *v = rng.next_u32();
+        }
+    }
+}
+
+#[test]
+fn simd_equals_scalar_with_edge_values_and_random_cameras() {
+    let mut rng = Rng::new(7);
+    for case in 0..60 {
+        let e = extent(1 + rng.below(40), 1 + rng.below(12));
+        let scene = AnalyticScene::room(3.0 + rng.range(0.0, 8.0));
+        let eye = |rng: &mut Rng| Vec3::new(rng.range(-0.5, 0.5), rng.range(-0.3, 0.3), rng.range(-0.5, 0.5));
+        let cam_t = camera_at(eye(&mut rng), e, rng.range(20.0, 100.0));
+        let cam_s = CameraModel::new(
+            stereotrace_kernels::camera::look_at_perspective(
+                eye(&mut rng),
+                Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), -5.0),
+                Vec3::Y,
+                rng.range(0.3, 1.8),
+                e,
+            ),
+            e,
+        )
+        .unwrap();
+        let mut target = scene.render(&cam_t, [0.0; 3]);
+        let mut source = scene.render(&cam_s, [0.0; 3]);
+        let share = if case % 3 == 0 { 0.0 } else { 0.15 };
+        corrupt(&mut target, &mut rng, share);
+        corrupt(&mut source, &mut rng, share);
+        let tolerances = match case % 4 {
+            0 => Tolerances::new(f32::INFINITY, f32::INFINITY, 180.0),
+            1 => Tolerances::new(0.0, 0.0, 0.0),
+            _ => Tolerances::new(rng.range(0.01, 0.5), rng.range(0.0, 0.1), rng.range(1.0, 90.0)),
+        };
+        for policy in [TapPolicy::Renormalize, TapPolicy::Strict] {
+            let p = ReprojectParams { tolerances, policy, band_rows: 1 + rng.below(5) };
+            let (tf, sf) = (target.gbuffer(), source.gbuffer());
+            let input = input_for(&tf, &sf, &source, None);
+            assert_same(&run_reprojection(&input, &p, true).unwrap(), &run_reprojection(&input, &p, false).unwrap());
+            let (tc, sc) = (target.compact(), source.compact());
+            let input = input_for(&tc, &sc, &source, Some(source.colour.g.view()));
+            assert_same(&run_reprojection(&input, &p, true).unwrap(), &run_reprojection(&input, &p, false).unwrap());
+        }
+    }
+}
+
+#[test]
+fn outputs_are_finite_and_weights_in_unit_range_for_finite_sources() {
+    let mut rng = Rng::new(11);
+    for _ in 0..20 {
+        let e = extent(1 + rng.below(30), 1 + rng.below(10));
+        let (mut left, mut right) = stereo_room(e, rng.range(0.0, 1.0));
+        // Huge but finite colours must not overflow to infinity when summed.
+        for v in right.colour.r.as_mut_slice() {
+            *v = if rng.next_f32() < 0.5 { f32::MAX } else { -f32::MAX };
+        }
+        corrupt(&mut left, &mut rng, 0.05);
+        let (tf, sf) = (left.gbuffer(), right.gbuffer());
+        let r = run_reprojection(&input_for(&tf, &sf, &right, None), &params(TapPolicy::Renormalize), true).unwrap();
+        for c in [&r.colour.r, &r.colour.g, &r.colour.b] {
+            assert!(c.as_slice().iter().all(|v| v.is_finite()));
+        }
+        assert!(r.weight.as_slice().iter().all(|w| (0.0..=1.0).contains(w)));
+        assert!(r.reason.as_slice().iter().all(|&c| Reason::from_code(c).is_some()));
+        assert_eq!(r.counts.total(), e.pixels() as u64);
+    }
+}
+
+#[test]
+fn identity_camera_copies_the_source_exactly() {
+    for &(w, h) in &[(1, 1), (9, 4), (64, 36), (127, 33)] {
+        let e = extent(w, h);
+        let scene = AnalyticScene::room(5.0);
+        let frame = scene.render(&camera_at(Vec3::new(0.1, 0.2, 0.0), e, 70.0), [0.0; 3]);
+        for layout_full in [true, false] {
+            let r = if layout_full {
+                let g = frame.gbuffer();
+                run_reprojection(&input_for(&g, &g, &frame, None), &params(TapPolicy::Strict), true).unwrap()
+            } else {
+                let g = frame.compact();
+                run_reprojection(&input_for(&g, &g, &frame, None), &params(TapPolicy::Strict), true).unwrap()
+            };
+            for i in 0..e.pixels() {
+                if frame.depth.as_slice()[i].is_infinite() {
+                    assert_eq!(r.reason.as_slice()[i], Reason::Background as u8);
+                    continue;
+                }
+                assert_eq!(r.reason.as_slice()[i], Reason::Reprojected as u8, "pixel {i}");
+                assert_eq!(r.colour.r.as_slice()[i], frame.colour.r.as_slice()[i]);
+                assert_eq!(r.colour.g.as_slice()[i], frame.colour.g.as_slice()[i]);
+                assert_eq!(r.colour.b.as_slice()[i], frame.colour.b.as_slice()[i]);
+                assert_eq!(r.weight.as_slice()[i], 1.0);
+            }
+        }
+    }
+}
+
+/// A fronto-parallel textured plane filling the view at depth `z`.
+fn wall(z: f32, texture: Texture) -> AnalyticScene {
+    AnalyticScene {
+        rects: vec![Rect {
+            centre: Vec3::new(0.0, 0.0, -z),
+            axis_u: Vec3::X,
+            axis_v: Vec3::Y,
+            half: (1e3, 1e3),
+            texture,
+        }],
+    }
+}
+
+#[test]
+fn integer_pixel_shift_is_an_exact_copy() {
+    let e = extent(96, 40);
+    let vfov = 50.0;
+    let f = focal_pixels(e, vfov);
+    let z = 4.0f32;
+    for shift in [1i32, 3, 8, 17] {
+        // Baseline that moves the plane by exactly `shift` pixels: d = f·b/z.
+        let b = (f64::from(shift) * f64::from(z) / f) as f32;
+        let scene = wall(z, Texture::pattern([0.5, 0.4, 0.3], 0.3, 7.0));
+        let left = scene.render(&camera_at(Vec3::new(-b / 2.0, 0.0, 0.0), e, vfov), [0.0; 3]);
+        let right = scene.render(&camera_at(Vec3::new(b / 2.0, 0.0, 0.0), e, vfov), [0.0; 3]);
+        let (tg, sg) = (left.compact(), right.compact());
+        let r = run_reprojection(&input_for(&tg, &sg, &right, None), &params(TapPolicy::Strict), true).unwrap();
+        for y in 0..e.height() {
+            for x in 0..e.width() {
+                let i = y * e.width() + x;
+                let sx = x as i32 - shift;
+                if sx < 0 {
+                    assert_eq!(r.reason.as_slice()[i], Reason::OutOfFrame as u8, "({x}, {y}) shift {shift}");
+                    continue;
+                }
+                assert_eq!(r.reason.as_slice()[i], Reason::Reprojected as u8, "({x}, {y}) shift {shift}");
+                assert_eq!(r.colour.view().get(x, y), right.colour.get(sx as usize, y), "({x}, {y}) shift {shift}");
+            }
+        }
+    }
+}
+
+/// Independent bilinear lookup in f64 at continuous position (sx, sy), renormalised over
+/// in-frame taps.
+fn bilinear_f64(img: &PlaneBuf, sx: f64, sy: f64) -> Option<f64> {
+    let e = img.extent();
+    let (u, v) = (sx - 0.5, sy - 0.5);
+    let (x0, y0) = (u.floor(), v.floor());
+    let (fx, fy) = (u - x0, v - y0);
+    let mut sum = 0.0;
+    let mut total = 0.0;
+    for (dx, dy, w) in
+        [(0, 0, (1.0 - fx) * (1.0 - fy)), (1, 0, fx * (1.0 - fy)), (0, 1, (1.0 - fx) * fy), (1, 1, fx * fy)]
+    {
+        let (x, y) = (x0 as i64 + dx, y0 as i64 + dy);
+        if w > 0.0 && x >= 0 && y >= 0 && (x as usize) < e.width() && (y as usize) < e.height() {
+            sum += w * f64::from(img.as_slice()[y as usize * e.width() + x as usize]);
+            total += w;
+        }
+    }
+    (total > 0.0).then(|| sum / total)
+}
+
+#[test]
+fn parallel_cameras_on_a_textured_plane_give_disparity_f_b_over_z() {
+    let e = extent(160, 90);
+    let vfov = 60.0;
+    let f = focal_pixels(e, vfov);
+    let (z, b) = (3.0f32, 0.065f32);
+    let disparity = f * f64::from(b) / f64::from(z);
+    let scene = wall(z, Texture::pattern([0.0, 0.5, 0.4], 0.3, 5.0));
+    let left = scene.render(&camera_at(Vec3::new(-b / 2.0, 0.0, 0.0), e, vfov), [0.0; 3]);
+    let mut right = scene.render(&camera_at(Vec3::new(b / 2.0, 0.0, 0.0), e, vfov), [0.0; 3]);
+    // The right image's red channel records each pixel's own x centre, a linear function that
+    // bilinear interpolation reproduces exactly: the reprojected red value *is* the source
+    // position the kernel computed.
+    for (i, v) in right.colour.r.as_mut_slice().iter_mut().enumerate() {
+        *v = (i % e.width()) as f32 + 0.5;
+    }
+    let (tg, sg) = (left.gbuffer(), right.gbuffer());
+    let r = run_reprojection(&input_for(&tg, &sg, &right, None), &params(TapPolicy::Renormalize), true).unwrap();
+    let first_full = disparity.ceil() as usize + 1;
+    for y in 0..e.height() {
+        for x in first_full..e.width() {
+            let i = y * e.width() + x;
+            assert_eq!(r.reason.as_slice()[i], Reason::Reprojected as u8);
+            // Disparity: the source position is the target position minus f·b/z.
+            let measured = (x as f64 + 0.5) - f64::from(r.colour.r.as_slice()[i]);
+            assert!((measured - disparity).abs() < 2e-3, "disparity {measured} vs f·b/z = {disparity} at ({x}, {y})");
+            // The image: bilinear of the right image at (x + 0.5 − d, y + 0.5).
+            let sx = x as f64 + 0.5 - disparity;
+            for (plane, got) in [(&right.colour.g, &r.colour.g), (&right.colour.b, &r.colour.b)] {
+                let want = bilinear_f64(plane, sx, y as f64 + 0.5).unwrap();
+                let got = f64::from(got.as_slice()[i]);
+                assert!((got - want).abs() < 1e-3, "({x}, {y}): {got} vs {want}");
+            }
+        }
+    }
+}
+
+#[test]
+fn occlusion_band_behind_a_foreground_strip_is_discarded_for_depth() {
+    let e = extent(200, 60);
+    let vfov = 60.0;
+    let f = focal_pixels(e, vfov);
+    let (z_back, z_front, b) = (8.0f32, 2.0f32, 0.2f32);
+    let mut scene = wall(z_back, Texture::pattern([0.5, 0.5, 0.5], 0.2, 3.0));
+    scene.rects.push(Rect {
+        centre: Vec3::new(0.0, 0.0, -z_front),
+        axis_u: Vec3::X,
+        axis_v: Vec3::Y,
+        half: (0.3, 10.0),
+        texture: Texture::flat([0.9, 0.1, 0.1]),
+    });
+    let left = scene.render(&camera_at(Vec3::new(-b / 2.0, 0.0, 0.0), e, vfov), [0.0; 3]);
+    let right = scene.render(&camera_at(Vec3::new(b / 2.0, 0.0, 0.0), e, vfov), [0.0; 3]);
+    let (tg, sg) = (left.compact(), right.compact());
+    let r = run_reprojection(&input_for(&tg, &sg, &right, None), &params(TapPolicy::Strict), true).unwrap();
+    // In the left image the strip's left edge is at x_e; the background within
+    // f·b·(1/z_front − 1/z_back) pixels left of it is hidden behind the strip in the right eye.
+    let cx = e.width() as f64 / 2.0;
+    let strip_left_edge = cx + f * (-0.3 + f64::from(b) / 2.0) / f64::from(z_front);
+    let band = f * f64::from(b) * (1.0 / f64::from(z_front) - 1.0 / f64::from(z_back));
+    let y = e.height() / 2;
+    for x in 0..e.width() {
+        let centre = x as f64 + 0.5;
+        let code = Reason::from_code(r.reason.as_slice()[y * e.width() + x]).unwrap();
+        if centre > strip_left_edge - band + 1.5 && centre < strip_left_edge - 1.5 {
+            assert_eq!(code, Reason::DepthOrPosition, "x = {x}: inside the occluded band");
+        } else if (centre < strip_left_edge - band - 1.5 && centre > f * b as f64 / z_back as f64 + 2.0)
+            || (centre > strip_left_edge + 1.5 && centre < strip_left_edge + 10.0)
+        {
+            assert_eq!(code, Reason::Reprojected, "x = {x}: visible in both eyes");
+        }
+    }
+    assert!(r.counts.get(Reason::DepthOrPosition) as f64 >= (band - 3.0) * e.height() as f64);
+}
+
+#[test]
+fn flipped_source_normals_are_discarded_for_normal() {
+    let e = extent(40, 20);
+    let (left, mut right) = stereo_room(e, 0.065);
+    for n in right.normal.iter_mut() {
+        for v in n.as_mut_slice() {
+            *v = -*v;
+        }
+    }
+    let (tg, sg) = (left.gbuffer(), right.gbuffer());
+    let r = run_reprojection(&input_for(&tg, &sg, &right, None), &params(TapPolicy::Renormalize), true).unwrap();
+    assert_eq!(r.counts.get(Reason::Reprojected), 0);
+    assert!(r.counts.get(Reason::Normal) > (e.pixels() as u64) / 2, "{:?}", r.counts);
+}
+
+#[test]
+fn frame_borders_are_out_of_frame_under_strict_and_renormalised_otherwise() {
+    let e = extent(64, 16);
+    let vfov = 60.0;
+    let f = focal_pixels(e, vfov);
+    let z = 3.0f32;
+    // A disparity of 2.5 pixels: left columns 0 and 1 land left of the source frame.
+    let b = (2.5 * f64::from(z) / f) as f32;
+    let scene = wall(z, Texture::flat([1.0, 2.0, 3.0]));
+    let left = scene.render(&camera_at(Vec3::new(-b / 2.0, 0.0, 0.0), e, vfov), [0.0; 3]);
+    let right = scene.render(&camera_at(Vec3::new(b / 2.0, 0.0, 0.0), e, vfov), [0.0; 3]);
+    let (tg, sg) = (left.gbuffer(), right.gbuffer());
+    let input = input_for(&tg, &sg, &right, None);
+    let strict = run_reprojection(&input, &params(TapPolicy::Strict), true).unwrap();
+    let renorm = run_reprojection(&input, &params(TapPolicy::Renormalize), true).unwrap();
+    for y in 0..e.height() {
+        let code = |r: &Reprojected, x: usize| Reason::from_code(r.reason.as_slice()[y * e.width() + x]).unwrap();
+        // x = 0: source position −2.0 → no tap in frame under either policy.
+        assert_eq!(code(&strict, 0), Reason::OutOfFrame);
+        assert_eq!(code(&renorm, 0), Reason::OutOfFrame);
+        // x = 2: source position 0.0 → taps at −1 and 0, half the weight in frame.
+        assert_eq!(code(&strict, 2), Reason::OutOfFrame);
+        assert_eq!(code(&renorm, 2), Reason::Reprojected);
+        let i = y * e.width() + 2;
+        assert!((renorm.weight.as_slice()[i] - 0.5).abs() < 2e-3);
+        // Renormalised over the accepted taps: the flat colour survives exactly.
+        assert_eq!(renorm.colour.view().get(2, y), [1.0, 2.0, 3.0]);
+        assert_eq!(code(&strict, 3), Reason::Reprojected);
+    }
+}
+
+#[test]
+fn background_and_nan_targets_get_their_own_reasons() {
+    let e = extent(24, 8);
+    let (mut left, right) = stereo_room(e, 0.065);
+    left.depth.as_mut_slice()[5] = f32::INFINITY;
+    left.position[1].as_mut_slice()[9] = f32::NAN;
+    left.normal[2].as_mut_slice()[10] = f32::NAN;
+    left.depth.as_mut_slice()[11] = -1.0;
+    let (tg, sg) = (left.gbuffer(), right.gbuffer());
+    let r = run_reprojection(&input_for(&tg, &sg, &right, None), &params(TapPolicy::Renormalize), true).unwrap();
+    assert_eq!(r.reason.as_slice()[5], Reason::Background as u8);
+    for i in [9, 10, 11] {
+        assert_eq!(r.reason.as_slice()[i], Reason::Invalid as u8);
+        assert_eq!(r.colour.r.as_slice()[i], 0.0);
+        assert_eq!(r.weight.as_slice()[i], 0.0);
+    }
+}
+
+#[test]
+fn source_samples_that_are_not_finite_are_never_used() {
+    let e = extent(32, 8);
+    let (left, mut right) = stereo_room(e, 0.065);
+    for (i, v) in right.colour.g.as_mut_slice().iter_mut().enumerate() {
+        if i % 2 == 0 {
+            *v = f32::NAN;
+        }
+    }
+    let (tg, sg) = (left.gbuffer(), right.gbuffer());
+    let r = run_reprojection(&input_for(&tg, &sg, &right, None), &params(TapPolicy::Renormalize), true).unwrap();
+    assert!(r.colour.g.as_slice().iter().all(|v| v.is_finite()));
+}
+
+#[test]
+fn bad_inputs_are_refused_with_named_errors() {
+    let (left, right) = stereo_room(extent(16, 8), 0.065);
+    let other = AnalyticScene::room(5.0).render(&camera_at(Vec3::ZERO, extent(8, 8), 60.0), [0.0; 3]);
+    let (tg, sg) = (left.gbuffer(), other.gbuffer());
+    // Source colour extent differs from the source G-buffer.
+    let input = ReprojectInput {
+        target: &tg,
+        source: &sg,
+        source_camera: &other.camera,
+        colour: right.colour.view(),
+        extra: None,
+    };
+    let err = run_reprojection(&input, &params(TapPolicy::Strict), true).unwrap_err();
+    assert!(err.to_string().contains("source colour"), "{err}");
+    // Tolerances with NaN.
+    let (sg, tg) = (right.gbuffer(), left.gbuffer());
+    let input = input_for(&tg, &sg, &right, None);
+    let mut p = params(TapPolicy::Strict);
+    p.tolerances.position = f32::NAN;
+    assert!(matches!(run_reprojection(&input, &p, true), Err(FrameError::InvalidParameter(_))));
+    // Output of the wrong size.
+    let mut small = RgbBuf::new(extent(15, 8), 0.0);
+    let mut reason = PlaneBuf::new(extent(16, 8), 0u8);
+    let out = ReprojectOutput { colour: small.view_mut(), extra: None, reason: reason.view_mut(), weight: None };
+    let err = reproject::reproject(&input, out, &params(TapPolicy::Strict)).unwrap_err();
+    assert!(err.to_string().contains("output colour"), "{err}");
+    // Extra channel on one side only.
+    let mut colour = RgbBuf::new(extent(16, 8), 0.0);
+    let input = input_for(&tg, &sg, &right, Some(right.colour.r.view()));
+    let out = ReprojectOutput { colour: colour.view_mut(), extra: None, reason: reason.view_mut(), weight: None };
+    assert!(matches!(
+        reproject::reproject(&input, out, &params(TapPolicy::Strict)),
+        Err(FrameError::InvalidParameter(_))
+    ));
+}
+
+#[test]
+fn strided_views_give_the_same_result_as_packed_ones() {
+    let e = extent(19, 7);
+    let (left, right) = stereo_room(e, 0.1);
+    let stride = e.width() + 5;
+    let pad = |p: &PlaneBuf| {
+        let mut v = vec![f32::NAN; stride * e.height()];
+        for y in 0..e.height() {
+            v[y * stride..y * stride + e.width()].copy_from_slice(&p.as_slice()[y * e.width()..(y + 1) * e.width()]);
+        }
+        v
+    };
+    let planes: Vec<Vec<f32>> =
+        std::iter::once(&left.depth).chain(left.position.iter()).chain(left.normal.iter()).map(pad).collect();
+    fn view(v: &[f32], e: Extent, stride: usize) -> Plane<'_> {
+        Plane::new(v, e.width(), e.height(), stride).unwrap()
+    }
+    let v = |i: usize| view(&planes[i], e, stride);
+    let strided = GBuffer::new(v(0), [v(1), v(2), v(3)], [v(4), v(5), v(6)]).unwrap();
+    let packed = left.gbuffer();
+    let source = right.gbuffer();
+    let p = params(TapPolicy::Renormalize);
+    let a = run_reprojection(&input_for(&strided, &source, &right, None), &p, true).unwrap();
+    let b = run_reprojection(&input_for(&packed, &source, &right, None), &p, true).unwrap();
+    assert_same(&a, &b);
+    // Strided output too.
+    let mut out_planes: Vec<Vec<f32>> = (0..3).map(|_| vec![0.0; stride * e.height()]).collect();
+    let mut reason = vec![0u8; stride * e.height()];
+    let [r, g, bl] = &mut out_planes[..] else { unreachable!() };
+    let colour = RgbPlanesMut::new(
+        PlaneMut::new(r, e.width(), e.height(), stride).unwrap(),
+        PlaneMut::new(g, e.width(), e.height(), stride).unwrap(),
+        PlaneMut::new(bl, e.width(), e.height(), stride).unwrap(),
+    )
+    .unwrap();
+    let out = ReprojectOutput {
+        colour,
+        extra: None,
+        reason: PlaneMut::new(&mut reason, e.width(), e.height(), stride).unwrap(),
+        weight: None,
+    };
+    let counts = reproject::reproject(&input_for(&packed, &source, &right, None), out, &p).unwrap();
+    assert_eq!(counts, b.counts);
+    for y in 0..e.height() {
+        for x in 0..e.width() {
+            assert!(same_bits(out_planes[1][y * stride + x], b.colour.g.as_slice()[y * e.width() + x]));
+            assert_eq!(reason[y * stride + x], b.reason.as_slice()[y * e.width() + x]);
+        }
+    }
+}
+
+// ---- bilinear resampling -------------------------------------------------------------
+
+fn resample_both(src: &RgbBuf, valid: Option<&PlaneBuf<u8>>, mx: &PlaneBuf, my: &PlaneBuf) -> [(RgbBuf, PlaneBuf); 2] {
+    let input =
+        ResampleInput { source: src.view(), source_valid: valid.map(|v| v.view()), map_x: mx.view(), map_y: my.view() };
+    [true, false].map(|simd| {
+        let mut colour = RgbBuf::new(mx.extent(), -1.0);
+        let mut weight = PlaneBuf::new(mx.extent(), -1.0);
+        let out = ResampleOutput { colour: colour.view_mut(), weight: weight.view_mut() };
+        if simd {
+            bilinear::resample(&input, out).unwrap()
+        } else {
+            bilinear::resample_scalar(&input, out).unwrap()
+        }
+        (colour, weight)
+    })
+}
+
+#[test]
+fn bilinear_simd_equals_scalar_on_edge_values_and_random_maps() {
+    let mut rng = Rng::new(3);
+    for case in 0..80 {
+        let se = extent(1 + rng.below(20), 1 + rng.below(6));
+        let te = extent([1, 7, 8, 9, 17, 31][case % 6], 1 + rng.below(5));
+        let mut src = RgbBuf::new(se, 0.0);
+        for p in [&mut src.r, &mut src.g, &mut src.b] {
+            for v in p.as_mut_slice() {
+                *v =
+                    if rng.next_f32() < 0.3 { EDGE_VALUES[rng.below(EDGE_VALUES.len())] } else { rng.range(-2.0, 5.0) };
+            }
+        }
+        let coordinate = |rng: &mut Rng, size: usize| {
+            if rng.next_f32() < 0.2 {
+                EDGE_VALUES[rng.below(EDGE_VALUES.len())]
+            } else if rng.next_f32() < 0.3 {
+                // Exactly on centres and edges.
+                (rng.below(size + 2) as f32 - 1.0) + [0.0, 0.5, 0.5 + 1e-4][rng.below(3)]
+            } else {
+                rng.range(-2.0, size as f32 + 2.0)
+            }
+        };
+        let mx = PlaneBuf::from_vec((0..te.pixels()).map(|_| coordinate(&mut rng, se.width())).collect(), te).unwrap();
+        let my = PlaneBuf::from_vec((0..te.pixels()).map(|_| coordinate(&mut rng, se.height())).collect(), te).unwrap();
+        let valid = PlaneBuf::from_vec((0..se.pixels()).map(|_| (rng.next_f32() < 0.8) as u8).collect(), se).unwrap();
+        for mask in [None, Some(&valid)] {
+            let [(ca, wa), (cb, wb)] = resample_both(&src, mask, &mx, &my);
+            for (a, b) in [(&ca.r, &cb.r), (&ca.g, &cb.g), (&ca.b, &cb.b), (&wa, &wb)] {
+                assert_same_planes("resample", a, b);
+            }
+            assert!(wa.as_slice().iter().all(|w| (0.0..=1.0).contains(w)));
+        }
+    }
+}
+
+#[test]
+fn bilinear_interpolates_a_linear_ramp_exactly_enough() {
+    let se = extent(16, 8);
+    let ramp = PlaneBuf::from_vec((0..se.pixels()).map(|i| (i % 16) as f32 + 0.5).collect(), se).unwrap();
+    let src = RgbBuf { r: ramp.clone(), g: ramp.clone(), b: ramp };
+    let te = extent(9, 1);
+    let xs = [0.5f32, 1.0, 1.25, 3.75, 8.0, 10.3, 15.5, 0.0, 16.0];
+    let mx = PlaneBuf::from_vec(xs.to_vec(), te).unwrap();
+    let my = PlaneBuf::new(te, 4.0);
+    let [(c, w), _] = resample_both(&src, None, &mx, &my);
+    for (i, &x) in xs.iter().enumerate() {
+        // At the border (x < 0.5 or x > 15.5) renormalisation keeps the only in-frame column.
+        let want = x.clamp(0.5, 15.5);
+        assert!((c.r.as_slice()[i] - want).abs() < 1e-5, "{x}: {}", c.r.as_slice()[i]);
+        assert!(w.as_slice()[i] > 0.0);
+    }
+}
+
+// ---- EMA and blend ---------------------------------------------------------------------
+
+fn random_rgb(e: Extent, rng: &mut Rng, edge_share: f32) -> RgbBuf {
+    let mut img = RgbBuf::new(e, 0.0);
+    for p in [&mut img.r, &mut img.g, &mut img.b] {
+        for v in p.as_mut_slice() {
+            *v = if rng.next_f32() < edge_share {
+                EDGE_VALUES[rng.below(EDGE_VALUES.len())]
+            } else {
+                rng.range(0.0, 4.0)
+            };
+        }
+    }
+    img
+}
+
+fn random_reasons(e: Extent, rng: &mut Rng) -> PlaneBuf<u8> {
+    PlaneBuf::from_vec((0..e.pixels()).map(|_| if rng.next_f32() < 0.7 { 0 } else { rng.below(6) as u8 }).collect(), e)
+        .unwrap()
+}
+
+#[test]
+fn ema_simd_equals_scalar_on_edge_values() {
+    let mut rng = Rng::new(5);
+    for case in 0..60 {
+        let e = extent([1, 7, 8, 9, 17, 40][case % 6], 1 + rng.below(5));
+        let new = random_rgb(e, &mut rng, 0.3);
+        let history = random_rgb(e, &mut rng, 0.1);
+        let len = PlaneBuf::from_vec((0..e.pixels()).map(|_| rng.below(40) as f32).collect(), e).unwrap();
+        let reason = random_reasons(e, &mut rng);
+        let has_new = PlaneBuf::from_vec((0..e.pixels()).map(|_| (rng.next_f32() < 0.8) as u8).collect(), e).unwrap();
+        let params =
+            EmaParams { alpha: [0.2, 1.0, 0.05, 1e-6][case % 4], ramp: case % 2 == 0, band_rows: 1 + rng.below(3) };
+        let input =
+            EmaInput { new: new.view(), reason: reason.view(), has_new: (case % 3 != 0).then(|| has_new.view()) };
+        let run = |simd: bool| {
+            let (mut acc, mut n) = (history.clone(), len.clone());
+            let state = EmaState { accum: acc.view_mut(), history_len: Some(n.view_mut()) };
+            let stats = if simd {
+                accumulate::ema(&input, state, &params)
+            } else {
+                accumulate::ema_scalar(&input, state, &params)
+            };
+            (stats.unwrap(), acc, n)
+        };
+        let (sa, aa, na) = run(true);
+        let (sb, ab, nb) = run(false);
+        assert_eq!(sa, sb);
+        for (a, b) in [(&aa.r, &ab.r), (&aa.g, &ab.g), (&aa.b, &ab.b), (&na, &nb)] {
+            assert_same_planes("ema", a, b);
+        }
+        // Nothing non-finite enters the history unless it was already there.
+        for (i, v) in aa.r.as_slice().iter().enumerate() {
+            if history.r.as_slice()[i].is_finite() {
+                assert!(v.is_finite(), "{v}");
+            }
+            assert!(v.is_nan() || *v == 0.0 || v.abs() >= f32::MIN_POSITIVE, "subnormal {v}");
+        }
+    }
+}
+
+fn ema_step(acc: &mut RgbBuf, new: &RgbBuf, reason: &PlaneBuf<u8>, params: &EmaParams) -> AccumulateStats {
+    let input = EmaInput { new: new.view(), reason: reason.view(), has_new: None };
+    accumulate::ema(&input, EmaState { accum: acc.view_mut(), history_len: None }, params).unwrap()
+}
+
+#[test]
+fn ema_of_a_constant_is_that_constant_and_alpha_one_returns_the_new_sample() {
+    let e = extent(21, 3);
+    let reason = PlaneBuf::new(e, Reason::Reprojected as u8);
+    for c in [0.1f32, 0.7, 3.3, 1e-3, 12345.678, 1e30] {
+        let constant = RgbBuf::new(e, c);
+        let mut acc = constant.clone();
+        for _ in 0..50 {
+            ema_step(&mut acc, &constant, &reason, &EmaParams::default());
+        }
+        assert_eq!(acc, constant, "constant {c}");
+    }
+    let mut rng = Rng::new(9);
+    let new = random_rgb(e, &mut rng, 0.0);
+    let mut acc = random_rgb(e, &mut rng, 0.0);
+    ema_step(&mut acc, &new, &reason, &EmaParams { alpha: 1.0, ..EmaParams::default() });
+    assert_eq!(acc, new);
+}
+
+#[test]
+fn ema_converges_to_the_mean_and_resets_where_history_was_discarded() {
+    let e = extent(9, 1);
+    let mut acc = RgbBuf::new(e, 0.0);
+    let mut reason = PlaneBuf::new(e, Reason::Reprojected as u8);
+    reason.as_mut_slice()[4] = Reason::DepthOrPosition as u8;
+    let mut rng = Rng::new(1);
+    let mut mean = 0.0f64;
+    let frames = 400;
+    for _ in 0..frames {
+        let v = rng.range(0.0, 2.0);
+        mean += f64::from(v) / frames as f64;
+        let stats = ema_step(&mut acc, &RgbBuf::new(e, v), &reason, &EmaParams::default());
+        assert_eq!(stats.resets, 1);
+        assert_eq!(acc.r.as_slice()[4], v, "discarded history resets to the new sample");
+    }
+    assert!((f64::from(acc.r.as_slice()[0]) - mean).abs() < 0.5, "{} vs {mean}", acc.r.as_slice()[0]);
+}
+
+#[test]
+fn non_finite_samples_fall_back_to_history_or_become_holes() {
+    let e = extent(10, 1);
+    let mut new = RgbBuf::new(e, 1.0);
+    new.g.as_mut_slice()[1] = f32::NAN;
+    new.b.as_mut_slice()[2] = f32::INFINITY;
+    new.r.as_mut_slice()[9] = f32::NEG_INFINITY;
+    let mut reason = PlaneBuf::new(e, Reason::Reprojected as u8);
+    reason.as_mut_slice()[2] = Reason::OutOfFrame as u8;
+    let mut acc = RgbBuf::new(e, 5.0);
+    let mut len = PlaneBuf::new(e, 3.0f32);
+    let input = EmaInput { new: new.view(), reason: reason.view(), has_new: None };
+    let stats = accumulate::ema(
+        &input,
+        EmaState { accum: acc.view_mut(), history_len: Some(len.view_mut()) },
+        &EmaParams::default(),
+    )
+    .unwrap();
+    assert_eq!(stats, AccumulateStats { non_finite: 3, holes: 1, resets: 0 });
+    assert_eq!(acc.get(1, 0), [5.0; 3]);
+    assert_eq!(len.as_slice()[1], 3.0);
+    assert_eq!(acc.get(2, 0), [0.0; 3]);
+    assert_eq!(len.as_slice()[2], 0.0);
+    assert_eq!(acc.get(0, 0), [4.2; 3]);
+    assert_eq!(len.as_slice()[0], 4.0);
+}
+
+#[test]
+fn blend_simd_equals_scalar_and_is_a_50_50_mix_where_valid() {
+    let mut rng = Rng::new(21);
+    for case in 0..40 {
+        let e = extent([1, 7, 8, 9, 17, 40][case % 6], 1 + rng.below(5));
+        let own = random_rgb(e, &mut rng, 0.3);
+        let other = random_rgb(e, &mut rng, 0.0);
+        let reason = random_reasons(e, &mut rng);
+        let params = BlendParams { own_weight: [0.5, 0.0, 1.0, 0.3][case % 4], band_rows: 2 };
+        let run = |simd: bool| {
+            let mut out = other.clone();
+            let f = if simd { accumulate::blend } else { accumulate::blend_scalar };
+            let stats = f(&own.view(), out.view_mut(), &reason.view(), &params).unwrap();
+            (stats, out)
+        };
+        let (sa, a) = run(true);
+        let (sb, b) = run(false);
+        assert_eq!(sa, sb);
+        for (x, y) in [(&a.r, &b.r), (&a.g, &b.g), (&a.b, &b.b)] {
+            assert_same_planes("blend", x, y);
+        }
+    }
+    let e = extent(3, 1);
+    let own = RgbBuf::new(e, 1.0);
+    let mut other = RgbBuf::new(e, 3.0);
+    let reason = PlaneBuf::from_vec(vec![0, 1, 0], e).unwrap();
+    accumulate::blend(&own.view(), other.view_mut(), &reason.view(), &BlendParams::default()).unwrap();
+    assert_eq!(other.r.as_slice(), &[2.0, 1.0, 2.0]);
+}
+
+#[test]
+fn rgb_views_of_different_planes_are_checked() {
+    let e = extent(4, 4);
+    let a = PlaneBuf::new(e, 0.0f32);
+    let b = PlaneBuf::new(extent(4, 3), 0.0f32);
+    assert!(RgbPlanes::new(a.view(), b.view(), a.view()).is_err());
+}
