@@ -2,16 +2,17 @@
 //!
 //! Work unit: a *tile* of at most [`BLOCK_ROWS`] rows × [`TILE`] columns of output voxels
 //! (all three channels). For each input row the tile needs (its rows ± 5, clamped), the row
-//! segment (columns ± [`PAD`], replicate-clamped) is copied, sanitised (unusable samples
-//! become NaN, which then poisons exactly the windows that contain them), turned into the
-//! four product planes `x'`, `y'`, `x'² + y'²`, `(d − s_d)²` (with `x' = x − s`,
-//! `d = x − y`), and filtered horizontally into one slot of a ring of 11 rows. As soon as an
-//! output row's 11 input rows are in the ring, the vertical pass, the channel mixing, the
-//! map and the accumulation run for it. Scratch is about 40 KB per band, on the stack.
+//! segment (columns ± [`PAD`]; borrowed from the images, or copied with replicate clamping
+//! at the image borders) is sanitised (unusable samples become NaN, which then poisons
+//! exactly the windows that contain them), turned into the four product planes `x'`, `y'`,
+//! `x'² + y'²`, `(d − s_d)²` (with `x' = x − s`, `d = x − y`), and filtered horizontally into
+//! one slot of a ring of 11 rows. As soon as an output row's 11 input rows are in the ring,
+//! the vertical pass, the channel mixing, the map and the accumulation run for it. Scratch
+//! is about 46 KB per band, on the stack; the ring (33 KB) and the planes stay in L1/L2.
 //!
-//! Tail strategy: a padded lane array. Every tile is processed in whole vectors; the lanes
-//! beyond the image width read replicate-clamped pixels (finite work) and are masked out of
-//! the sums.
+//! Every loop over a tile row runs over the whole tile (constant trip counts, so no bounds
+//! checks survive). Tail strategy: a padded lane array. The lanes beyond the image width read
+//! replicate-clamped pixels (finite work) and are masked out of the sums.
 //!
 //! Tried and measured choices are recorded next to the constants.
 
@@ -29,7 +30,7 @@ use crate::simd::{F32s, LANES, lane_offsets, load, store};
 /// `u64` bit mask per row and channel). The ring is `11 × 3 × 4 × TILE` floats: 33 KB.
 pub(super) const TILE: usize = 64;
 /// Output rows per tile (and per local shift).
-pub(super) const BLOCK_ROWS: usize = 32;
+pub(super) const BLOCK_ROWS: usize = 64;
 /// Columns of halo on each side of a row segment: at least [`RADIUS`], a multiple of
 /// [`LANES`] so that the segment's interior starts on a vector.
 const PAD: usize = 8;
@@ -41,6 +42,8 @@ const PLANES: usize = 4;
 const MAX_BANDS: usize = 256;
 /// Shifted passes over a tile before the exact fallback.
 const PASSES: usize = 3;
+/// Rows ahead that [`run_pass`] prefetches.
+const PREFETCH_ROWS: usize = 2;
 /// Typical rounding error of a cancelled f32 statistic (`σ² = E[x'²] − μ'²`), in units of
 /// the roundoff `u = 2⁻²⁴` times the cancelled magnitude. Used for the refinement test; on the
 /// calibration images of the tests the measured errors stay within 2× of this estimate.
@@ -121,6 +124,8 @@ struct Scratch {
     prod: [[[f32; SEG]; PLANES]; 3],
     /// Horizontally filtered rows: `[row % 11][channel][plane][column − c0]`.
     ring: [[[[f32; TILE]; PLANES]; 3]; TAPS],
+    /// Vertically filtered statistics of the current output row: `[channel][plane][column − c0]`.
+    vbuf: [[[f32; TILE]; PLANES]; 3],
     /// Voxels still to be computed after a pass: `[row − r0][channel]`, bit = column − c0.
     pending: [[u64; 3]; BLOCK_ROWS],
 }
@@ -131,6 +136,7 @@ impl Scratch {
             seg: [[[0.0; SEG]; 3]; 2],
             prod: [[[0.0; SEG]; PLANES]; 3],
             ring: [[[[0.0; TILE]; PLANES]; 3]; TAPS],
+            vbuf: [[[0.0; TILE]; PLANES]; 3],
             pending: [[0; 3]; BLOCK_ROWS],
         }
     }
@@ -338,12 +344,20 @@ fn run_pass(ctx: &Ctx<'_>, s: &mut Scratch, t: &Tile, pass: usize, shifts: &Shif
     let mut next_out = t.r0;
     let mut worst = Worst::new();
     for y in first..last {
-        load_segment(ctx, s, t, y);
-        products(s, t, shifts);
-        if pass == 0 && (t.r0..t.r1).contains(&y) {
-            count_row(s, t, sums);
+        // The tile's rows are 5 KB apart in each of six planes: without a hint every row
+        // segment waits for memory (measured: 16% of the time in the copy).
+        if y + PREFETCH_ROWS < last {
+            prefetch_segment(ctx, t.c0, y + PREFETCH_ROWS);
+        } else if t.c1 < ctx.width {
+            prefetch_segment(ctx, t.c1, first + (y + PREFETCH_ROWS - last));
         }
-        horizontal(&ctx.k, s, t, y % TAPS);
+        let src = segment(ctx, &mut s.seg, t.c0, y);
+        if pass == 0 && (t.r0..t.r1).contains(&y) {
+            products::<true>(&mut s.prod, &src, shifts, t, sums);
+        } else {
+            products::<false>(&mut s.prod, &src, shifts, t, sums);
+        }
+        horizontal(&ctx.k, s, y % TAPS);
         while next_out < t.r1 && (next_out + RADIUS).min(ctx.height - 1) <= y {
             emit_row(ctx, s, t, pass, shifts, next_out, sums, &mut worst);
             next_out += 1;
@@ -352,48 +366,107 @@ fn run_pass(ctx: &Ctx<'_>, s: &mut Scratch, t: &Tile, pass: usize, shifts: &Shif
     worst.next(ctx.variant, shifts)
 }
 
-/// Copies row `y` of every plane, columns `c0 − PAD ‥ c0 + nv·LANES + PAD`, replicate-clamped.
-fn load_segment(ctx: &Ctx<'_>, s: &mut Scratch, t: &Tile, y: usize) {
-    let len = t.nv * LANES + 2 * PAD;
-    let start = t.c0 as isize - PAD as isize;
+/// Hints the row segment of row `y` starting at column `c0` into the cache.
+#[inline(always)]
+fn prefetch_segment(ctx: &Ctx<'_>, c0: usize, y: usize) {
+    for planes in [ctx.a, ctx.b] {
+        for plane in planes.channels() {
+            let row = plane.row(y);
+            let end = (c0 + TILE + PAD).min(row.len());
+            let mut i = c0.saturating_sub(PAD);
+            while i < end {
+                prefetch(&row[i]);
+                i += 64 / size_of::<f32>();
+            }
+            prefetch(&row[end - 1]);
+        }
+    }
+}
+
+#[inline(always)]
+fn prefetch(v: &f32) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: SSE is part of the x86-64 baseline, and a prefetch is a hint: it never faults
+    // and changes nothing the program can observe.
+    unsafe {
+        core::arch::x86_64::_mm_prefetch::<{ core::arch::x86_64::_MM_HINT_T0 }>((v as *const f32).cast::<i8>());
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = v;
+}
+
+/// Row `y` of every plane, columns `c0 − PAD ‥ c0 + TILE + PAD`: borrowed from the images
+/// for interior tiles, copied with replicate clamping into `seg` at the borders. (Copying
+/// every segment cost 7%: six small `memcpy` calls per row.)
+#[inline(always)]
+fn segment<'s>(ctx: &Ctx<'s>, seg: &'s mut [[[f32; SEG]; 3]; 2], c0: usize, y: usize) -> [[&'s [f32; SEG]; 3]; 2] {
+    let rows = [ctx.a, ctx.b].map(|p| p.channels().map(|c| c.row(y)));
+    if c0 >= PAD && c0 - PAD + SEG <= ctx.width {
+        return rows.map(|img| img.map(|row| row[c0 - PAD..c0 - PAD + SEG].try_into().expect("SEG elements")));
+    }
+    let start = c0 as isize - PAD as isize;
     // Segment indices [lo, hi) hold in-image columns; lo ≤ PAD < hi because c0 < width.
     let lo = (-start).max(0) as usize;
-    let hi = (ctx.width as isize - start).min(len as isize) as usize;
-    for (img, planes) in [ctx.a, ctx.b].into_iter().enumerate() {
-        for (c, plane) in planes.channels().iter().enumerate() {
-            let row = plane.row(y);
-            let dst = &mut s.seg[img][c][..len];
+    let hi = (ctx.width as isize - start).min(SEG as isize) as usize;
+    for (img, planes) in rows.iter().enumerate() {
+        for (c, row) in planes.iter().enumerate() {
+            let dst = &mut seg[img][c];
             dst[lo..hi].copy_from_slice(&row[(start + lo as isize) as usize..(start + hi as isize) as usize]);
             dst[..lo].fill(row[0]);
             dst[hi..].fill(row[ctx.width - 1]);
         }
     }
+    let [x, y] = seg;
+    [[&x[0], &x[1], &x[2]], [&y[0], &y[1], &y[2]]]
 }
 
-/// Sanitises the segment and writes the four product planes.
+/// Sanitises the segment and writes the four product planes (the whole segment: constant
+/// trip counts let the compiler drop every bounds check). With `COUNT`, also adds the
+/// tile's own columns of this row to the RMSE sums and the unusable-sample counts (a
+/// separate pass over the row cost 4%).
 #[inline(always)]
-fn products(s: &mut Scratch, t: &Tile, sh: &Shifts) {
-    let vectors = t.nv + 2 * PAD / LANES;
+fn products<const COUNT: bool>(
+    prod: &mut [[[f32; SEG]; PLANES]; 3],
+    src: &[[&[f32; SEG]; 3]; 2],
+    sh: &Shifts,
+    t: &Tile,
+    sums: &mut Sums,
+) {
     let max = F32s::splat(MAX_SAMPLE);
     let nan = F32s::splat(f32::NAN);
+    let mut sq = F32s::ZERO;
+    let own = PAD / LANES..PAD / LANES + t.nv;
     for c in 0..3 {
         let shift = F32s::splat(sh.s[c]);
         let dshift = F32s::splat(sh.sd[c]);
-        let [xs, ys] = [&s.seg[0][c], &s.seg[1][c]];
-        let [px, py, ps, pd] = &mut s.prod[c];
-        for v in 0..vectors {
+        let (xs, ys) = (src[0][c], src[1][c]);
+        let [px, py, ps, pd] = &mut prod[c];
+        for v in 0..SEG / LANES {
             let i = v * LANES;
             let (x, y) = (load(xs, i), load(ys, i));
             // `abs ≤ MAX` is false for NaN: every unusable sample becomes NaN.
-            let x = x.abs().simd_le(max).select(x, nan);
-            let y = y.abs().simd_le(max).select(y, nan);
+            let (ux, uy) = (x.abs().simd_le(max), y.abs().simd_le(max));
+            let x = ux.select(x, nan);
+            let y = uy.select(y, nan);
+            let d = x - y;
             let (xp, yp) = (x - shift, y - shift);
-            let dp = (x - y) - dshift;
+            let dp = d - dshift;
             store(px, i, xp);
             store(py, i, yp);
             store(ps, i, xp * xp + yp * yp);
             store(pd, i, dp * dp);
+            if COUNT && own.contains(&v) {
+                let inside = lanes(t, v - PAD / LANES);
+                let both = ux & uy & inside;
+                sums.non_finite += u64::from(count(!ux & inside) + count(!uy & inside));
+                sums.sq_n += u64::from(count(both));
+                // At most 24 terms per lane in f32 before the f64 sum: relative error ≤ 1.5e-6.
+                sq += both.select(d * d, F32s::ZERO);
+            }
         }
+    }
+    if COUNT {
+        widen_add(&mut sums.sq, sq);
     }
 }
 
@@ -404,33 +477,15 @@ fn lanes(t: &Tile, j: usize) -> F32s {
     lane_offsets().simd_lt(F32s::splat(inside as f32))
 }
 
-/// RMSE sums and unusable-sample counts of the tile's own columns of one row.
-fn count_row(s: &Scratch, t: &Tile, sums: &mut Sums) {
-    let max = F32s::splat(MAX_SAMPLE);
-    for c in 0..3 {
-        for j in 0..t.nv {
-            let i = PAD + j * LANES;
-            let (x, y) = (load(&s.seg[0][c], i), load(&s.seg[1][c], i));
-            let inside = lanes(t, j);
-            let (ux, uy) = (x.abs().simd_le(max), y.abs().simd_le(max));
-            let both = ux & uy & inside;
-            sums.non_finite += u64::from(count(!ux & inside) + count(!uy & inside));
-            sums.sq_n += u64::from(count(both));
-            let d = x - y;
-            widen_add(&mut sums.sq, both.select(d * d, F32s::ZERO));
-        }
-    }
-}
-
-/// The horizontal 11-tap pass of every product plane into ring slot `slot`.
+/// The horizontal 11-tap pass of every product plane into ring slot `slot` (whole tile).
 #[inline(always)]
-fn horizontal(k: &Consts, s: &mut Scratch, t: &Tile, slot: usize) {
+fn horizontal(k: &Consts, s: &mut Scratch, slot: usize) {
     let w = &k.w;
     for c in 0..3 {
         for q in 0..PLANES {
             let src = &s.prod[c][q];
             let dst = &mut s.ring[slot][c][q];
-            for j in 0..t.nv {
+            for j in 0..TILE / LANES {
                 let i = PAD + j * LANES;
                 let mut acc = w[0] * load(src, i);
                 for (r, &wr) in w.iter().enumerate().skip(1) {
@@ -442,7 +497,45 @@ fn horizontal(k: &Consts, s: &mut Scratch, t: &Tile, slot: usize) {
     }
 }
 
+/// The vertical 11-tap pass of every plane for output row `o` into `vbuf` (whole tile).
+#[inline(always)]
+fn vertical(k: &Consts, s: &mut Scratch, slots: &[usize; TAPS]) {
+    let w = &k.w;
+    for c in 0..3 {
+        for q in 0..PLANES {
+            let ring = &s.ring;
+            let at_slot = |i: usize| &ring[slots[i]][c][q];
+            let rows = [
+                at_slot(0),
+                at_slot(1),
+                at_slot(2),
+                at_slot(3),
+                at_slot(4),
+                at_slot(5),
+                at_slot(6),
+                at_slot(7),
+                at_slot(8),
+                at_slot(9),
+                at_slot(10),
+            ];
+            let dst = &mut s.vbuf[c][q];
+            for j in 0..TILE / LANES {
+                let col = j * LANES;
+                let at = |i: usize| load(rows[i], col);
+                let mut acc = w[0] * at(5);
+                acc += w[1] * (at(4) + at(6));
+                acc += w[2] * (at(3) + at(7));
+                acc += w[3] * (at(2) + at(8));
+                acc += w[4] * (at(1) + at(9));
+                acc += w[5] * (at(0) + at(10));
+                store(dst, col, acc);
+            }
+        }
+    }
+}
+
 /// The window statistics of one vector of voxels and what the pass does with them.
+#[derive(Default)]
 struct Voxels {
     /// Map values, clamped to [−1, 1].
     val: [F32s; 3],
@@ -459,9 +552,12 @@ struct Voxels {
     md: [F32s; 3],
 }
 
+/// `max(v, 0)`. The voxel math uses the plain `maxps`/`minps` (`fast_max`/`fast_min`, one
+/// instruction instead of three): NaN lanes may come out as numbers, but they are excluded
+/// by the separate finiteness mask, never by these results.
 #[inline(always)]
 fn max0(v: F32s) -> F32s {
-    v.max(F32s::ZERO)
+    v.fast_max(F32s::ZERO)
 }
 
 /// The (possibly mixed) window statistics of one vector of voxels.
@@ -508,9 +604,9 @@ fn map(k: &Consts, w: &Window) -> Mapped {
     // σd² ≤ 2(σx² + σy²) holds exactly, but `vs` may be the badly conditioned one of the two
     // (clamping to it would hide the deficit from the error estimate): clamp only as far as
     // the structure term needs to stay ≥ −1.
-    let vd = w.vd.min(cs_den + cs_den);
+    let vd = w.vd.fast_min(cs_den + cs_den);
     let cs_num = cs_den - vd;
-    let val = ((lum_num * cs_num) / (lum_den * cs_den)).max(-F32s::ONE).min(F32s::ONE);
+    let val = ((lum_num * cs_num) / (lum_den * cs_den)).fast_max(-F32s::ONE).fast_min(F32s::ONE);
     // The estimate must not trust `vs` itself: where its error exceeds it (a badly shifted
     // window), the computed `cs_den` can be far too large and would hide everything.
     let cs_lo = max0(w.vs - k.bound * w.mag_s) + k.c2;
@@ -522,10 +618,7 @@ fn map(k: &Consts, w: &Window) -> Mapped {
 }
 
 #[inline(always)]
-fn voxels(k: &Consts, variant: SsimVariant, st: &[[F32s; PLANES]; 3], sh: &Shifts, ds: &[[F32s; 3]; 3]) -> Voxels {
-    let zero = [F32s::ZERO; 3];
-    let mut v =
-        Voxels { val: zero, finite: zero, flagged: zero, score: [[F32s::ZERO; 4]; 3], mx: zero, my: zero, md: zero };
+fn voxels(k: &Consts, variant: SsimVariant, st: &[[F32s; PLANES]; 3], sh: &Shifts, ds: &[F32s; 3], v: &mut Voxels) {
     let mut win = [Window {
         mx: F32s::ZERO,
         my: F32s::ZERO,
@@ -559,7 +652,7 @@ fn voxels(k: &Consts, variant: SsimVariant, st: &[[F32s; PLANES]; 3], sh: &Shift
         // NaN or ±∞ anywhere in the window makes the sum non-finite.
         v.finite[c] = (xp + yp + s2 + d2).is_finite();
     }
-    let mut out = |c: usize, w: &Window| {
+    let out = |v: &mut Voxels, c: usize, w: &Window| {
         let m = map(k, w);
         v.val[c] = m.val;
         v.flagged[c] = m.flagged;
@@ -568,57 +661,75 @@ fn voxels(k: &Consts, variant: SsimVariant, st: &[[F32s; PLANES]; 3], sh: &Shift
     match variant {
         SsimVariant::PerChannel => {
             for (c, w) in win.iter().enumerate() {
-                out(c, w);
+                out(v, c, w);
             }
         }
         SsimVariant::Volume => {
-            // Upper bounds of the cancelled magnitudes over the channels (exact on grey).
-            let mag_s = win[0].mag_s.max(win[1].mag_s).max(win[2].mag_s);
-            let mag_d = win[0].mag_d.max(win[1].mag_d).max(win[2].mag_d);
-            let mag_m = win[0].mag_m.max(win[1].mag_m).max(win[2].mag_m);
+            // Differences of the unshifted channel means for the pairs (1,0), (2,0), (2,1):
+            // from the shifted means (small) plus the difference of the shifts (a constant),
+            // so a large common level never enters.
+            // (Plain arrays and loops: `[_; 3].map` is not inlined here and cost 10%.)
+            const PAIRS: [(usize, usize); 3] = [(1, 0), (2, 0), (2, 1)];
+            let mut dx = [F32s::ZERO; 3];
+            let mut dy = [F32s::ZERO; 3];
+            let mut dd = [F32s::ZERO; 3];
+            let mut pxy = [F32s::ZERO; 3];
+            let mut pd = [F32s::ZERO; 3];
+            let mut dvs = [F32s::ZERO; 3];
+            let mut dvd = [F32s::ZERO; 3];
+            let mut dms = [F32s::ZERO; 3];
+            let mut dmd = [F32s::ZERO; 3];
+            let mut dmm = [F32s::ZERO; 3];
+            for (i, &(a, b)) in PAIRS.iter().enumerate() {
+                dx[i] = (st[a][0] - st[b][0]) + ds[i];
+                dy[i] = (st[a][1] - st[b][1]) + ds[i];
+                dd[i] = v.md[a] - v.md[b];
+                pxy[i] = dx[i] * dx[i] + dy[i] * dy[i];
+                pd[i] = dd[i] * dd[i];
+                dvs[i] = win[a].vs - win[b].vs;
+                dvd[i] = win[a].vd - win[b].vd;
+                dms[i] = win[a].mag_s - win[b].mag_s;
+                dmd[i] = win[a].mag_d - win[b].mag_d;
+                dmm[i] = win[a].mag_m - win[b].mag_m;
+            }
+            let m = &k.m;
+            // For channel c, `q₃ − q_c = Σ_{c'≠c} M[c][c']·(q_c' − q_c)` with the pair
+            // differences signed accordingly; zero (exactly) when the channels agree.
+            let e = |c: usize, d: &[F32s; 3]| match c {
+                0 => m[0][1] * d[0] + m[0][2] * d[1],
+                1 => m[1][2] * d[2] - m[1][0] * d[0],
+                _ => -(m[2][0] * d[1] + m[2][1] * d[2]),
+            };
+            // `Σ_{c'≠c} M[c][c']·p(c, c')` for a symmetric pair quantity `p`.
+            let side = |c: usize, p: &[F32s; 3]| match c {
+                0 => m[0][1] * p[0] + m[0][2] * p[1],
+                1 => m[1][0] * p[0] + m[1][2] * p[2],
+                _ => m[2][0] * p[1] + m[2][1] * p[2],
+            };
             for c in 0..3 {
-                let (a, b) = match c {
-                    0 => (1, 2),
-                    1 => (0, 2),
-                    _ => (0, 1),
-                };
-                let m = &k.m[c];
-                // Mixing in the form q_c + Σ M·(q_c' − q_c): exact when all channels agree.
-                let mix = |q: [F32s; 3]| q[c] + m[a] * (q[a] - q[c]) + m[b] * (q[b] - q[c]);
-                // Differences of the unshifted means between channels, from the shifted means
-                // (small) plus the difference of the shifts (exact constants).
-                let dxa = (st[a][0] - st[c][0]) + ds[a][c];
-                let dxb = (st[b][0] - st[c][0]) + ds[b][c];
-                let dya = (st[a][1] - st[c][1]) + ds[a][c];
-                let dyb = (st[b][1] - st[c][1]) + ds[b][c];
-                let dda = v.md[a] - v.md[c];
-                let ddb = v.md[b] - v.md[c];
-                // μ₃ − μ_c.
-                let ex = m[a] * dxa + m[b] * dxb;
-                let ey = m[a] * dya + m[b] * dyb;
-                let ed = m[a] * dda + m[b] * ddb;
-                // Law of total variance: Σ M·(μ_c' − μ₃)².
-                let sq2 = |p: F32s, q: F32s| p * p + q * q;
-                let between_s = m[c] * sq2(ex, ey) + m[a] * sq2(dxa - ex, dya - ey) + m[b] * sq2(dxb - ex, dyb - ey);
-                let (ea, eb) = (dda - ed, ddb - ed);
-                let between_d = m[c] * (ed * ed) + m[a] * (ea * ea) + m[b] * (eb * eb);
+                let (ex, ey, ed) = (e(c, &dx), e(c, &dy), e(c, &dd));
+                // Law of total variance: Σ M·(μ_c' − μ₃)² = Σ M·(μ_c' − μ_c)² − (μ₃ − μ_c)²,
+                // well conditioned because M[c][c] ≥ 0.27 (the subtracted square is at most
+                // 73% of the sum).
+                let between_s = max0(side(c, &pxy) - (ex * ex + ey * ey));
+                let between_d = max0(side(c, &pd) - ed * ed);
                 let mixed = Window {
                     mx: v.mx[c] + ex,
                     my: v.my[c] + ey,
                     md: v.md[c] + ed,
-                    vs: mix(win.map(|w| w.vs)) + between_s,
-                    vd: mix(win.map(|w| w.vd)) + between_d,
-                    mag_s: mag_s + between_s,
-                    mag_d: mag_d + between_d,
-                    mag_m,
+                    vs: (win[c].vs + e(c, &dvs)) + between_s,
+                    vd: (win[c].vd + e(c, &dvd)) + between_d,
+                    // The rounding errors mix like the statistics they belong to.
+                    mag_s: (win[c].mag_s + e(c, &dms)) + between_s,
+                    mag_d: (win[c].mag_d + e(c, &dmd)) + between_d,
+                    mag_m: win[c].mag_m + e(c, &dmm),
                 };
-                out(c, &mixed);
+                out(v, c, &mixed);
             }
             let finite = v.finite[0] & v.finite[1] & v.finite[2];
             v.finite = [finite; 3];
         }
     }
-    v
 }
 
 /// Vertical pass, map and accumulation for output row `o`.
@@ -634,40 +745,60 @@ fn emit_row(
     worst: &mut Worst,
 ) {
     let k = &ctx.k;
-    let slots: [usize; TAPS] = core::array::from_fn(|i| (o + i).saturating_sub(RADIUS).min(ctx.height - 1) % TAPS);
-    let ds: [[F32s; 3]; 3] = core::array::from_fn(|a| core::array::from_fn(|c| F32s::splat(sh.s[a] - sh.s[c])));
+    let mut slots = [0usize; TAPS];
+    for (i, slot) in slots.iter_mut().enumerate() {
+        *slot = (o + i).saturating_sub(RADIUS).min(ctx.height - 1) % TAPS;
+    }
+    let mut ds = [F32s::ZERO; 3];
+    for (i, (a, b)) in [(1, 0), (2, 0), (2, 1)].into_iter().enumerate() {
+        ds[i] = F32s::splat(sh.s[a] - sh.s[b]);
+    }
     let row = o - t.r0;
     let pending = s.pending[row];
     if pass > 0 && pending == [0; 3] {
         return;
     }
-    for j in 0..t.nv {
-        let want: [u32; 3] = if pass == 0 { [0xff; 3] } else { pending.map(|p| ((p >> (j * LANES)) & 0xff) as u32) };
+    vertical(k, s, &slots);
+    let mut st = [[F32s::ZERO; PLANES]; 3];
+    let mut v = Voxels::default();
+    let mut row_sum = [F32s::ZERO; 3];
+    let mut row_count = [0u64; 3];
+    for j in 0..t.nv.min(TILE / LANES) {
+        let mut want = [0xffu32; 3];
+        if pass > 0 {
+            for (w, &p) in want.iter_mut().zip(&pending) {
+                *w = ((p >> (j * LANES)) & 0xff) as u32;
+            }
+        }
         if want == [0; 3] {
             continue;
         }
         let col = j * LANES;
-        let ring = &s.ring;
-        let st: [[F32s; PLANES]; 3] = core::array::from_fn(|c| {
-            core::array::from_fn(|q| {
-                let at = |i: usize| load(&ring[slots[i]][c][q], col);
-                let mut acc = k.w[0] * at(RADIUS);
-                for r in 1..=RADIUS {
-                    acc += k.w[r] * (at(RADIUS - r) + at(RADIUS + r));
-                }
-                acc
-            })
-        });
-        let v = voxels(k, ctx.variant, &st, sh, &ds);
+        for c in 0..3 {
+            for q in 0..PLANES {
+                st[c][q] = load(&s.vbuf[c][q], col);
+            }
+        }
+        voxels(k, ctx.variant, &st, sh, &ds, &mut v);
         let inside = lanes(t, j);
+        // Common case: eight usable, well-conditioned voxels in every channel.
+        let ok = inside & v.finite[0] & v.finite[1] & v.finite[2] & !(v.flagged[0] | v.flagged[1] | v.flagged[2]);
+        if pass == 0 && ok.all() {
+            for c in 0..3 {
+                row_sum[c] += v.val[c];
+                row_count[c] += LANES as u64;
+            }
+            continue;
+        }
         for (c, &want) in want.iter().enumerate() {
             let candidates = v.finite[c] & inside & if pass == 0 { inside } else { bits_mask(want) };
             let flagged = candidates & v.flagged[c];
             let accept = candidates & !flagged;
             let accepted = count(accept);
             if accepted > 0 {
-                widen_add(&mut sums.sum[c], accept.select(v.val[c], F32s::ZERO));
-                sums.count[c] += u64::from(accepted);
+                // At most 8 terms per lane in f32 before the f64 sum.
+                row_sum[c] += accept.select(v.val[c], F32s::ZERO);
+                row_count[c] += u64::from(accepted);
                 if pass > 0 {
                     sums.refined += u64::from(accepted);
                 }
@@ -694,5 +825,9 @@ fn emit_row(
                 }
             }
         }
+    }
+    for c in 0..3 {
+        widen_add(&mut sums.sum[c], row_sum[c]);
+        sums.count[c] += row_count[c];
     }
 }
