@@ -402,6 +402,54 @@ mod ssim_tests {
     }
 
     #[test]
+    fn edge_values_match_scalar_and_brute_force() {
+        // ±0, subnormals, the usable limit itself and just beyond, f32::MAX, negative values:
+        // sprinkled over a random image at a fixed set of positions.
+        let edge = [
+            0.0f32,
+            -0.0,
+            f32::MIN_POSITIVE / 4.0,
+            -f32::MIN_POSITIVE,
+            MAX_SAMPLE,
+            -MAX_SAMPLE,
+            MAX_SAMPLE * (1.0 + f32::EPSILON),
+            f32::MAX,
+            f32::MIN,
+            -3.5,
+            1e-30,
+        ];
+        let mut r = Rng::new(140);
+        let mut a = random(29, 21, 141);
+        let mut b = noisy(&a, 0.2, 142);
+        for (i, &v) in edge.iter().enumerate() {
+            let (x, y, c) = (r.below(29), r.below(21), r.below(3));
+            let img = if i % 2 == 0 { &mut a } else { &mut b };
+            let mut px = img.get(x, y);
+            px[c] = v;
+            img.set(x, y, px);
+        }
+        let unusable = [&a, &b]
+            .iter()
+            .map(|img| {
+                (0..21)
+                    .flat_map(|y| (0..29).map(move |x| (x, y)))
+                    .map(|(x, y)| img.get(x, y).iter().filter(|v| !ssim::usable(**v)).count() as u64)
+                    .sum::<u64>()
+            })
+            .sum::<u64>();
+        for variant in VARIANTS {
+            let fast = assert_matches_brute(&a, &b, variant, TOL);
+            assert_eq!(fast.non_finite, unusable);
+            assert_agrees(&fast, &run_scalar(&a, &b, variant), TOL);
+        }
+        // Subnormal and zero images: still exactly 1 against themselves.
+        let tiny = image(17, 9, |x, y, c| f32::from_bits(((x * 31 + y * 7 + c) % 1000) as u32));
+        for variant in VARIANTS {
+            assert_eq!(run(&tiny, &tiny, variant).ssim, 1.0);
+        }
+    }
+
+    #[test]
     fn odd_sizes_and_strides() {
         let sizes = [
             (1, 1),

@@ -114,9 +114,10 @@ pub const MAX_SAMPLE: f32 = 1.0e9;
 /// accurate than this bound (see the module docs). 1e-5 refined 7% of the voxels of a
 /// synthetic HDR frame and cost 20× the time; 1e-4 refines 0.4%.
 pub const REFINE_THRESHOLD: f64 = 1.0e-4;
-/// `|Δssim|` that the `check-scalar` feature tolerates between [`ssim`] and [`ssim_scalar`]
-/// (looser than the tests' 1e-6 because fuzz inputs are adversarial).
-pub const CHECK_TOLERANCE: f64 = 1.0e-5;
+/// `|Δssim|` that the `check-scalar` feature tolerates between [`ssim`] and [`ssim_scalar`].
+/// Far looser than the tests' 1e-6: fuzz inputs are adversarial and tiny (a 1×1 image has
+/// three voxels, each allowed an estimated error up to [`REFINE_THRESHOLD`]).
+pub const CHECK_TOLERANCE: f64 = 10.0 * REFINE_THRESHOLD;
 
 /// Which SSIM.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]

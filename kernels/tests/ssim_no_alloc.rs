@@ -1,0 +1,75 @@
+//! The SSIM kernel allocates nothing, including its refinement passes and its exact f64
+//! fallback, on a two-thread rayon pool.
+//!
+//! A counting global allocator sees every allocation in the process, on every thread, so
+//! this file holds a single test (the test harness itself allocates between tests).
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use stereotrace_kernels::frame::{Extent, RgbBuf};
+use stereotrace_kernels::ssim::{self, SsimParams, SsimVariant};
+
+struct Counting;
+
+static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
+
+// SAFETY: forwards to the system allocator unchanged; only counts.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        // SAFETY: same contract as the caller's.
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: same contract as the caller's.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        // SAFETY: same contract as the caller's.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+#[test]
+// With `check-scalar`, every call also runs the (allocating) scalar reference.
+#[cfg_attr(feature = "check-scalar", ignore)]
+fn ssim_allocates_nothing() {
+    let e = Extent::new(203, 77).unwrap();
+    // Bright flat blocks with tiny noise beside dark ones (refinement passes and, with the
+    // 1e5 level, the exact fallback), a NaN and a firefly.
+    let mut a = RgbBuf::new(e, 0.0);
+    let mut b = RgbBuf::new(e, 0.0);
+    let mut state = 0x1234_5678_u32;
+    let mut noise = || {
+        state ^= state << 13;
+        state ^= state >> 17;
+        state ^= state << 5;
+        state as f32 / u32::MAX as f32
+    };
+    for y in 0..e.height() {
+        for x in 0..e.width() {
+            let level = [1e5f32, 0.02, 5.0, 1000.0][(x / 9 + y / 7) % 4];
+            let px = [0, 1, 2].map(|c| level * (1.0 + 1e-4 * noise()) * [1.0, 0.7, 0.4][c]);
+            a.set(x, y, px);
+            b.set(x, y, px.map(|v| v + 0.01 * (noise() - 0.5)));
+        }
+    }
+    b.set(100, 40, [f32::NAN, 1.0, 1.0]);
+    b.set(10, 10, [1e6, 1.0, 1.0]);
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+    for variant in [SsimVariant::Volume, SsimVariant::PerChannel] {
+        let params = SsimParams::with_variant(variant);
+        let first = pool.install(|| ssim::ssim(&a.view(), &b.view(), &params).unwrap());
+        assert!(first.refined > 0, "{variant:?}: the image should need refinement: {first:?}");
+        let before = ALLOCATIONS.load(Ordering::Relaxed);
+        let second = pool.install(|| ssim::ssim(&a.view(), &b.view(), &params).unwrap());
+        let allocated = ALLOCATIONS.load(Ordering::Relaxed) - before;
+        assert_eq!(first, second);
+        assert_eq!(allocated, 0, "{variant:?}: {allocated} allocations");
+    }
+}
