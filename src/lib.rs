@@ -8,3 +8,4 @@
 pub use stereotrace_kernels as kernels;
 
 pub mod cpu;
+pub mod scene;

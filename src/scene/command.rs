@@ -1,0 +1,57 @@
+//! The `scenes` subcommand: lists the built-in scenes (name, paper scene, triangle count,
+//! effects) and optionally describes scenes given by spec (built-in, manifest or folder).
+
+use std::io::{self, Write};
+
+use super::builtin::list_builtin;
+use super::error::SceneError;
+use super::resolve::resolve;
+
+/// Why the command failed.
+#[derive(Debug, thiserror::Error)]
+pub enum CommandError {
+    /// A scene could not be resolved or loaded.
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    /// Writing the output failed.
+    #[error("cannot write output: {0}")]
+    Io(#[from] io::Error),
+}
+
+/// Writes the built-in table to `out`.
+pub fn write_builtin_table(out: &mut dyn Write) -> io::Result<()> {
+    let list = list_builtin();
+    let w_name = list.iter().map(|b| b.name.len()).max().unwrap_or(4).max(4);
+    let w_paper = list.iter().map(|b| b.paper_scene.map_or(1, str::len)).max().unwrap_or(5).max(5);
+    writeln!(out, "{:<w_name$}  {:<w_paper$}  {:>9}  effects", "name", "paper", "triangles")?;
+    for b in &list {
+        writeln!(
+            out,
+            "{:<w_name$}  {:<w_paper$}  {:>9}  {}",
+            b.name,
+            b.paper_scene.unwrap_or("-"),
+            b.triangles,
+            b.effects
+        )?;
+    }
+    writeln!(
+        out,
+        "\nAlso accepted by --scene: a manifest (*.toml, paths relative to it) or a scene folder (scene.obj, camera.json, lights.json)."
+    )
+}
+
+/// Runs `stereotrace scenes [SPEC...]`: the built-in table, or a summary of each spec.
+pub fn run(specs: &[String], out: &mut dyn Write) -> Result<(), CommandError> {
+    if specs.is_empty() {
+        write_builtin_table(out)?;
+        return Ok(());
+    }
+    for spec in specs {
+        let scene = resolve(spec)?;
+        writeln!(out, "{}", scene.summary())?;
+        for w in &scene.warnings {
+            writeln!(out, "  warning: {w}")?;
+        }
+    }
+    Ok(())
+}

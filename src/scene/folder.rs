@@ -1,0 +1,495 @@
+//! Scene folders in the format of `../shared/scenes/*/`: `scene.obj`, `scene.mtl`,
+//! `camera.json`, `lights.json`, `SOURCE.md` and textures.
+//!
+//! ## Units
+//!
+//! Scene units are metres. The scale comes from [`FolderOptions::scale`] when given, else from
+//! the `Units:` line of `SOURCE.md` (`Millimetres` → 0.001, `Centimetres` → 0.01, anything
+//! else → 1), so `cornell-box` (mm) loads as a 0.556 m box. Camera and light positions are
+//! scaled with the geometry; radiance is scale-free.
+//!
+//! ## Camera
+//!
+//! `camera.json` gives one camera (`eye`, `target`, `up`, `vfov_deg`). A 60-frame smooth path
+//! is synthesised around it: a forward dolly along the horizontal view direction of
+//! `travel = clamp(0.05 × size, ·, 0.6 m)` (size = the robust scene extent below), a slight
+//! lateral sway (±15 % of the travel) and a 5° pan to the right, all through four keys
+//! (frames 0, 20, 40, 59) on the Catmull-Rom path. The first frame is exactly camera.json's view.
+//!
+//! ## Lights (`lights.json`)
+//!
+//! - `area`: already geometry (emissive material in the MTL); the entry is cross-checked
+//!   against the material's `Ke` (mismatch: warning).
+//! - `envmap`: a lat-long EXR with its `to_world` (row-major 4×4; its 3×3 part is used) and
+//!   `scale`, in Mitsuba's convention (see [`EnvMap`]).
+//! - `sunsky`: the sun becomes a [`SunLight`] along `sun_direction` with angular radius
+//!   `0.2679° × sun_radius_scale` (Mitsuba's sun disc) and irradiance
+//!   `sun_scale × (2.0, 1.85, 1.65)`; the sky becomes a [`SkyGradient`] with zenith
+//!   `sky_scale × (0.06, 0.09, 0.16)`, horizon `sky_scale × (0.16, 0.17, 0.19)` and ground
+//!   `albedo ×` the horizon. These absolute numbers are our choice (no Hosek–Wilkie model
+//!   here): they give a clear-sky ratio of direct to diffuse irradiance of about 3:1 at the
+//!   classroom's 25° sun elevation and a well-exposed interior at exposure 1.
+//! - `constant`: a constant environment.
+//! - Extensions (not in the shared scenes, accepted for hand-written folders): `point`
+//!   (`position`, `intensity`), `sun` (`direction`, `irradiance`, `angular_radius_deg`),
+//!   `sky` (`zenith`, `horizon`, `ground`).
+//!
+//! A folder without `lights.json` is fine if its MTL has emitters; `camera.json` is required.
+
+use std::path::{Path, PathBuf};
+
+use glam::{Mat3, Vec3};
+use serde::Deserialize;
+
+use super::envmap::EnvMap;
+use super::error::{Location, SceneError};
+use super::light::{Environment, Lights, PointLight, SkyGradient, SunLight};
+use super::obj::{GlassMode, ObjData, ObjOptions, load_obj};
+use super::path::{CameraKey, CameraPath, DEFAULT_FRAMES};
+use super::{EffectSet, Scene, SceneSource, SceneTolerances};
+
+/// Mitsuba's apparent sun radius in degrees (half its 0.5358° diameter).
+pub const SUN_RADIUS_DEG: f32 = 0.5358 / 2.0;
+
+/// Options for [`load_folder`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FolderOptions {
+    /// Scale to metres; `None` reads `SOURCE.md`.
+    pub scale: Option<f32>,
+    /// Glass handling.
+    pub glass: GlassMode,
+    /// Frames of the synthesised camera path.
+    pub frames: u32,
+}
+
+impl Default for FolderOptions {
+    fn default() -> Self {
+        Self { scale: None, glass: GlassMode::Transparent, frames: DEFAULT_FRAMES }
+    }
+}
+
+/// `camera.json`.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+pub struct CameraJson {
+    /// Eye position.
+    pub eye: [f32; 3],
+    /// Point looked at.
+    pub target: [f32; 3],
+    /// Up vector.
+    #[serde(default = "up_y")]
+    pub up: [f32; 3],
+    /// Vertical field of view (degrees) for `width × height`.
+    pub vfov_deg: f32,
+    /// Film width the source was framed for.
+    pub width: Option<u32>,
+    /// Film height the source was framed for.
+    pub height: Option<u32>,
+}
+
+fn up_y() -> [f32; 3] {
+    [0.0, 1.0, 0.0]
+}
+
+/// One entry of `lights.json`.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(tag = "type", rename_all = "lowercase")]
+pub enum LightJson {
+    /// An emissive shape already in the mesh.
+    Area {
+        /// Emitting material name.
+        material: Option<String>,
+        /// Radiance (should equal the material's `Ke`).
+        radiance: [f32; 3],
+    },
+    /// A lat-long EXR environment map.
+    Envmap {
+        /// File name relative to the folder.
+        filename: String,
+        /// Radiance scale.
+        #[serde(default = "one")]
+        scale: f32,
+        /// Row-major 4×4 (or 3×3) local-to-world matrix.
+        to_world: Vec<Vec<f32>>,
+    },
+    /// Mitsuba sun + sky parameters.
+    Sunsky {
+        /// Unit vector towards the sun.
+        sun_direction: [f32; 3],
+        /// Sky brightness multiplier.
+        #[serde(default = "one")]
+        sky_scale: f32,
+        /// Sun brightness multiplier.
+        #[serde(default = "one")]
+        sun_scale: f32,
+        /// Sun disc radius multiplier.
+        #[serde(default = "one")]
+        sun_radius_scale: f32,
+        /// Ground albedo.
+        #[serde(default = "ground_albedo")]
+        albedo: f32,
+    },
+    /// A constant environment.
+    Constant {
+        /// Radiance.
+        radiance: [f32; 3],
+    },
+    /// A point light (extension).
+    Point {
+        /// Position (scaled with the geometry).
+        position: [f32; 3],
+        /// Radiant intensity.
+        intensity: [f32; 3],
+    },
+    /// A directional sun (extension).
+    Sun {
+        /// Unit vector towards the sun.
+        direction: [f32; 3],
+        /// Irradiance facing the sun.
+        irradiance: [f32; 3],
+        /// Disc radius in degrees.
+        #[serde(default = "sun_radius")]
+        angular_radius_deg: f32,
+    },
+    /// A sky gradient (extension).
+    Sky {
+        /// Zenith radiance.
+        zenith: [f32; 3],
+        /// Horizon radiance.
+        horizon: [f32; 3],
+        /// Below-horizon radiance.
+        ground: [f32; 3],
+    },
+}
+
+fn one() -> f32 {
+    1.0
+}
+fn ground_albedo() -> f32 {
+    0.15
+}
+fn sun_radius() -> f32 {
+    SUN_RADIUS_DEG
+}
+
+/// Reads and parses a JSON file; syntax errors carry line and column.
+pub(crate) fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, SceneError> {
+    let text = std::fs::read_to_string(path).map_err(|e| SceneError::io(path, e))?;
+    serde_json::from_str(&text).map_err(|e| SceneError::Parse {
+        location: Location::at(path, e.line().max(1), e.column().max(1)),
+        message: e.to_string(),
+    })
+}
+
+/// The sun and sky of a Mitsuba `sunsky` entry (see the module notes for the numbers).
+pub fn sunsky(
+    direction: Vec3,
+    sky_scale: f32,
+    sun_scale: f32,
+    sun_radius_scale: f32,
+    albedo: f32,
+) -> (SunLight, SkyGradient) {
+    let horizon = Vec3::new(0.16, 0.17, 0.19) * sky_scale;
+    let sky = SkyGradient { zenith: Vec3::new(0.06, 0.09, 0.16) * sky_scale, horizon, ground: horizon * albedo };
+    let sun = SunLight {
+        direction: direction.normalize_or(Vec3::Y),
+        irradiance: Vec3::new(2.0, 1.85, 1.65) * sun_scale,
+        angular_radius_deg: (SUN_RADIUS_DEG * sun_radius_scale).clamp(0.01, 45.0),
+    };
+    (sun, sky)
+}
+
+/// Applies `lights.json` entries to `lights` (environment and sun replace earlier ones).
+/// `dir` resolves file names, `scale` scales positions, `materials` cross-checks area lights.
+pub(crate) fn apply_light_json(
+    entries: &[LightJson],
+    json_path: &Path,
+    dir: &Path,
+    scale: f32,
+    obj: &ObjData,
+    lights: &mut Lights,
+    warnings: &mut Vec<String>,
+) -> Result<(), SceneError> {
+    let bad = |i: usize, m: String| SceneError::invalid(json_path, format!("light {i}: {m}"));
+    let finite3 = |v: [f32; 3]| Vec3::from(v).is_finite();
+    for (i, e) in entries.iter().enumerate() {
+        match e {
+            LightJson::Area { material, radiance } => {
+                let Some(name) = material else { continue };
+                match obj.materials.iter().find(|m| &m.name == name) {
+                    None => warnings
+                        .push(format!("{}: light {i}: area material {name:?} is not in the MTL", json_path.display())),
+                    Some(m)
+                        if (m.emission - Vec3::from(*radiance)).abs().max_element()
+                            > 1e-3 * m.emission.max_element().max(1.0) =>
+                    {
+                        warnings.push(format!(
+                            "{}: light {i}: radiance {:?} differs from {name:?}'s Ke {}; Ke is used",
+                            json_path.display(),
+                            radiance,
+                            m.emission
+                        ))
+                    }
+                    Some(_) => {}
+                }
+            }
+            LightJson::Envmap { filename, scale: s, to_world } => {
+                let rows: Vec<&[f32]> = to_world.iter().map(|r| &r[..]).collect();
+                let ok = (rows.len() == 3 || rows.len() == 4) && rows.iter().all(|r| r.len() >= 3);
+                if !ok {
+                    return Err(bad(i, "to_world must be a 3x3 or 4x4 row-major matrix".into()));
+                }
+                let m = Mat3::from_cols(
+                    Vec3::new(rows[0][0], rows[1][0], rows[2][0]),
+                    Vec3::new(rows[0][1], rows[1][1], rows[2][1]),
+                    Vec3::new(rows[0][2], rows[1][2], rows[2][2]),
+                );
+                let (map, bad_texels) = EnvMap::load_exr(&dir.join(filename), *s, m)?;
+                if bad_texels > 0 {
+                    warnings.push(format!("{filename}: {bad_texels} negative or non-finite values set to 0"));
+                }
+                lights.environment = Some(Environment::Map(Box::new(map)));
+            }
+            LightJson::Sunsky { sun_direction, sky_scale, sun_scale, sun_radius_scale, albedo } => {
+                if !finite3(*sun_direction) || Vec3::from(*sun_direction).length() < 1e-6 {
+                    return Err(bad(i, "sun_direction must be a finite non-zero vector".into()));
+                }
+                let (sun, sky) = sunsky(Vec3::from(*sun_direction), *sky_scale, *sun_scale, *sun_radius_scale, *albedo);
+                lights.sun = Some(sun);
+                lights.environment = Some(Environment::Sky(sky));
+            }
+            LightJson::Constant { radiance } => lights.environment = Some(Environment::Constant(Vec3::from(*radiance))),
+            LightJson::Point { position, intensity } => lights
+                .points
+                .push(PointLight { position: Vec3::from(*position) * scale, intensity: Vec3::from(*intensity) }),
+            LightJson::Sun { direction, irradiance, angular_radius_deg } => {
+                lights.sun = Some(SunLight {
+                    direction: Vec3::from(*direction).normalize_or_zero(),
+                    irradiance: Vec3::from(*irradiance),
+                    angular_radius_deg: *angular_radius_deg,
+                })
+            }
+            LightJson::Sky { zenith, horizon, ground } => {
+                lights.environment = Some(Environment::Sky(SkyGradient {
+                    zenith: (*zenith).into(),
+                    horizon: (*horizon).into(),
+                    ground: (*ground).into(),
+                }))
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The `Units:` scale stated in a `SOURCE.md`, if any.
+pub fn scale_from_source_md(text: &str) -> Option<f32> {
+    let line = text.lines().find(|l| l.contains("Units:"))?;
+    let after = line.split_once("Units:")?.1.trim_start().to_ascii_lowercase();
+    Some(if after.starts_with("millimet") || after.starts_with("mm") {
+        0.001
+    } else if after.starts_with("centimet") || after.starts_with("cm") {
+        0.01
+    } else {
+        1.0
+    })
+}
+
+/// Typical size of the geometry: the largest per-axis extent between the 2nd and 98th
+/// percentiles of (a sample of) vertex coordinates. Robust to a few far-away vertices, such
+/// as the classroom's 221 m ground quad.
+pub fn robust_size(mesh: &super::Mesh) -> f32 {
+    let n = mesh.len();
+    if n == 0 {
+        return 1.0;
+    }
+    let stride = (n / 50_000).max(1);
+    let mut axes: [Vec<f32>; 3] = Default::default();
+    for t in mesh.positions.iter().step_by(stride) {
+        for p in t {
+            for (a, v) in axes.iter_mut().zip(p.to_array()) {
+                a.push(v);
+            }
+        }
+    }
+    axes.iter_mut()
+        .map(|a| {
+            let m = a.len();
+            let (lo, hi) = ((m as f32 * 0.02) as usize, ((m as f32 * 0.98) as usize).min(m - 1));
+            let l = *a.select_nth_unstable_by(lo, f32::total_cmp).1;
+            let h = *a.select_nth_unstable_by(hi, f32::total_cmp).1;
+            h - l
+        })
+        .fold(0.0f32, f32::max)
+        .max(1e-3)
+}
+
+/// The synthesised camera path around one camera (see the module notes).
+pub fn path_around(cam: &CameraJson, scale: f32, size: f32, frames: u32) -> Result<CameraPath, String> {
+    let eye = Vec3::from(cam.eye) * scale;
+    let target = Vec3::from(cam.target) * scale;
+    let up = Vec3::from(cam.up).normalize_or(Vec3::Y);
+    let view = target - eye;
+    let dir = view.try_normalize().ok_or("camera eye == target")?;
+    let flat = Vec3::new(dir.x, 0.0, dir.z);
+    let forward = if flat.length() > 0.1 { flat.normalize() } else { dir };
+    let right = forward.cross(Vec3::Y).try_normalize().unwrap_or_else(|| forward.any_orthonormal_vector());
+    let travel = (0.05 * size).min(0.6);
+    let last = frames.saturating_sub(1).max(1) as f32;
+    let keys =
+        [(0.0, 0.0, 0.0, 0.0), (20.0 / 59.0, 0.33, 0.15, 1.8), (40.0 / 59.0, 0.67, 0.10, 3.6), (1.0, 1.0, -0.05, 5.0)]
+            .map(|(t, s, l, yaw): (f32, f32, f32, f32)| {
+                // Pan right: rotate about +Y by −yaw (right-handed, +Y up).
+                let rot = glam::Quat::from_rotation_y(-yaw.to_radians());
+                let e = eye + forward * (s * travel) + right * (l * travel);
+                CameraKey { frame: t * last, eye: e.into(), target: (e + rot * view).into(), up: (rot * up).into() }
+            });
+    let keys = if frames <= 1 { vec![keys[0]] } else { keys.to_vec() };
+    CameraPath::new(keys, frames, cam.vfov_deg)
+}
+
+/// Paper scene names of the shared folders.
+fn paper_scene(folder: &str) -> Option<&'static str> {
+    match folder {
+        "sponza" => Some("Sponza"),
+        "living-room" => Some("Living Room"),
+        "classroom" => Some("Classroom"),
+        _ => None,
+    }
+}
+
+/// The parts of a folder a manifest builds on.
+pub(crate) struct FolderParts {
+    pub obj: ObjData,
+    pub scale: f32,
+    pub camera: Option<(PathBuf, CameraJson)>,
+    pub lights: Lights,
+    pub warnings: Vec<String>,
+}
+
+/// Loads the OBJ at `obj_path` plus `camera.json` / `lights.json` / `SOURCE.md` beside it
+/// when present (`with_lights = false` ignores lights.json).
+pub(crate) fn load_parts(
+    obj_path: &Path,
+    scale: Option<f32>,
+    glass: GlassMode,
+    with_lights: bool,
+) -> Result<FolderParts, SceneError> {
+    let dir = obj_path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let scale = match scale {
+        Some(s) => s,
+        None => {
+            std::fs::read_to_string(dir.join("SOURCE.md")).ok().and_then(|t| scale_from_source_md(&t)).unwrap_or(1.0)
+        }
+    };
+    let obj = load_obj(obj_path, &ObjOptions { scale, glass })?;
+    let mut warnings = obj.warnings.clone();
+    let camera_path = dir.join("camera.json");
+    let camera = if camera_path.is_file() {
+        let c: CameraJson = read_json(&camera_path)?;
+        Some((camera_path, c))
+    } else {
+        None
+    };
+    let mut lights = Lights::default();
+    let lights_path = dir.join("lights.json");
+    if with_lights && lights_path.is_file() {
+        let entries: Vec<LightJson> = read_json(&lights_path)?;
+        apply_light_json(&entries, &lights_path, &dir, scale, &obj, &mut lights, &mut warnings)?;
+    }
+    Ok(FolderParts { obj, scale, camera, lights, warnings })
+}
+
+/// Loads a scene folder (see the module notes).
+pub fn load_folder(dir: &Path, options: &FolderOptions) -> Result<Scene, SceneError> {
+    let obj_path = dir.join("scene.obj");
+    if !obj_path.is_file() {
+        return Err(SceneError::io(
+            &obj_path,
+            std::io::Error::new(std::io::ErrorKind::NotFound, "no scene.obj in the folder"),
+        ));
+    }
+    let parts = load_parts(&obj_path, options.scale, options.glass, true)?;
+    let Some((camera_path, cam)) = parts.camera else {
+        return Err(SceneError::io(
+            &dir.join("camera.json"),
+            std::io::Error::new(std::io::ErrorKind::NotFound, "camera.json is required in a scene folder"),
+        ));
+    };
+    let size = robust_size(&parts.obj.mesh);
+    let camera =
+        path_around(&cam, parts.scale, size, options.frames).map_err(|m| SceneError::invalid(&camera_path, m))?;
+    let folder = dir
+        .canonicalize()
+        .ok()
+        .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+        .or_else(|| dir.file_name().map(|n| n.to_string_lossy().into_owned()))
+        .unwrap_or_else(|| "scene".into());
+    let paper = paper_scene(&folder);
+    let title = std::fs::read_to_string(dir.join("SOURCE.md"))
+        .ok()
+        .and_then(|t| t.lines().next().and_then(|l| l.strip_prefix("# ")).map(str::to_owned));
+    let display_name = match (paper, &title) {
+        (Some(p), _) => format!("{p} ({folder}, loaded)"),
+        (None, Some(t)) => t.clone(),
+        (None, None) => folder.clone(),
+    };
+    let mut scene = Scene {
+        name: folder,
+        display_name,
+        paper_scene: paper.map(str::to_owned),
+        source: SceneSource::Folder(dir.to_path_buf()),
+        mesh: parts.obj.mesh,
+        materials: parts.obj.materials,
+        textures: parts.obj.textures,
+        lights: parts.lights,
+        camera,
+        tolerances: SceneTolerances::for_size(size),
+        effects: EffectSet::EMPTY,
+        forced_effects: EffectSet::EMPTY,
+        warnings: parts.warnings,
+    };
+    scene.update()?;
+    Ok(scene)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn units_lines_give_scales() {
+        assert_eq!(scale_from_source_md("- Units: Millimetres. The box"), Some(0.001));
+        assert_eq!(scale_from_source_md("- Units: 1 unit = 1 m."), Some(1.0));
+        assert_eq!(scale_from_source_md("- Units: About 1 unit = 1 m."), Some(1.0));
+        assert_eq!(scale_from_source_md("no units here"), None);
+    }
+
+    #[test]
+    fn synthesised_path_starts_at_the_camera_and_moves_gently() {
+        let cam = CameraJson {
+            eye: [5.1, 0.73, -2.3],
+            target: [4.14, 0.8, -2.05],
+            up: [0.07, 0.997, -0.02],
+            vfov_deg: 58.7,
+            width: None,
+            height: None,
+        };
+        let p = path_around(&cam, 1.0, 5.6, 60).unwrap();
+        let first = p.pose(0);
+        assert!((first.eye - Vec3::from(cam.eye)).length() < 1e-5);
+        let d = (Vec3::from(cam.target) - Vec3::from(cam.eye)).normalize();
+        assert!(first.forward.dot(d) > 0.99999);
+        let travel = (p.pose(59).eye - first.eye).length();
+        assert!(travel > 0.2 && travel < 0.4, "{travel}");
+        let yaw = p.pose(59).forward.dot(first.forward).acos().to_degrees();
+        assert!((4.0..6.0).contains(&yaw), "{yaw}");
+        assert!(p.poses().iter().all(|q| q.up.y > 0.99), "no roll");
+    }
+
+    #[test]
+    fn sunsky_numbers() {
+        let (sun, sky) = sunsky(Vec3::new(-0.866, 0.417, -0.277), 6.0, 10.0, 18.8131, 0.15);
+        assert!((sun.angular_radius_deg - 5.04).abs() < 0.01);
+        assert!((sun.direction.length() - 1.0).abs() < 1e-5);
+        assert!(sky.zenith.z > sky.zenith.x, "blue zenith");
+    }
+}
