@@ -500,6 +500,20 @@ mod ssim_tests {
     }
 
     #[test]
+    fn tall_images_use_taller_bands() {
+        // 20000 rows: more than 256 bands of the default height, so the band height grows.
+        let a = random(3, 20_000, 150);
+        let b = noisy(&a, 0.3, 151);
+        for variant in VARIANTS {
+            for band_rows in [1, 64] {
+                let params = SsimParams { variant, band_rows };
+                let fast = ssim::ssim(&a.view(), &b.view(), &params).unwrap();
+                assert_agrees(&fast, &run_scalar(&a, &b, variant), TOL);
+            }
+        }
+    }
+
+    #[test]
     fn simd_matches_scalar_at_1280x720() {
         let a = random(1280, 720, 80);
         let b = noisy(&a, 0.25, 81);

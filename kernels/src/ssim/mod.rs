@@ -289,7 +289,7 @@ pub fn ssim(a: &RgbPlanes<'_>, b: &RgbPlanes<'_>, params: &SsimParams) -> Result
 }
 
 /// The scalar reference of [`ssim`]: f64 throughout, whole-image planes (allocates about
-/// 120 bytes per pixel), centred variances. Same definition and exclusions.
+/// 150 bytes per pixel), centred variances. Same definition and exclusions.
 pub fn ssim_scalar(a: &RgbPlanes<'_>, b: &RgbPlanes<'_>, params: &SsimParams) -> Result<SsimResult, FrameError> {
     check(a, b)?;
     Ok(scalar::run(a, b, params.variant).finish(params.variant))
