@@ -58,9 +58,12 @@
 //! voxel is off by 5e-5, the estimate is within 1.6× of the actual error, and the mean
 //! (the result) by at most 5e-7; on ordinary images the mean agrees to about 1e-9.
 //!
-//! Variances are clamped at 0 and `σd²` at `2(σx² + σy²)` (its bound), so every voxel lies
-//! in [−1, 1]. Means are accumulated in f64, in a fixed order (bands, then tiles, then
-//! rows), so the result does not depend on the thread count.
+//! Variances are clamped at 0, `σd²` at `2(σx² + σy² + C2)` (what keeps the structure term
+//! ≥ −1; the tighter exact bound `2(σx² + σy²)` would trust the possibly ill-conditioned
+//! `σx² + σy²`), and every voxel is clamped to [−1, 1]. Means are accumulated in f64 in a
+//! fixed order (bands, then tiles, then rows), so the result does not depend on the thread
+//! count; it does depend, in the last bits, on [`SsimParams::band_rows`] (tile boundaries
+//! move the shifts).
 //!
 //! # Excluded samples
 //! A sample is *unusable* if it is NaN, ±∞, or larger than [`MAX_SAMPLE`] in magnitude (its
