@@ -14,11 +14,13 @@
 pub mod accumulate;
 mod bands;
 pub mod bilinear;
+pub mod bvh;
 pub mod camera;
 pub mod check;
 pub mod frame;
 pub mod fuzzing;
 pub mod gbuffer;
+pub mod packet;
 pub mod reproject;
 pub mod simd;
 pub mod ssim;

@@ -1,0 +1,376 @@
+//! Ray traversal throughput on one thread: coherent primary rays at 1280×720 (8-wide packets
+//! in 8×1 and 4×2 pixel tiles, and single rays), shadow rays from the primary hits toward one
+//! point light (packets and single), and cosine-distributed diffuse rays from the primary hits
+//! (single). obvhs's own single-ray CWBVH traversal (its Möller–Trumbore test, same tree,
+//! triangles in BVH order) runs on identical rays as the peer baseline.
+//!
+//! Scenes: Sponza from `../shared/scenes/sponza` (67k triangles; skipped with a message if
+//! absent) and a built-in procedural scene of ~700k triangles (a tessellated terrain and a field
+//! of UV spheres), the size of the reference measurements (Embree 4, AVX-512, per thread:
+//! 9.6 Mrays/s 16-wide coherent primary packets, 4.9 single primary, 2.6 diffuse, 6.3–7.9
+//! shadow; obvhs single rays 1.9 primary, 1.0 diffuse, 2.6 shadow).
+//!
+//! Throughput is in rays (criterion's "elem/s"). Rays are generated outside the timed loop
+//! from fixed seeds; one iteration traces a whole frame of them.
+//!
+//! Run: `cargo bench --bench traversal -- --warm-up-time 1 --measurement-time 3`
+//! (add a filter such as `sponza/primary` to pick groups; `threshold` sweeps the packet
+//! single-ray fallback threshold).
+
+use std::hint::black_box;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use criterion::{Criterion, SamplingMode, Throughput, criterion_group, criterion_main};
+use glam::Vec3;
+use obvhs::ray::{Ray as ORay, RayHit};
+use obvhs::triangle::Triangle as OTri;
+use stereotrace::kernels::bvh::{BuildQuality, Ray, Tri, TriangleBvh};
+use stereotrace::kernels::packet::{PacketHits, RayPacket};
+
+const WIDTH: usize = 1280;
+const HEIGHT: usize = 720;
+
+struct Camera {
+    eye: Vec3,
+    fwd: Vec3,
+    right: Vec3,
+    up: Vec3,
+    tan_half: f32,
+}
+
+impl Camera {
+    fn look_at(eye: Vec3, target: Vec3, up: Vec3, vfov_deg: f32) -> Self {
+        let fwd = (target - eye).normalize();
+        let right = fwd.cross(up).normalize();
+        let up = right.cross(fwd);
+        Camera { eye, fwd, right, up, tan_half: (vfov_deg.to_radians() * 0.5).tan() }
+    }
+
+    /// The primary ray through the centre of pixel `(x, y)` (unnormalised direction).
+    fn ray(&self, x: usize, y: usize) -> Ray {
+        let aspect = WIDTH as f32 / HEIGHT as f32;
+        let sx = ((x as f32 + 0.5) / WIDTH as f32 * 2.0 - 1.0) * self.tan_half * aspect;
+        let sy = (1.0 - (y as f32 + 0.5) / HEIGHT as f32 * 2.0) * self.tan_half;
+        Ray::new(self.eye, self.fwd + self.right * sx + self.up * sy)
+    }
+}
+
+/// A packet and its active lanes.
+type Packet = (RayPacket, u32);
+
+struct Fixture {
+    bvh: TriangleBvh,
+    /// obvhs triangles in BVH order (as obvhs's own examples lay them out).
+    otris: Vec<OTri>,
+    primary: Vec<Ray>,
+    primary_8x1: Vec<Packet>,
+    primary_4x2: Vec<Packet>,
+    shadow: Vec<Ray>,
+    shadow_8x1: Vec<Packet>,
+    shadow_4x2: Vec<Packet>,
+    diffuse: Vec<Ray>,
+}
+
+/// Pixel order of a tile of `tw × th` pixels.
+fn tile_pixels(tw: usize, th: usize) -> Vec<(usize, usize)> {
+    let mut v = Vec::with_capacity(WIDTH * HEIGHT);
+    for ty in (0..HEIGHT).step_by(th) {
+        for tx in (0..WIDTH).step_by(tw) {
+            for y in ty..ty + th {
+                for x in tx..tx + tw {
+                    v.push((x, y));
+                }
+            }
+        }
+    }
+    v
+}
+
+fn packets(order: &[(usize, usize)], ray_at: &dyn Fn(usize, usize) -> Option<Ray>) -> Vec<Packet> {
+    order
+        .chunks(8)
+        .map(|c| {
+            let mut rays = [Ray::new(Vec3::ZERO, Vec3::X); 8];
+            let mut active = 0;
+            for (i, &(x, y)) in c.iter().enumerate() {
+                if let Some(r) = ray_at(x, y) {
+                    rays[i] = r;
+                    active |= 1 << i;
+                }
+            }
+            (RayPacket::from_rays(&rays), active)
+        })
+        .filter(|p| p.1 != 0)
+        .collect()
+}
+
+/// xorshift64* for the diffuse directions.
+struct Rng(u64);
+
+impl Rng {
+    fn f(&mut self) -> f32 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        (self.0.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 40) as f32 / (1u64 << 24) as f32
+    }
+}
+
+impl Fixture {
+    /// `light_clear`: distance from the light point at which shadow rays stop (Sponza's light
+    /// point is the centre of its emitting sphere, which is geometry).
+    fn new(name: &str, tris: Vec<Tri>, cam: Camera, light: Vec3, light_clear: f32) -> Self {
+        let (bvh, stats) = TriangleBvh::build(&tris, BuildQuality::Medium).expect("valid scene");
+        eprintln!("[{name}] {stats:?}");
+        let otris = bvh
+            .triangles_bvh_order()
+            .iter()
+            .map(|t| OTri {
+                v0: [t[0], t[1], t[2]].into(),
+                v1: [t[3], t[4], t[5]].into(),
+                v2: [t[6], t[7], t[8]].into(),
+            })
+            .collect();
+        let primary: Vec<Ray> =
+            (0..HEIGHT).flat_map(|y| (0..WIDTH).map(move |x| (x, y))).map(|(x, y)| cam.ray(x, y)).collect();
+        // Primary hits, computed once: position and geometric normal facing the viewer.
+        let hits: Vec<Option<(Vec3, Vec3)>> = primary
+            .iter()
+            .map(|r| {
+                bvh.intersect(r).map(|h| {
+                    let t = &tris[h.prim as usize];
+                    let n = (t[1] - t[0]).cross(t[2] - t[0]).normalize_or_zero();
+                    let n = if n.dot(r.dir) > 0.0 { -n } else { n };
+                    (r.origin + r.dir * h.t, n)
+                })
+            })
+            .collect();
+        let at = |x: usize, y: usize| hits[y * WIDTH + x];
+        // Shadow rays: from the hit toward the light, over [1e-4, 1 − clear) of the segment.
+        let shadow_ray = |x: usize, y: usize| {
+            at(x, y).map(|(p, _)| Ray::segment(p, light - p, 1e-4, 1.0 - light_clear.max(1e-4) / (light - p).length()))
+        };
+        let mut rng = Rng(0x5EED_0000_0000_0001);
+        let diffuse = hits
+            .iter()
+            .flatten()
+            .map(|&(p, n)| {
+                // Cosine-weighted hemisphere around n (Malley's method).
+                let (u1, u2) = (rng.f(), rng.f());
+                let r = u1.sqrt();
+                let phi = std::f32::consts::TAU * u2;
+                let t = n.any_orthonormal_vector();
+                let b = n.cross(t);
+                let d = t * (r * phi.cos()) + b * (r * phi.sin()) + n * (1.0 - u1).max(0.0).sqrt();
+                Ray::segment(p, d, 1e-4, f32::INFINITY)
+            })
+            .collect();
+        let primary_at = |x: usize, y: usize| Some(cam.ray(x, y));
+        let (o8, o42) = (tile_pixels(8, 1), tile_pixels(4, 2));
+        let fixture = Fixture {
+            primary_8x1: packets(&o8, &primary_at),
+            primary_4x2: packets(&o42, &primary_at),
+            shadow: (0..HEIGHT)
+                .flat_map(|y| (0..WIDTH).map(move |x| (x, y)))
+                .filter_map(|(x, y)| shadow_ray(x, y))
+                .collect(),
+            shadow_8x1: packets(&o8, &shadow_ray),
+            shadow_4x2: packets(&o42, &shadow_ray),
+            diffuse,
+            primary,
+            otris,
+            bvh,
+        };
+        eprintln!(
+            "[{name}] {} primary rays, {} hits (= shadow and diffuse rays), {} shadow rays occluded",
+            fixture.primary.len(),
+            fixture.shadow.len(),
+            fixture.shadow.iter().filter(|r| fixture.bvh.occluded(r)).count()
+        );
+        fixture
+    }
+}
+
+fn shared_dir() -> Option<PathBuf> {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    [root.join("../shared"), PathBuf::from("/work/shared")].into_iter().find(|p| p.join("scenes").is_dir())
+}
+
+fn load_obj(path: &Path) -> Vec<Tri> {
+    let (models, _) =
+        tobj::load_obj(path, &tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() })
+            .expect("scene.obj");
+    let mut tris = Vec::new();
+    for m in models {
+        let p = &m.mesh.positions;
+        let v = |i: u32| Vec3::new(p[3 * i as usize], p[3 * i as usize + 1], p[3 * i as usize + 2]);
+        for f in m.mesh.indices.chunks(3) {
+            tris.push([v(f[0]), v(f[1]), v(f[2])]);
+        }
+    }
+    tris
+}
+
+fn sponza() -> Option<&'static Fixture> {
+    static F: OnceLock<Option<Fixture>> = OnceLock::new();
+    F.get_or_init(|| {
+        let Some(dir) = shared_dir().map(|d| d.join("scenes/sponza")) else {
+            eprintln!("SKIPPED sponza benches: ../shared/scenes/sponza not found");
+            return None;
+        };
+        let cam: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("camera.json")).ok()?).ok()?;
+        let v3 = |k: &str| {
+            let a = cam[k].as_array().expect("vec3");
+            Vec3::new(a[0].as_f64().unwrap() as f32, a[1].as_f64().unwrap() as f32, a[2].as_f64().unwrap() as f32)
+        };
+        let camera = Camera::look_at(v3("eye"), v3("target"), v3("up"), cam["vfov_deg"].as_f64().unwrap() as f32);
+        // lights.json: the area light is a small sphere at (0, 17, 0); its centre is the point light.
+        Some(Fixture::new("sponza", load_obj(&dir.join("scene.obj")), camera, Vec3::new(0.0, 17.0, 0.0), 0.11))
+    })
+    .as_ref()
+}
+
+/// Terrain of 420×420 quads (352,800 triangles) plus a 6×6 field of UV spheres of 96×50
+/// segments (345,600 triangles): 698,400 triangles.
+fn procedural_tris() -> Vec<Tri> {
+    let height = |x: f32, z: f32| 2.0 * (0.15 * x).sin() * (0.12 * z).cos() + 0.5 * (0.7 * x + 0.3 * z).sin();
+    let n = 420;
+    let size = 100.0;
+    let p = |i: usize, j: usize| {
+        let (x, z) = (i as f32 / n as f32 * size - size * 0.5, j as f32 / n as f32 * size - size * 0.5);
+        Vec3::new(x, height(x, z), z)
+    };
+    let mut tris = Vec::with_capacity(700_000);
+    for i in 0..n {
+        for j in 0..n {
+            tris.push([p(i, j), p(i + 1, j), p(i + 1, j + 1)]);
+            tris.push([p(i, j), p(i + 1, j + 1), p(i, j + 1)]);
+        }
+    }
+    let (seg_u, seg_v, radius) = (96, 50, 3.0f32);
+    for a in 0..6 {
+        for b in 0..6 {
+            let (cx, cz) = (-30.0 + a as f32 * 12.0, -20.0 + b as f32 * 12.0);
+            let c = Vec3::new(cx, height(cx, cz) + radius, cz);
+            let s = |i: usize, j: usize| {
+                let (th, ph) =
+                    (i as f32 / seg_u as f32 * std::f32::consts::TAU, j as f32 / seg_v as f32 * std::f32::consts::PI);
+                c + Vec3::new(ph.sin() * th.cos(), ph.cos(), ph.sin() * th.sin()) * radius
+            };
+            for i in 0..seg_u {
+                for j in 0..seg_v {
+                    tris.push([s(i, j), s(i + 1, j), s(i + 1, j + 1)]);
+                    tris.push([s(i, j), s(i + 1, j + 1), s(i, j + 1)]);
+                }
+            }
+        }
+    }
+    tris
+}
+
+fn procedural() -> &'static Fixture {
+    static F: OnceLock<Fixture> = OnceLock::new();
+    F.get_or_init(|| {
+        // Looking down over the terrain toward the spheres: 82 % of the pixels hit geometry.
+        let camera = Camera::look_at(Vec3::new(0.0, 24.0, -38.0), Vec3::ZERO, Vec3::Y, 50.0);
+        Fixture::new("procedural700k", procedural_tris(), camera, Vec3::new(25.0, 60.0, -20.0), 0.0)
+    })
+}
+
+fn trace_single(bvh: &TriangleBvh, rays: &[Ray]) -> u32 {
+    rays.iter().map(|r| bvh.intersect(r).is_some() as u32).sum()
+}
+
+fn trace_packets(bvh: &TriangleBvh, packets: &[Packet], threshold: u32) -> u32 {
+    let mut hits = PacketHits::NONE;
+    packets.iter().map(|(p, m)| bvh.intersect_packet_with(p, *m, &mut hits, threshold).count_ones()).sum()
+}
+
+fn occlude_single(bvh: &TriangleBvh, rays: &[Ray]) -> u32 {
+    rays.iter().map(|r| bvh.occluded(r) as u32).sum()
+}
+
+fn occlude_packets(bvh: &TriangleBvh, packets: &[Packet], threshold: u32) -> u32 {
+    packets.iter().map(|(p, m)| bvh.occluded_packet_with(p, *m, threshold).count_ones()).sum()
+}
+
+fn oray(r: &Ray) -> ORay {
+    ORay::new(r.origin.into(), r.dir.into(), r.tmin, r.tmax)
+}
+
+/// obvhs's `ray_traverse` (closest hit) with its own triangle test.
+fn obvhs_single(f: &Fixture, rays: &[Ray]) -> u32 {
+    let cw = f.bvh.cwbvh();
+    rays.iter()
+        .map(|r| {
+            let mut hit = RayHit::none();
+            cw.ray_traverse(oray(r), &mut hit, |ray, id| f.otris[id].intersect(ray)) as u32
+        })
+        .sum()
+}
+
+/// obvhs's `ray_traverse_miss` (any hit).
+fn obvhs_occlude(f: &Fixture, rays: &[Ray]) -> u32 {
+    let cw = f.bvh.cwbvh();
+    rays.iter().map(|r| !cw.ray_traverse_miss(oray(r), |ray, id| f.otris[id].intersect(ray)) as u32).sum()
+}
+
+/// Registers the groups of one scene (the fixture is built at registration: the shadow and
+/// diffuse ray counts are needed for the throughput).
+fn bench_scene(c: &mut Criterion, name: &str, available: bool, fixture: &dyn Fn() -> Option<&'static Fixture>) {
+    if !available {
+        eprintln!("SKIPPED {name} benches: scene files not found");
+        return;
+    }
+    let f = || fixture().expect("scene loads");
+    let mut g = c.benchmark_group(format!("traversal/{name}/primary"));
+    g.sampling_mode(SamplingMode::Flat).sample_size(10);
+    g.throughput(Throughput::Elements((WIDTH * HEIGHT) as u64));
+    g.bench_function("packet_8x1", |b| b.iter(|| trace_packets(&f().bvh, black_box(&f().primary_8x1), 2)));
+    g.bench_function("packet_4x2", |b| b.iter(|| trace_packets(&f().bvh, black_box(&f().primary_4x2), 2)));
+    g.bench_function("single", |b| b.iter(|| trace_single(&f().bvh, black_box(&f().primary))));
+    g.bench_function("obvhs_single", |b| b.iter(|| obvhs_single(f(), black_box(&f().primary))));
+    g.finish();
+
+    let mut g = c.benchmark_group(format!("traversal/{name}/shadow"));
+    g.sampling_mode(SamplingMode::Flat).sample_size(10);
+    g.throughput(Throughput::Elements(f().shadow.len() as u64));
+    g.bench_function("packet_8x1", |b| b.iter(|| occlude_packets(&f().bvh, black_box(&f().shadow_8x1), 2)));
+    g.bench_function("packet_4x2", |b| b.iter(|| occlude_packets(&f().bvh, black_box(&f().shadow_4x2), 2)));
+    g.bench_function("single", |b| b.iter(|| occlude_single(&f().bvh, black_box(&f().shadow))));
+    g.bench_function("obvhs_single", |b| b.iter(|| obvhs_occlude(f(), black_box(&f().shadow))));
+    g.finish();
+
+    let mut g = c.benchmark_group(format!("traversal/{name}/diffuse"));
+    g.sampling_mode(SamplingMode::Flat).sample_size(10);
+    g.throughput(Throughput::Elements(f().diffuse.len() as u64));
+    g.bench_function("single", |b| b.iter(|| trace_single(&f().bvh, black_box(&f().diffuse))));
+    g.bench_function("obvhs_single", |b| b.iter(|| obvhs_single(f(), black_box(&f().diffuse))));
+    g.finish();
+}
+
+fn traversal(c: &mut Criterion) {
+    let have_sponza = shared_dir().is_some_and(|d| d.join("scenes/sponza/scene.obj").is_file());
+    bench_scene(c, "sponza", have_sponza, &sponza);
+    bench_scene(c, "procedural700k", true, &|| Some(procedural()));
+
+    // The single-ray fallback threshold of the packet traversal (lanes ≤ threshold continue
+    // as single rays): primary and shadow rays in 8×1 tiles.
+    if have_sponza {
+        let f = || sponza().expect("checked");
+        let mut g = c.benchmark_group("traversal/threshold");
+        g.sampling_mode(SamplingMode::Flat).sample_size(10);
+        for th in [0u32, 1, 2, 3, 4, 6] {
+            g.throughput(Throughput::Elements((WIDTH * HEIGHT) as u64));
+            g.bench_function(format!("primary_8x1/{th}"), |b| b.iter(|| trace_packets(&f().bvh, &f().primary_8x1, th)));
+            g.throughput(Throughput::Elements(f().shadow.len() as u64));
+            g.bench_function(format!("shadow_8x1/{th}"), |b| b.iter(|| occlude_packets(&f().bvh, &f().shadow_8x1, th)));
+        }
+        g.finish();
+    }
+}
+
+criterion_group!(benches, traversal);
+criterion_main!(benches);

@@ -1,0 +1,1026 @@
+//! Triangle BVH (obvhs CWBVH) with watertight single-ray closest-hit and occlusion queries.
+//!
+//! # What obvhs does and what this module does
+//! obvhs builds the tree (PLOC + reinsertion → compressed 8-wide BVH, 80-byte
+//! [`CwBvhNode`]s) and owns its layout; this module copies the triangles into BVH order
+//! (one 36-byte record per `primitive_indices` slot, so a node's up-to-24 leaf triangles are
+//! one contiguous run) and traverses the nodes itself, because obvhs's own traversal has
+//! four properties a path tracer cannot live with:
+//!
+//! * its Möller–Trumbore test is not watertight: rays aimed exactly at an edge shared by two
+//!   triangles can miss both. Here: Woop, Benthin and Wald 2013, *Watertight Ray/Triangle
+//!   Intersection* (JCGT 2(1)), with its double-precision fallback for edge functions that
+//!   round to exactly zero ([`intersect_triangle`]);
+//! * its node test clamps the entry distance to a fixed 1e-4, so hits nearer than that are
+//!   never found. Here the node test uses the ray's own `tmin` (0 by default);
+//! * its traversal stack holds 32 groups and overflows silently on a deep tree (thousands of
+//!   coincident triangles make PLOC produce a chain). Here the build measures the depth and,
+//!   if it exceeds [`MAX_DEPTH`], rebuilds from a median-split binary tree (depth ≤ log₂ n),
+//!   so the fixed-size stacks of both traversals provably cannot overflow;
+//! * an empty triangle list and zero/NaN/inf directions are not handled. Here an empty BVH
+//!   answers every query with a miss, and invalid rays ([`Ray::is_valid`]) miss without
+//!   traversal.
+//!
+//! # Robust node test
+//! A child box of a CWBVH node is `p + q·e` per axis (`q` an 8-bit integer, `e` a power of
+//! two), and the slab distance is computed as `q·(e·inv) + (p − o)·inv`. obvhs quantises
+//! child boxes outwards, but in floating point: decoding can land inside the true box by
+//! about one ulp of `|cmin − p|`, and the slab arithmetic adds a few more rounding errors.
+//! Together they are at most about `6·2⁻²⁴·|inv|·(|p − o| + 255·e)` (one rounding each in
+//! `1/d`, `e·inv`, `p − o`, `·inv`, `q·a`, the sums, plus the decoding error). Each slab
+//! interval is widened by `δ = 16·2⁻²⁴·|inv|·(|p − o| + 255·e)`, so the node test is
+//! conservative with a margin of ~2.5×; since `δ` is also ≥ 2⁻²⁰ of the slab distance
+//! itself, it covers the few-ulp error of the triangle test's `t` that closest-hit culling
+//! compares against. The widening is about a millionth of the node size and costs nothing
+//! measurable; traversal finds exactly what brute force over all triangles finds (tested on
+//! random soups, Sponza and the bunny).
+//!
+//! Directions use a safe reciprocal: components with `|d| < 2⁻⁸⁰` become `±2⁸⁰` (sign of
+//! `d`, so `−0.0` gives `−2⁸⁰`), never `±inf`, so no `0·inf = NaN` enters the slab test.
+//! Together with the coordinate limits ([`MAX_COORD`], [`MAX_ORIGIN`] and the direction
+//! range of [`Ray::is_valid`]) every quantity in the node test stays finite and no NaN can
+//! occur, which is why the node test may use the `fast_min`/`fast_max` instructions.
+//!
+//! # Hit convention
+//! A ray hits a triangle at `t` when `tmin ≤ t < tmax` (half-open: a shadow ray with
+//! `tmax` = light distance does not see the light's own surface). Both faces count. The hit
+//! point is `(1 − u − v)·v0 + u·v1 + v·v2`. A ray through an edge or vertex shared by
+//! several triangles hits at least one of them: the edge functions of a shared edge are
+//! computed from bit-identical transformed vertices and are exact negatives of each other,
+//! and values that round to exactly zero are recomputed in double precision, so rays never
+//! slip through a closed mesh. Ties in `t` between triangles are
+//! resolved by traversal order, which differs between traversal kinds; everything else
+//! (hit or miss, `t` bit for bit, `u`, `v`) is the same for single rays, packets and brute
+//! force.
+//!
+//! # Determinism
+//! Plain `a * b + c` (see [`crate::simd`]); `t = T / det` and the barycentrics are IEEE
+//! divisions, never approximate reciprocals. The SIMD node test and its scalar reference
+//! ([`node_hits`], [`node_hits_scalar`]) agree bit for bit.
+
+use core::fmt;
+use std::time::{Duration, Instant};
+
+use glam::{Vec3, Vec3A};
+use obvhs::BvhBuildParams;
+use obvhs::aabb::Aabb;
+use obvhs::bvh2::Bvh2;
+use obvhs::bvh2::node::Bvh2Node;
+use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
+use obvhs::cwbvh::CwBvh;
+use obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh;
+use obvhs::cwbvh::node::CwBvhNode;
+use obvhs::ploc::PlocBuilder;
+use obvhs::splits::split_aabbs_preset;
+use obvhs::triangle::Triangle as ObvhsTriangle;
+
+use crate::simd::F32s;
+
+/// Largest accepted `|coordinate|` of a triangle vertex (2²⁴ m ≈ 16 800 km).
+pub const MAX_COORD: f32 = 16_777_216.0;
+/// Largest accepted `|coordinate|` of a ray origin (2²⁶ m); rays starting farther away miss.
+pub const MAX_ORIGIN: f32 = 67_108_864.0;
+/// Smallest accepted largest-direction-component magnitude (2⁻³²).
+pub const MIN_DIR: f32 = 1.0 / 4_294_967_296.0;
+/// Largest accepted direction component magnitude (2³²).
+pub const MAX_DIR: f32 = 4_294_967_296.0;
+/// Deepest CWBVH (levels, root = 1) the traversal stacks are sized for. PLOC trees deeper than
+/// this are rebuilt by median split. Sponza's PLOC tree is 10 levels deep, the bench's 700k
+/// procedural scene 12; 5000 coincident triangles give PLOC a chain 714 levels deep.
+pub const MAX_DEPTH: usize = 40;
+
+/// Components of a direction below this magnitude use `±1/RCP_CLAMP` as their reciprocal.
+pub(crate) const RCP_CLAMP: f32 = f32::from_bits((127 - 80) << 23); // 2^-80
+/// Relative widening of every slab interval (see the module notes).
+pub(crate) const NODE_PAD: f32 = f32::from_bits((127 - 20) << 23); // 2^-20
+
+/// A triangle as three vertices (counter-clockwise winding gives the front face, though both
+/// faces are hit).
+pub type Tri = [Vec3; 3];
+
+/// Build quality presets, mapped onto obvhs's `BvhBuildParams`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum BuildQuality {
+    /// `fast_build`: PLOC search distance 6, little reinsertion.
+    Fast,
+    /// `medium_build` (default): search distance 14, "about Embree's build time with faster
+    /// traversal" per obvhs.
+    #[default]
+    Medium,
+    /// `slow_build`: spatial pre-splits of large triangles, search distance 24, more
+    /// reinsertion. A triangle may then appear in several leaves.
+    High,
+}
+
+impl BuildQuality {
+    fn params(self) -> BvhBuildParams {
+        match self {
+            BuildQuality::Fast => BvhBuildParams::fast_build(),
+            BuildQuality::Medium => BvhBuildParams::medium_build(),
+            BuildQuality::High => BvhBuildParams::slow_build(),
+        }
+    }
+}
+
+/// Why a triangle list was rejected.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BvhError {
+    /// A vertex coordinate is NaN, infinite or larger than [`MAX_COORD`] in magnitude.
+    BadVertex { triangle: usize },
+    /// More triangles than the `u32` indices can address (2³¹ − 1 is the limit).
+    TooManyTriangles { count: usize },
+}
+
+impl fmt::Display for BvhError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            BvhError::BadVertex { triangle } => {
+                write!(f, "triangle {triangle} has a vertex coordinate that is not finite or exceeds ±{MAX_COORD}")
+            }
+            BvhError::TooManyTriangles { count } => {
+                write!(f, "{count} triangles: at most {} are supported", i32::MAX)
+            }
+        }
+    }
+}
+
+impl std::error::Error for BvhError {}
+
+/// What a build produced and what it cost.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BuildStats {
+    /// Input triangles.
+    pub triangles: usize,
+    /// Leaf references (more than `triangles` with spatial splits).
+    pub references: usize,
+    /// CWBVH nodes.
+    pub nodes: usize,
+    /// CWBVH depth in levels (root = 1; 0 for an empty BVH).
+    pub depth: usize,
+    /// Depth of obvhs's PLOC tree (equal to `depth` unless the median fallback replaced it).
+    pub ploc_depth: usize,
+    /// The preset used.
+    pub quality: BuildQuality,
+    /// True if PLOC's tree was deeper than [`MAX_DEPTH`] and the median-split fallback was used.
+    pub median_fallback: bool,
+    /// Time in obvhs's builder (PLOC, reinsertion, CWBVH conversion), without the fallback.
+    pub obvhs_time: Duration,
+    /// Wall time of the whole build: validation, obvhs, fallback and the triangle layout.
+    pub total_time: Duration,
+}
+
+/// A ray `origin + t·dir` for `t ∈ [tmin, tmax)`. `dir` need not be normalised; `t` is in
+/// units of `dir`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ray {
+    pub origin: Vec3,
+    pub dir: Vec3,
+    pub tmin: f32,
+    pub tmax: f32,
+}
+
+impl Ray {
+    /// An infinite ray (`tmin = 0`, `tmax = inf`).
+    #[inline]
+    pub fn new(origin: Vec3, dir: Vec3) -> Self {
+        Self { origin, dir, tmin: 0.0, tmax: f32::INFINITY }
+    }
+
+    /// A ray restricted to `[tmin, tmax)`.
+    #[inline]
+    pub fn segment(origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Self {
+        Self { origin, dir, tmin, tmax }
+    }
+
+    /// Whether queries trace this ray; an invalid ray is reported as a miss. Valid: every
+    /// origin coordinate finite with magnitude ≤ [`MAX_ORIGIN`]; every direction component
+    /// finite, at least one of magnitude ≥ [`MIN_DIR`] and none above [`MAX_DIR`];
+    /// `0 ≤ tmin < tmax` with `tmin` finite (`tmax` may be `+inf`). NaN anywhere is invalid.
+    #[inline]
+    pub fn is_valid(&self) -> bool {
+        let o = self.origin.abs();
+        let d = self.dir.abs();
+        // Written so that NaN fails every comparison.
+        let origin_ok = o.x <= MAX_ORIGIN && o.y <= MAX_ORIGIN && o.z <= MAX_ORIGIN;
+        let dir_ok = d.x <= MAX_DIR && d.y <= MAX_DIR && d.z <= MAX_DIR && d.max_element() >= MIN_DIR;
+        let t_ok = self.tmin >= 0.0 && self.tmin < f32::INFINITY && self.tmin < self.tmax;
+        origin_ok && dir_ok && t_ok
+    }
+}
+
+/// A closest hit: distance, the caller's triangle index and barycentrics.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    pub t: f32,
+    /// Index into the triangle list the BVH was built from.
+    pub prim: u32,
+    /// Weight of `v1`.
+    pub u: f32,
+    /// Weight of `v2`.
+    pub v: f32,
+}
+
+impl Hit {
+    /// The "no hit" record (`prim == u32::MAX`, `t = inf`).
+    pub const NONE: Hit = Hit { t: f32::INFINITY, prim: u32::MAX, u: 0.0, v: 0.0 };
+
+    #[inline]
+    pub fn is_hit(&self) -> bool {
+        self.prim != u32::MAX
+    }
+}
+
+/// Per-ray constants shared by the node test and the watertight triangle test. One lane of a
+/// packet holds exactly these values, so packet and single-ray arithmetic are identical.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PreparedRay {
+    pub origin: Vec3A,
+    /// Safe reciprocal of the direction (never 0, inf or NaN).
+    pub inv: Vec3A,
+    /// `NODE_PAD · |inv|` per axis: the slab widening per unit of `|p − o| + 255·e`.
+    pub pad: Vec3A,
+    /// obvhs's inverted octant: bit 2/1/0 set when `inv.x/y/z` is positive. Children are
+    /// visited in descending `slot ^ oct_inv` order (front to back for this octant).
+    pub oct_inv: u32,
+    /// Axis permutation of the watertight test: `kz` is the dominant direction axis.
+    pub k: [usize; 3],
+    /// Shear constants `(d[kx]/d[kz], d[ky]/d[kz], 1/d[kz])`.
+    pub shear: [f32; 3],
+    /// The origin permuted: `(o[kx], o[ky], o[kz])`.
+    pub origin_k: [f32; 3],
+    pub tmin: f32,
+    pub tmax: f32,
+}
+
+/// Reciprocal that is never 0, infinite or NaN for finite input (see the module notes).
+#[inline(always)]
+pub fn safe_rcp(d: f32) -> f32 {
+    if d.abs() < RCP_CLAMP { (1.0 / RCP_CLAMP).copysign(d) } else { 1.0 / d }
+}
+
+impl PreparedRay {
+    /// `None` for an invalid ray (see [`Ray::is_valid`]).
+    #[inline]
+    pub fn new(ray: &Ray) -> Option<Self> {
+        if !ray.is_valid() {
+            return None;
+        }
+        let o = ray.origin.to_array();
+        let d = ray.dir.to_array();
+        let inv = d.map(safe_rcp);
+        let pad = inv.map(|i| NODE_PAD * i.abs());
+        let oct_inv = (if inv[0] < 0.0 { 0 } else { 4 })
+            | (if inv[1] < 0.0 { 0 } else { 2 })
+            | (if inv[2] < 0.0 { 0 } else { 1 });
+        let a = d.map(f32::abs);
+        let kz = if a[0] >= a[1] && a[0] >= a[2] {
+            0
+        } else if a[1] >= a[2] {
+            1
+        } else {
+            2
+        };
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        // Keep the winding (and so the sign convention of the edge functions) per ray.
+        if d[kz] < 0.0 {
+            core::mem::swap(&mut kx, &mut ky);
+        }
+        let shear = [d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]];
+        Some(Self {
+            origin: Vec3A::from_array(o),
+            inv: Vec3A::from_array(inv),
+            pad: Vec3A::from_array(pad),
+            oct_inv,
+            k: [kx, ky, kz],
+            shear,
+            origin_k: [o[kx], o[ky], o[kz]],
+            tmin: ray.tmin,
+            tmax: ray.tmax,
+        })
+    }
+
+    /// Dominant-axis class used to group packet lanes: `oct_inv | kz << 3` (0..24). Lanes
+    /// of one class share the node-test plane choice and the triangle-test permutation.
+    #[inline]
+    pub fn class(&self) -> u32 {
+        self.oct_inv | ((self.k[2] as u32) << 3)
+    }
+}
+
+/// A triangle in BVH order: `v0, v1, v2` as nine floats (36 bytes, no padding) so that a
+/// node's leaf triangles are one contiguous run.
+pub type TriVerts = [f32; 9];
+
+/// Result of the watertight test before the barycentric division.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TriHit {
+    pub t: f32,
+    /// Edge functions (unnormalised barycentrics of v0, v1, v2) and their sum.
+    pub e: [f32; 3],
+    pub det: f32,
+}
+
+impl TriHit {
+    /// `(u, v)`: the weights of `v1` and `v2`.
+    #[inline]
+    pub fn uv(&self) -> (f32, f32) {
+        (self.e[1] / self.det, self.e[2] / self.det)
+    }
+}
+
+/// The edge function `ax·by − ay·bx` recomputed in double precision, where products of floats
+/// are exact and the difference is rounded once, so its sign (and zero) is exact.
+#[cold]
+#[inline(never)]
+pub(crate) fn edge_f64(ax: f32, ay: f32, bx: f32, by: f32) -> f32 {
+    (ax as f64 * by as f64 - ay as f64 * bx as f64) as f32
+}
+
+/// Watertight ray–triangle test (Woop, Benthin, Wald 2013), scalar reference. Returns the
+/// hit if `ray.tmin ≤ t < tmax` (`tmax` is passed separately so closest-hit search can shrink
+/// it). Shared vertices give bit-identical transformed coordinates and the edge functions of a
+/// shared edge are exact negatives, so a ray through an edge hits at least one triangle.
+#[inline(always)]
+pub fn intersect_triangle(r: &PreparedRay, tri: &TriVerts, tmax: f32) -> Option<TriHit> {
+    let [kx, ky, kz] = r.k;
+    let [ox, oy, oz] = r.origin_k;
+    let [sx, sy, sz] = r.shear;
+    // Vertices relative to the origin, permuted, then sheared so the ray is the +z axis.
+    let a_z = tri[kz] - oz;
+    let b_z = tri[3 + kz] - oz;
+    let c_z = tri[6 + kz] - oz;
+    let ax = (tri[kx] - ox) - sx * a_z;
+    let ay = (tri[ky] - oy) - sy * a_z;
+    let bx = (tri[3 + kx] - ox) - sx * b_z;
+    let by = (tri[3 + ky] - oy) - sy * b_z;
+    let cx = (tri[6 + kx] - ox) - sx * c_z;
+    let cy = (tri[6 + ky] - oy) - sy * c_z;
+    let mut u = cx * by - cy * bx;
+    let mut v = ax * cy - ay * cx;
+    let mut w = bx * ay - by * ax;
+    if u == 0.0 || v == 0.0 || w == 0.0 {
+        u = edge_f64(cx, cy, bx, by);
+        v = edge_f64(ax, ay, cx, cy);
+        w = edge_f64(bx, by, ax, ay);
+    }
+    if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+        return None;
+    }
+    let det = u + v + w;
+    if det == 0.0 {
+        return None;
+    }
+    let t_scaled = u * (sz * a_z) + v * (sz * b_z) + w * (sz * c_z);
+    let t = t_scaled / det;
+    // NaN fails both comparisons.
+    if t >= r.tmin && t < tmax { Some(TriHit { t, e: [u, v, w], det }) } else { None }
+}
+
+/// Slab constants of one node for one ray: per axis `a = e·inv`, `bn = (p−o)·inv − δ`,
+/// `bf = (p−o)·inv + δ` with `δ = pad·(255·e + |p−o|)`. Computed with SSE `Vec3A`
+/// arithmetic (one instruction per operation for all three axes; the per-axis scalar version
+/// was ~15 % of a primary ray's time); each lane is the same IEEE operation as the scalar
+/// formula, so packets (which compute it per lane in `F32s`) agree bit for bit.
+#[derive(Clone, Copy, Debug)]
+pub struct NodeSlabs {
+    pub a: Vec3A,
+    pub bn: Vec3A,
+    pub bf: Vec3A,
+}
+
+/// The node's per-axis quantisation step `e` (a power of two).
+#[inline(always)]
+pub fn node_extent(node: &CwBvhNode) -> [f32; 3] {
+    node.e.map(|e| f32::from_bits((e as u32) << 23))
+}
+
+#[inline(always)]
+pub fn node_slabs(node: &CwBvhNode, r: &PreparedRay) -> NodeSlabs {
+    let e = Vec3A::from_array(node_extent(node));
+    let po = Vec3A::from(node.p) - r.origin;
+    let b = po * r.inv;
+    let delta = r.pad * (Vec3A::splat(255.0) * e + po.abs());
+    NodeSlabs { a: e * r.inv, bn: b - delta, bf: b + delta }
+}
+
+/// Near and far quantised planes of every child for a ray whose reciprocal direction has the
+/// given signs: `(near_x, near_y, near_z, far_x, far_y, far_z)`.
+#[inline(always)]
+pub fn child_planes(node: &CwBvhNode, neg: [bool; 3]) -> [&[u8; 8]; 6] {
+    let (nx, fx) = if neg[0] { (&node.child_max_x, &node.child_min_x) } else { (&node.child_min_x, &node.child_max_x) };
+    let (ny, fy) = if neg[1] { (&node.child_max_y, &node.child_min_y) } else { (&node.child_min_y, &node.child_max_y) };
+    let (nz, fz) = if neg[2] { (&node.child_max_z, &node.child_min_z) } else { (&node.child_min_z, &node.child_max_z) };
+    [nx, ny, nz, fx, fy, fz]
+}
+
+/// Bit `s` set when child slot `s` is occupied (inner or leaf). Both kinds have a non-zero
+/// high 3-bit field in `child_meta`; empty slots are all zero.
+#[inline(always)]
+pub fn occupied_slots(node: &CwBvhNode) -> u32 {
+    let m = u64::from_le_bytes(node.child_meta) & 0xE0E0_E0E0_E0E0_E0E0;
+    // Fold the three flag bits of every byte into its bit 7, then gather bit 7 of each byte.
+    let b = (m | (m << 1) | (m << 2)) & 0x8080_8080_8080_8080;
+    ((b >> 7).wrapping_mul(0x0102_0408_1020_4080) >> 56) as u32
+}
+
+/// `if a > b { a } else { b }`: the scalar twin of `maxps` (and of `F32s::fast_max`).
+#[inline(always)]
+pub(crate) fn max1(a: f32, b: f32) -> f32 {
+    if a > b { a } else { b }
+}
+
+/// `if a < b { a } else { b }`: the scalar twin of `minps`.
+#[inline(always)]
+pub(crate) fn min1(a: f32, b: f32) -> f32 {
+    if a < b { a } else { b }
+}
+
+#[inline(always)]
+fn neg_axes(r: &PreparedRay) -> [bool; 3] {
+    [r.oct_inv & 4 == 0, r.oct_inv & 2 == 0, r.oct_inv & 1 == 0]
+}
+
+/// Scalar reference of [`node_hits`]: bit `s` set when the ray overlaps child `s` within
+/// `[tmin, tmax]` (occupied slots only).
+pub fn node_hits_scalar(node: &CwBvhNode, r: &PreparedRay, tmax: f32) -> u32 {
+    let s = node_slabs(node, r);
+    let planes = child_planes(node, neg_axes(r));
+    let mut hits = 0;
+    for c in 0..8 {
+        let q = planes.map(|p| p[c] as f32);
+        let nx = q[0] * s.a[0] + s.bn[0];
+        let ny = q[1] * s.a[1] + s.bn[1];
+        let nz = q[2] * s.a[2] + s.bn[2];
+        let fx = q[3] * s.a[0] + s.bf[0];
+        let fy = q[4] * s.a[1] + s.bf[1];
+        let fz = q[5] * s.a[2] + s.bf[2];
+        let tn = max1(max1(nx, ny), max1(nz, r.tmin));
+        let tf = min1(min1(fx, fy), min1(fz, tmax));
+        if tn <= tf {
+            hits |= 1 << c;
+        }
+    }
+    hits & occupied_slots(node)
+}
+
+/// Eight bytes as eight floats (`vpmovzxbd` + `vcvtdq2ps` with AVX2).
+#[inline(always)]
+pub fn bytes_to_f32s(b: &[u8; 8]) -> F32s {
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+    {
+        use core::arch::x86_64::{__m128i, _mm_loadl_epi64, _mm256_cvtepi32_ps, _mm256_cvtepu8_epi32};
+        // SAFETY: `_mm_loadl_epi64` reads exactly 8 bytes (unaligned is fine) from `b`, which
+        // is a valid `[u8; 8]`; AVX2 is enabled at compile time (cfg above).
+        unsafe {
+            let v = _mm_loadl_epi64(b.as_ptr().cast::<__m128i>());
+            F32s::from(_mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(v)))
+        }
+    }
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
+    {
+        F32s::from(b.map(|x| x as f32))
+    }
+}
+
+/// SIMD node test (one ray, eight children at once); bit-identical to [`node_hits_scalar`].
+#[inline(always)]
+pub fn node_hits(node: &CwBvhNode, r: &PreparedRay, tmax: f32) -> u32 {
+    let s = node_slabs(node, r);
+    let [pnx, pny, pnz, pfx, pfy, pfz] = child_planes(node, neg_axes(r));
+    let sp = F32s::splat;
+    let nx = bytes_to_f32s(pnx) * sp(s.a[0]) + sp(s.bn[0]);
+    let ny = bytes_to_f32s(pny) * sp(s.a[1]) + sp(s.bn[1]);
+    let nz = bytes_to_f32s(pnz) * sp(s.a[2]) + sp(s.bn[2]);
+    let fx = bytes_to_f32s(pfx) * sp(s.a[0]) + sp(s.bf[0]);
+    let fy = bytes_to_f32s(pfy) * sp(s.a[1]) + sp(s.bf[1]);
+    let fz = bytes_to_f32s(pfz) * sp(s.a[2]) + sp(s.bf[2]);
+    // No NaN can occur (module notes), so the plain max/min instructions are exact here.
+    let tn = nx.fast_max(ny).fast_max(nz.fast_max(sp(r.tmin)));
+    let tf = fx.fast_min(fy).fast_min(fz.fast_min(sp(tmax)));
+    tn.simd_le(tf).to_bitmask() & occupied_slots(node)
+}
+
+/// Maps a mask over child slots to a mask over traversal keys (`key = slot ^ oct_inv`).
+#[inline(always)]
+pub fn slots_to_keys(mask: u32, oct_inv: u32) -> u32 {
+    let mut m = mask;
+    if oct_inv & 1 != 0 {
+        m = ((m & 0x55) << 1) | ((m >> 1) & 0x55);
+    }
+    if oct_inv & 2 != 0 {
+        m = ((m & 0x33) << 2) | ((m >> 2) & 0x33);
+    }
+    if oct_inv & 4 != 0 {
+        m = ((m & 0x0F) << 4) | ((m >> 4) & 0x0F);
+    }
+    m
+}
+
+/// Index of inner child `slot` of a node with `imask` whose children start at `base`.
+#[inline(always)]
+pub fn inner_child_index(base: u32, imask: u32, slot: u32) -> u32 {
+    base + (imask & ((1u32 << slot) - 1)).count_ones()
+}
+
+/// First BVH slot and count of the leaf in child `slot`.
+#[inline(always)]
+pub fn leaf_range(node: &CwBvhNode, slot: usize) -> (u32, u32) {
+    let meta = node.child_meta[slot];
+    (node.primitive_base_idx + (meta & 0x1F) as u32, (meta >> 5).count_ones())
+}
+
+/// A fixed-capacity stack. `push` beyond the capacity panics (the build guarantees it cannot
+/// happen: see [`MAX_DEPTH`]); it never overflows silently. The storage is left
+/// uninitialised: zeroing the 11 KB packet stack for every packet cost ~8 % of a shadow
+/// packet's time (measured with perf: a memmove of the whole array per call).
+pub(crate) struct FixedStack<T: Copy, const N: usize> {
+    items: [core::mem::MaybeUninit<T>; N],
+    len: usize,
+}
+
+impl<T: Copy, const N: usize> FixedStack<T, N> {
+    #[inline(always)]
+    pub(crate) fn new() -> Self {
+        Self { items: [const { core::mem::MaybeUninit::uninit() }; N], len: 0 }
+    }
+
+    #[inline(always)]
+    pub(crate) fn push(&mut self, v: T) {
+        assert!(self.len < N, "traversal stack overflow: BVH deeper than MAX_DEPTH");
+        self.items[self.len] = core::mem::MaybeUninit::new(v);
+        self.len += 1;
+    }
+
+    #[inline(always)]
+    pub(crate) fn pop(&mut self) -> Option<T> {
+        if self.len == 0 {
+            None
+        } else {
+            self.len -= 1;
+            // SAFETY: every index below `len` was written by `push` (and `T: Copy`, so reading
+            // it out leaves nothing to drop).
+            Some(unsafe { self.items[self.len].assume_init() })
+        }
+    }
+}
+
+/// A set of not-yet-visited inner children of one node, as obvhs's traversal keeps them:
+/// `keys` has bit `slot ^ oct_inv` set for each, visited highest key first.
+#[derive(Clone, Copy, Default)]
+struct Group {
+    base: u32,
+    imask: u32,
+    keys: u32,
+}
+
+/// The group that visits exactly node `root`: key 7 with an empty `imask` resolves to
+/// `base + 0` whatever the octant.
+#[inline(always)]
+fn root_group(root: u32) -> Group {
+    Group { base: root, imask: 0, keys: 0x80 }
+}
+
+/// Closest-hit state of one ray: the BVH slot of the best triangle so far and its hit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Best {
+    pub(crate) slot: u32,
+    pub(crate) hit: TriHit,
+}
+
+impl Best {
+    pub(crate) fn none(tmax: f32) -> Self {
+        Best { slot: u32::MAX, hit: TriHit { t: tmax, e: [0.0; 3], det: 1.0 } }
+    }
+}
+
+/// A BVH over a triangle list, with the triangles stored in BVH order.
+#[derive(Clone, Debug)]
+pub struct TriangleBvh {
+    cwbvh: CwBvh,
+    /// Triangles in `cwbvh.primitive_indices` order.
+    tris: Vec<TriVerts>,
+    /// `primitive_indices` (BVH slot → caller's triangle index), kept as its own array.
+    prim_ids: Vec<u32>,
+    stats: BuildStats,
+}
+
+impl TriangleBvh {
+    /// Builds the BVH. Empty input gives an empty BVH (every query misses). Degenerate and
+    /// zero-area triangles are accepted (they are never hit).
+    pub fn build(tris: &[Tri], quality: BuildQuality) -> Result<(Self, BuildStats), BvhError> {
+        let start = Instant::now();
+        if tris.len() > i32::MAX as usize {
+            return Err(BvhError::TooManyTriangles { count: tris.len() });
+        }
+        for (i, t) in tris.iter().enumerate() {
+            let ok = t.iter().all(|v| v.abs().cmple(Vec3::splat(MAX_COORD)).all());
+            if !ok {
+                return Err(BvhError::BadVertex { triangle: i });
+            }
+        }
+        let mut obvhs_time = Duration::ZERO;
+        let mut median_fallback = false;
+        let mut ploc_depth = 0;
+        let cwbvh = if tris.is_empty() {
+            CwBvh::default()
+        } else {
+            let t0 = Instant::now();
+            let bvh = build_cwbvh_ploc(tris, quality);
+            obvhs_time = t0.elapsed();
+            ploc_depth = cwbvh_depth(&bvh);
+            if ploc_depth > MAX_DEPTH {
+                median_fallback = true;
+                let bvh = bvh2_to_cwbvh(&build_bvh2_median(tris), 3, true, false);
+                assert!(cwbvh_depth(&bvh) <= MAX_DEPTH, "median-split CWBVH deeper than MAX_DEPTH");
+                bvh
+            } else {
+                bvh
+            }
+        };
+        let prim_ids = cwbvh.primitive_indices.clone();
+        let tris_bvh: Vec<TriVerts> = prim_ids
+            .iter()
+            .map(|&i| {
+                let [a, b, c] = tris[i as usize];
+                [a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z]
+            })
+            .collect();
+        let stats = BuildStats {
+            triangles: tris.len(),
+            references: prim_ids.len(),
+            nodes: cwbvh.nodes.len(),
+            depth: cwbvh_depth(&cwbvh),
+            ploc_depth,
+            quality,
+            median_fallback,
+            obvhs_time,
+            total_time: start.elapsed(),
+        };
+        Ok((Self { cwbvh, tris: tris_bvh, prim_ids, stats }, stats))
+    }
+
+    /// The build statistics.
+    pub fn stats(&self) -> &BuildStats {
+        &self.stats
+    }
+
+    /// The obvhs tree (for peer baselines and tools; do not traverse it with obvhs's own
+    /// traversal where exactness matters, see the module notes).
+    pub fn cwbvh(&self) -> &CwBvh {
+        &self.cwbvh
+    }
+
+    /// The CWBVH nodes.
+    #[inline]
+    pub fn nodes(&self) -> &[CwBvhNode] {
+        &self.cwbvh.nodes
+    }
+
+    /// Triangles in BVH order (slot `i` is the caller's triangle [`Self::original_index`]`(i)`).
+    #[inline]
+    pub fn triangles_bvh_order(&self) -> &[TriVerts] {
+        &self.tris
+    }
+
+    /// The caller's triangle index of BVH slot `slot`.
+    #[inline]
+    pub fn original_index(&self, slot: u32) -> u32 {
+        self.prim_ids[slot as usize]
+    }
+
+    /// True if the BVH holds no triangle.
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        self.cwbvh.nodes.is_empty()
+    }
+
+    /// Closest hit along the ray, or `None` (also for an invalid ray).
+    #[inline]
+    pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        let r = PreparedRay::new(ray)?;
+        let mut best = Best::none(r.tmax);
+        if !self.is_empty() {
+            self.traverse_closest(&r, 0, &mut best);
+        }
+        self.finish(&best)
+    }
+
+    /// True if any triangle is hit with `tmin ≤ t < tmax` (false for an invalid ray).
+    #[inline]
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        match PreparedRay::new(ray) {
+            Some(r) if !self.is_empty() => self.traverse_any(&r, 0, r.tmax),
+            _ => false,
+        }
+    }
+
+    /// Closest hit by testing every stored triangle (the oracle for tests).
+    pub fn intersect_brute_force(&self, ray: &Ray) -> Option<Hit> {
+        let r = PreparedRay::new(ray)?;
+        let mut best = Best::none(r.tmax);
+        for (i, tri) in self.tris.iter().enumerate() {
+            if let Some(h) = intersect_triangle(&r, tri, best.hit.t) {
+                best = Best { slot: i as u32, hit: h };
+            }
+        }
+        self.finish(&best)
+    }
+
+    #[inline]
+    pub(crate) fn finish(&self, best: &Best) -> Option<Hit> {
+        if best.slot == u32::MAX {
+            return None;
+        }
+        let (u, v) = best.hit.uv();
+        Some(Hit { t: best.hit.t, prim: self.prim_ids[best.slot as usize], u, v })
+    }
+
+    #[inline(always)]
+    pub(crate) fn tri(&self, slot: u32) -> &TriVerts {
+        &self.tris[slot as usize]
+    }
+
+    /// Single-ray closest-hit traversal of the subtree at node `root`, improving `best`
+    /// (whose `t` is the current upper bound). Returns true if `best` changed.
+    pub(crate) fn traverse_closest(&self, r: &PreparedRay, root: u32, best: &mut Best) -> bool {
+        let nodes = &self.cwbvh.nodes[..];
+        let mut found = false;
+        let mut stack: FixedStack<Group, MAX_DEPTH> = FixedStack::new();
+        let mut group = root_group(root);
+        loop {
+            if group.keys == 0 {
+                match stack.pop() {
+                    Some(g) => group = g,
+                    None => break,
+                }
+            }
+            let key = 31 - group.keys.leading_zeros();
+            group.keys &= !(1 << key);
+            let idx = inner_child_index(group.base, group.imask, key ^ r.oct_inv);
+            if group.keys != 0 {
+                stack.push(group);
+            }
+            let node = &nodes[idx as usize];
+            let hits = node_hits(node, r, best.hit.t);
+            let imask = node.imask as u32;
+            let mut leaves = hits & !imask;
+            while leaves != 0 {
+                let slot = leaves.trailing_zeros() as usize;
+                leaves &= leaves - 1;
+                let (first, count) = leaf_range(node, slot);
+                for i in first..first + count {
+                    if let Some(h) = intersect_triangle(r, self.tri(i), best.hit.t) {
+                        *best = Best { slot: i, hit: h };
+                        found = true;
+                    }
+                }
+            }
+            group = Group { base: node.child_base_idx, imask, keys: slots_to_keys(hits & imask, r.oct_inv) };
+        }
+        found
+    }
+
+    /// Single-ray any-hit traversal of the subtree at `root` with upper bound `tmax`.
+    pub(crate) fn traverse_any(&self, r: &PreparedRay, root: u32, tmax: f32) -> bool {
+        let nodes = &self.cwbvh.nodes[..];
+        let mut stack: FixedStack<Group, MAX_DEPTH> = FixedStack::new();
+        let mut group = root_group(root);
+        loop {
+            if group.keys == 0 {
+                match stack.pop() {
+                    Some(g) => group = g,
+                    None => return false,
+                }
+            }
+            let key = 31 - group.keys.leading_zeros();
+            group.keys &= !(1 << key);
+            let idx = inner_child_index(group.base, group.imask, key ^ r.oct_inv);
+            if group.keys != 0 {
+                stack.push(group);
+            }
+            let node = &nodes[idx as usize];
+            let hits = node_hits(node, r, tmax);
+            let imask = node.imask as u32;
+            let mut leaves = hits & !imask;
+            while leaves != 0 {
+                let slot = leaves.trailing_zeros() as usize;
+                leaves &= leaves - 1;
+                let (first, count) = leaf_range(node, slot);
+                for i in first..first + count {
+                    if intersect_triangle(r, self.tri(i), tmax).is_some() {
+                        return true;
+                    }
+                }
+            }
+            group = Group { base: node.child_base_idx, imask, keys: slots_to_keys(hits & imask, r.oct_inv) };
+        }
+    }
+}
+
+/// Closest hit over a plain triangle list by brute force (the test oracle; `prim` is the index
+/// into `tris`).
+pub fn intersect_brute_force(tris: &[Tri], ray: &Ray) -> Option<Hit> {
+    let r = PreparedRay::new(ray)?;
+    let mut best: Option<(u32, TriHit)> = None;
+    for (i, t) in tris.iter().enumerate() {
+        let tv = [t[0].x, t[0].y, t[0].z, t[1].x, t[1].y, t[1].z, t[2].x, t[2].y, t[2].z];
+        let tmax = best.map_or(r.tmax, |b| b.1.t);
+        if let Some(h) = intersect_triangle(&r, &tv, tmax) {
+            best = Some((i as u32, h));
+        }
+    }
+    best.map(|(i, h)| {
+        let (u, v) = h.uv();
+        Hit { t: h.t, prim: i, u, v }
+    })
+}
+
+/// obvhs's `build_cwbvh_from_tris` without its debug-build validation (which asserts a depth
+/// below 32 and would panic on the degenerate trees the median fallback exists for).
+fn build_cwbvh_ploc(tris: &[Tri], quality: BuildQuality) -> CwBvh {
+    let config = quality.params();
+    let mut aabbs: Vec<Aabb> =
+        tris.iter().map(|t| Aabb::from_points(&[Vec3A::from(t[0]), Vec3A::from(t[1]), Vec3A::from(t[2])])).collect();
+    let mut indices: Vec<u32> = (0..tris.len() as u32).collect();
+    if config.pre_split {
+        let otris: Vec<ObvhsTriangle> =
+            tris.iter().map(|t| ObvhsTriangle { v0: t[0].into(), v1: t[1].into(), v2: t[2].into() }).collect();
+        let mut largest = 0.0f32;
+        let mut sum = 0.0f32;
+        for a in &aabbs {
+            largest = largest.max(a.half_area());
+            sum += a.half_area();
+        }
+        split_aabbs_preset(&mut aabbs, &mut indices, &otris, sum / tris.len() as f32, largest);
+    }
+    let mut bvh2 = PlocBuilder::with_capacity(aabbs.len()).build(
+        config.ploc_search_distance,
+        &aabbs,
+        indices,
+        config.sort_precision,
+        config.search_depth_threshold,
+    );
+    bvh2.uses_spatial_splits = config.pre_split;
+    ReinsertionOptimizer::default().run(&mut bvh2, config.reinsertion_batch_ratio, None);
+    bvh2_to_cwbvh(&bvh2, config.max_prims_per_leaf.clamp(1, 3), true, false)
+}
+
+/// Depth of a CWBVH in levels. obvhs allocates children after their parent, so one forward
+/// pass over the nodes finds every depth.
+pub fn cwbvh_depth(bvh: &CwBvh) -> usize {
+    if bvh.nodes.is_empty() {
+        return 0;
+    }
+    let mut depth = vec![0u32; bvh.nodes.len()];
+    depth[0] = 1;
+    let mut max = 1;
+    for (i, node) in bvh.nodes.iter().enumerate() {
+        let d = depth[i];
+        let imask = node.imask as u32;
+        for slot in 0..8 {
+            if imask & (1 << slot) != 0 {
+                let c = inner_child_index(node.child_base_idx, imask, slot) as usize;
+                assert!(c > i, "CWBVH child stored before its parent");
+                depth[c] = d + 1;
+                max = max.max(d + 1);
+            }
+        }
+    }
+    max as usize
+}
+
+/// A binary BVH by median split of centroids along the widest centroid axis, one triangle
+/// per leaf (what obvhs's CWBVH converter expects). Depth ⌈log₂ n⌉ + 1 whatever the
+/// geometry, so coincident triangles cannot make it deep. Only used as the fallback.
+fn build_bvh2_median(tris: &[Tri]) -> Bvh2 {
+    let n = tris.len();
+    let bounds: Vec<Aabb> = tris.iter().map(|t| Aabb::from_points(&[t[0].into(), t[1].into(), t[2].into()])).collect();
+    let centroid = |i: u32| bounds[i as usize].center();
+    let mut prims: Vec<u32> = (0..n as u32).collect();
+    let mut nodes = vec![Bvh2Node::default(); 2 * n - 1];
+    let mut next = 1usize;
+    // (node index, range of `prims`)
+    let mut work = vec![(0usize, 0usize, n)];
+    while let Some((node, lo, hi)) = work.pop() {
+        let mut aabb = Aabb::empty();
+        for &p in &prims[lo..hi] {
+            aabb = aabb.union(&bounds[p as usize]);
+        }
+        if hi - lo == 1 {
+            nodes[node] = Bvh2Node::new(aabb, 1, lo as u32);
+            continue;
+        }
+        let mut cb = Aabb::empty();
+        for &p in &prims[lo..hi] {
+            cb.extend(centroid(p));
+        }
+        let axis = cb.largest_axis();
+        let mid = lo + (hi - lo) / 2;
+        prims[lo..hi].select_nth_unstable_by(mid - lo, |&a, &b| centroid(a)[axis].total_cmp(&centroid(b)[axis]));
+        nodes[node] = Bvh2Node::new(aabb, 0, next as u32);
+        work.push((next, lo, mid));
+        work.push((next + 1, mid, hi));
+        next += 2;
+    }
+    debug_assert_eq!(next, 2 * n - 1);
+    Bvh2 { nodes, primitive_indices: prims, ..Bvh2::default() }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tri(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> Tri {
+        [Vec3::from(a), Vec3::from(b), Vec3::from(c)]
+    }
+
+    #[test]
+    fn occupied_slots_matches_loop() {
+        let mut node = CwBvhNode::default();
+        for pattern in 0u32..256 {
+            for s in 0..8 {
+                node.child_meta[s] = if pattern & (1 << s) != 0 { [0x20, 0x61, 0xE2, 0x3B][s % 4] } else { 0 };
+            }
+            assert_eq!(occupied_slots(&node), pattern);
+        }
+    }
+
+    #[test]
+    fn slots_to_keys_is_xor_permutation() {
+        for oct in 0..8 {
+            for mask in 0u32..256 {
+                let mut expect = 0;
+                for s in 0..8 {
+                    if mask & (1 << s) != 0 {
+                        expect |= 1 << (s ^ oct);
+                    }
+                }
+                assert_eq!(slots_to_keys(mask, oct), expect, "oct {oct} mask {mask:#b}");
+            }
+        }
+    }
+
+    #[test]
+    fn safe_rcp_never_inf_or_nan() {
+        for d in [0.0f32, -0.0, 1e-30, -1e-30, f32::MIN_POSITIVE, 1e-45, 1.0, -3.0] {
+            let r = safe_rcp(d);
+            assert!(r.is_finite() && r != 0.0, "{d} -> {r}");
+            assert_eq!(r.is_sign_negative(), d.is_sign_negative());
+        }
+        assert_eq!(safe_rcp(2.0), 0.5);
+    }
+
+    #[test]
+    fn bytes_to_f32s_exact() {
+        let b = [0u8, 1, 2, 127, 128, 200, 254, 255];
+        assert_eq!(bytes_to_f32s(&b).to_array(), b.map(|x| x as f32));
+    }
+
+    #[test]
+    fn ray_validity() {
+        let o = Vec3::ZERO;
+        assert!(Ray::new(o, Vec3::X).is_valid());
+        assert!(!Ray::new(o, Vec3::ZERO).is_valid());
+        assert!(!Ray::new(o, Vec3::new(f32::NAN, 1.0, 0.0)).is_valid());
+        assert!(!Ray::new(o, Vec3::new(f32::INFINITY, 1.0, 0.0)).is_valid());
+        assert!(!Ray::new(Vec3::splat(f32::NAN), Vec3::X).is_valid());
+        assert!(!Ray::segment(o, Vec3::X, 1.0, 1.0).is_valid());
+        assert!(!Ray::segment(o, Vec3::X, -1.0, 1.0).is_valid());
+        assert!(!Ray::segment(o, Vec3::X, 0.0, f32::NAN).is_valid());
+        assert!(Ray::new(o, Vec3::new(0.0, -0.0, 1e-9)).is_valid());
+    }
+
+    #[test]
+    fn watertight_single_triangle() {
+        let t = tri([-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [0.0, 1.0, 0.0]);
+        let tv = [t[0].x, t[0].y, t[0].z, t[1].x, t[1].y, t[1].z, t[2].x, t[2].y, t[2].z];
+        let r = PreparedRay::new(&Ray::new(Vec3::new(0.0, 0.0, 2.0), Vec3::new(0.0, 0.0, -1.0))).unwrap();
+        let h = intersect_triangle(&r, &tv, f32::INFINITY).unwrap();
+        assert_eq!(h.t, 2.0);
+        let (u, v) = h.uv();
+        // (0,0) = 0.25·v0 + 0.25·v1 + 0.5·v2
+        assert!((u - 0.25).abs() < 1e-6 && (v - 0.5).abs() < 1e-6, "{u} {v}");
+        // Exactly through a vertex and an edge midpoint (exactly representable rays, so the
+        // ray really passes through the point).
+        for target in [t[0], t[1], t[2], (t[0] + t[1]) * 0.5] {
+            for d in [Vec3::new(0.0, 0.0, -1.0), Vec3::new(-0.5, -0.25, -1.0), Vec3::new(0.25, 0.5, 1.0)] {
+                let r = PreparedRay::new(&Ray::new(target - d, d)).unwrap();
+                let h = intersect_triangle(&r, &tv, f32::INFINITY);
+                assert_eq!(h.map(|h| h.t), Some(1.0), "{target} {d}");
+            }
+        }
+    }
+
+    #[test]
+    fn median_fallback_tree_is_shallow() {
+        let t = tri([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
+        let tris = vec![t; 5000];
+        let bvh = bvh2_to_cwbvh(&build_bvh2_median(&tris), 3, true, false);
+        let d = cwbvh_depth(&bvh);
+        assert!(d <= 14, "depth {d}");
+        let mut seen: Vec<u32> = bvh.primitive_indices.clone();
+        seen.sort_unstable();
+        assert_eq!(seen, (0..5000).collect::<Vec<_>>());
+    }
+}

@@ -1,0 +1,792 @@
+//! 8-lane ray packets traversing the CWBVH of [`TriangleBvh`]: closest hit and occlusion.
+//!
+//! # How a packet is traced
+//! 1. **Lanes.** Each active lane is prepared exactly as a single ray ([`PreparedRay`]), then
+//!    transposed to structure-of-arrays `F32s`. Invalid lanes (NaN, zero or infinite
+//!    directions, see [`Ray::is_valid`]) drop out of the active mask and report a miss.
+//! 2. **Classes.** Active lanes are grouped by [`PreparedRay::class`]: the sign octant of
+//!    the direction and its dominant axis. Inside a class every lane picks the same near/far
+//!    child planes and the watertight test's axis permutation is uniform, so both are scalar
+//!    decisions instead of per-lane blends. Coherent packets (a 8×1 or 4×2 tile of primary
+//!    rays, shadow rays toward one light) are almost always one class.
+//! 3. **Node test** (ray-parallel): per child slot, its six quantised planes are broadcast and
+//!    tested against the eight lanes at once with the same conservative slab arithmetic as
+//!    the single-ray test (`q·(e·inv) + (p − o)·inv ∓ δ`, see [`crate::bvh`]), against
+//!    each lane's current `tfar` (closest hit so far). The result is a lane mask per child.
+//! 4. **Order and stack.** Leaf children are intersected immediately (shrinking `tfar`
+//!    before anything is pushed). Inner children with a non-empty lane mask are pushed in
+//!    ascending `slot ^ oct_inv` key, so the child nearest for the class octant is popped first
+//!    (obvhs's CWBVH stores children so that this key order is front to back). An entry is
+//!    `(node, lane mask, per-lane entry distance)`; on pop, lanes whose entry distance is
+//!    beyond their current `tfar` are removed, and the entry is skipped if none are left.
+//!    The stack has a fixed `7·MAX_DEPTH + 1` entries (at most seven siblings wait per
+//!    level), which the build's depth guarantee makes sufficient.
+//! 5. **Fallback.** When a popped entry (or a class at the start) has at most
+//!    [`SINGLE_RAY_THRESHOLD`] live lanes, its subtree is finished by the single-ray
+//!    traversal, one lane at a time, starting at that node with the lane's current best hit.
+//! 6. **Triangles** are tested eight lanes at a time with the watertight test written in the
+//!    same operation order as the scalar [`crate::bvh::intersect_triangle`], including the
+//!    double-precision recomputation of edge functions that round to zero (done per lane, in
+//!    scalar code, which is rare). So a lane's `t`, `u` and `v` equal the single-ray results
+//!    bit for bit; only which of two triangles at exactly the same `t` wins may differ.
+//!
+//! Inactive lanes are never written: their entries of [`PacketHits`] keep whatever the caller
+//! put there.
+//!
+//! # Threshold
+//! [`SINGLE_RAY_THRESHOLD`] = 2 lanes. Measured by sweeping the threshold (0, 1, 2, 3, 4, 6)
+//! over primary and shadow rays in 8×1 tiles at 1280×720 on Sponza and on the bench's 700k
+//! procedural scene, one thread, thread CPU time, best of 15 interleaved repetitions (the
+//! machine is shared, so wall time varies 2× between runs). Thresholds 0–2 were within 1 % of
+//! each other (Sponza primary 8.73 / 8.73 / 8.66 Mrays/s, shadow 9.35 / 9.46 / 9.42;
+//! procedural primary 9.41 / 9.50 / 9.39, shadow 6.97 / 7.16 / 7.17), 3 was 1–3 % slower and
+//! 4–6 were 3–19 % slower. Of the equal choices, 2 is kept for the less coherent packets
+//! (secondary rays) that the sweep does not cover, where dropping to single rays earlier
+//! helps. The bench's `traversal/threshold` group repeats the sweep.
+//!
+//! # Cost of the pieces (measured the same way)
+//! * Preparing lanes one at a time in scalar code and transposing took a third of a shadow
+//!   packet's time; the SIMD preparation in `Lanes::new` made shadow packets ~2× faster.
+//! * The packet stack (281 entries × 40 bytes) is left uninitialised: zero-initialising it per
+//!   packet was the largest single cost after that (an 11 KB memset/memmove per packet).
+
+use crate::bvh::{
+    Best, FixedStack, Hit, MAX_DEPTH, MAX_DIR, MAX_ORIGIN, MIN_DIR, NODE_PAD, PreparedRay, RCP_CLAMP, Ray, TriHit,
+    TriVerts, TriangleBvh, bytes_to_f32s, child_planes, edge_f64, inner_child_index, leaf_range, node_extent,
+    occupied_slots,
+};
+use crate::simd::{F32s, LANES};
+
+/// Lanes at or below which a packet continues as single rays (see the module notes).
+pub const SINGLE_RAY_THRESHOLD: u32 = 2;
+
+/// Lane mask with every lane active.
+pub const ALL_LANES: u32 = (1 << LANES) - 1;
+
+const PACKET_STACK: usize = 7 * MAX_DEPTH + 1;
+
+/// Eight rays, structure of arrays. Lane `i` is the ray `origin[·][i] + t·dir[·][i]`,
+/// `t ∈ [tmin[i], tmax[i])`.
+#[derive(Clone, Copy, Debug)]
+pub struct RayPacket {
+    pub origin: [F32s; 3],
+    pub dir: [F32s; 3],
+    pub tmin: F32s,
+    pub tmax: F32s,
+}
+
+impl RayPacket {
+    /// Transposes eight rays.
+    pub fn from_rays(rays: &[Ray; LANES]) -> Self {
+        let c = |f: &dyn Fn(&Ray) -> f32| F32s::from(core::array::from_fn::<f32, LANES, _>(|i| f(&rays[i])));
+        RayPacket {
+            origin: [c(&|r| r.origin.x), c(&|r| r.origin.y), c(&|r| r.origin.z)],
+            dir: [c(&|r| r.dir.x), c(&|r| r.dir.y), c(&|r| r.dir.z)],
+            tmin: c(&|r| r.tmin),
+            tmax: c(&|r| r.tmax),
+        }
+    }
+
+    /// Lane `i` as a single ray.
+    pub fn ray(&self, i: usize) -> Ray {
+        let g = |v: &F32s| v.to_array()[i];
+        Ray {
+            origin: glam::Vec3::new(g(&self.origin[0]), g(&self.origin[1]), g(&self.origin[2])),
+            dir: glam::Vec3::new(g(&self.dir[0]), g(&self.dir[1]), g(&self.dir[2])),
+            tmin: g(&self.tmin),
+            tmax: g(&self.tmax),
+        }
+    }
+}
+
+/// Closest hits of a packet, structure of arrays. A miss is `prim == u32::MAX`, `t = inf`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PacketHits {
+    pub t: [f32; LANES],
+    pub prim: [u32; LANES],
+    pub u: [f32; LANES],
+    pub v: [f32; LANES],
+}
+
+impl Default for PacketHits {
+    fn default() -> Self {
+        Self::NONE
+    }
+}
+
+impl PacketHits {
+    /// Every lane a miss.
+    pub const NONE: PacketHits =
+        PacketHits { t: [f32::INFINITY; LANES], prim: [u32::MAX; LANES], u: [0.0; LANES], v: [0.0; LANES] };
+
+    /// Lane `i` as a hit record.
+    pub fn get(&self, i: usize) -> Option<Hit> {
+        (self.prim[i] != u32::MAX).then(|| Hit { t: self.t[i], prim: self.prim[i], u: self.u[i], v: self.v[i] })
+    }
+
+    fn set(&mut self, i: usize, hit: Option<Hit>) {
+        let h = hit.unwrap_or(Hit::NONE);
+        self.t[i] = h.t;
+        self.prim[i] = h.prim;
+        self.u[i] = h.u;
+        self.v[i] = h.v;
+    }
+}
+
+/// The prepared lanes of a packet, structure of arrays: lane `i` holds exactly the values
+/// of [`PreparedRay::new`] for that lane's ray (computed here with the same IEEE operations in
+/// SIMD; the `lanes_match_prepared_ray` test checks it bit for bit). Preparing lanes one by
+/// one in scalar code and transposing took a third of a shadow packet's time.
+struct Lanes {
+    origin: [F32s; 3],
+    inv: [F32s; 3],
+    pad: [F32s; 3],
+    origin_k: [F32s; 3],
+    shear: [F32s; 3],
+    tmin: F32s,
+    tmax: F32s,
+    /// [`PreparedRay::class`] per lane (meaningful in valid lanes).
+    class: [u32; LANES],
+    /// Lanes that are active and valid.
+    valid: u32,
+}
+
+impl Lanes {
+    fn new(p: &RayPacket, active: u32) -> Self {
+        let sp = F32s::splat;
+        let zero = F32s::ZERO;
+        let [ox, oy, oz] = p.origin;
+        let [dx, dy, dz] = p.dir;
+        let (ax, ay, az) = (dx.abs(), dy.abs(), dz.abs());
+        // `Ray::is_valid`, written so that NaN fails.
+        let o_ok =
+            ox.abs().simd_le(sp(MAX_ORIGIN)) & oy.abs().simd_le(sp(MAX_ORIGIN)) & oz.abs().simd_le(sp(MAX_ORIGIN));
+        let d_ok = ax.simd_le(sp(MAX_DIR))
+            & ay.simd_le(sp(MAX_DIR))
+            & az.simd_le(sp(MAX_DIR))
+            & (ax.simd_ge(sp(MIN_DIR)) | ay.simd_ge(sp(MIN_DIR)) | az.simd_ge(sp(MIN_DIR)));
+        let t_ok = p.tmin.simd_ge(zero) & p.tmin.simd_lt(sp(f32::INFINITY)) & p.tmin.simd_lt(p.tmax);
+        let valid = (o_ok & d_ok & t_ok).to_bitmask() & active;
+        // `safe_rcp`: ±2^80 (sign of d) below the clamp, else 1/d.
+        let big = sp(1.0 / RCP_CLAMP);
+        let rcp = |d: F32s| d.abs().simd_lt(sp(RCP_CLAMP)).select(big | (d & sp(-0.0)), F32s::ONE / d);
+        let inv = [rcp(dx), rcp(dy), rcp(dz)];
+        let pad = inv.map(|i| sp(NODE_PAD) * i.abs());
+        // Dominant axis and the watertight permutation, as in `PreparedRay::new`.
+        let kz0 = ax.simd_ge(ay) & ax.simd_ge(az);
+        let kz1 = !kz0 & ay.simd_ge(az);
+        let pick = |v: [F32s; 3]| -> [F32s; 3] {
+            // (kx, ky, kz) before the winding swap: kz = 0 → (1, 2, 0), 1 → (2, 0, 1), 2 → (0, 1, 2).
+            let z = kz0.select(v[0], kz1.select(v[1], v[2]));
+            let x = kz0.select(v[1], kz1.select(v[2], v[0]));
+            let y = kz0.select(v[2], kz1.select(v[0], v[1]));
+            [x, y, z]
+        };
+        let [dkx, dky, dkz] = pick(p.dir);
+        let [okx, oky, okz] = pick(p.origin);
+        let swap = dkz.simd_lt(zero);
+        let (dkx, dky) = (swap.select(dky, dkx), swap.select(dkx, dky));
+        let (okx, oky) = (swap.select(oky, okx), swap.select(okx, oky));
+        let shear = [dkx / dkz, dky / dkz, F32s::ONE / dkz];
+        let neg = inv.map(|i| i.simd_lt(zero).to_bitmask());
+        let (b0, b1) = (kz0.to_bitmask(), kz1.to_bitmask());
+        let class = core::array::from_fn(|i| {
+            let bit = |m: u32| (m >> i) & 1;
+            let oct_inv = ((bit(neg[0]) ^ 1) << 2) | ((bit(neg[1]) ^ 1) << 1) | (bit(neg[2]) ^ 1);
+            let kz = if bit(b0) == 1 {
+                0
+            } else if bit(b1) == 1 {
+                1
+            } else {
+                2
+            };
+            oct_inv | (kz << 3)
+        });
+        Lanes { origin: p.origin, inv, pad, origin_k: [okx, oky, okz], shear, tmin: p.tmin, tmax: p.tmax, class, valid }
+    }
+
+    /// Lane `i` as the single-ray [`PreparedRay`] (for the single-ray fallback).
+    fn lane(&self, i: usize) -> PreparedRay {
+        let g3 = |v: &[F32s; 3]| v.map(|x| x.to_array()[i]);
+        let class = self.class[i];
+        let oct_inv = class & 7;
+        let kz = (class >> 3) as usize;
+        let (mut kx, mut ky) = ((kz + 1) % 3, (kz + 2) % 3);
+        // d[kz] is never zero here, so its sign is the sign of the octant bit.
+        if oct_inv & (4 >> kz) == 0 {
+            core::mem::swap(&mut kx, &mut ky);
+        }
+        PreparedRay {
+            origin: g3(&self.origin).into(),
+            inv: g3(&self.inv).into(),
+            pad: g3(&self.pad).into(),
+            oct_inv,
+            k: [kx, ky, kz],
+            shear: g3(&self.shear),
+            origin_k: g3(&self.origin_k),
+            tmin: self.tmin.to_array()[i],
+            tmax: self.tmax.to_array()[i],
+        }
+    }
+}
+
+/// Per-lane closest-hit state: `t` (the current `tfar`), edge functions and determinant of
+/// the best triangle, and its BVH slot (bit-cast into float lanes so one blend updates it).
+struct LaneBest {
+    t: F32s,
+    e1: F32s,
+    e2: F32s,
+    det: F32s,
+    slot: F32s,
+}
+
+impl LaneBest {
+    fn lane(&self, i: usize) -> Best {
+        let g = |v: &F32s| v.to_array()[i];
+        Best {
+            slot: g(&self.slot).to_bits(),
+            hit: TriHit { t: g(&self.t), e: [0.0, g(&self.e1), g(&self.e2)], det: g(&self.det) },
+        }
+    }
+
+    fn set_lane(&mut self, i: usize, b: &Best) {
+        let put = |v: &mut F32s, x: f32| {
+            let mut a = v.to_array();
+            a[i] = x;
+            *v = F32s::from(a);
+        };
+        put(&mut self.t, b.hit.t);
+        put(&mut self.e1, b.hit.e[1]);
+        put(&mut self.e2, b.hit.e[2]);
+        put(&mut self.det, b.hit.det);
+        put(&mut self.slot, f32::from_bits(b.slot));
+    }
+}
+
+/// A pending subtree: node index, live lanes and each lane's entry distance.
+#[derive(Clone, Copy, Default)]
+struct Entry {
+    node: u32,
+    mask: u32,
+    tnear: [f32; LANES],
+}
+
+#[inline(always)]
+fn mask_of(bits: u32) -> F32s {
+    F32s::from(core::array::from_fn::<f32, LANES, _>(
+        |i| if bits & (1 << i) != 0 { f32::from_bits(u32::MAX) } else { 0.0 },
+    ))
+}
+
+/// Watertight test of one triangle against the lanes in `m` (all of one class, permutation
+/// `k`); the SIMD twin of [`crate::bvh::intersect_triangle`]. Returns the lanes hit with
+/// `tmin ≤ t < tmax` and the hit data (meaningful in those lanes only).
+#[inline(always)]
+fn intersect_triangle_lanes(
+    l: &Lanes,
+    k: [usize; 3],
+    tri: &TriVerts,
+    tmax: F32s,
+    m: u32,
+) -> (u32, F32s, [F32s; 3], F32s) {
+    let [kx, ky, kz] = k;
+    let [ox, oy, oz] = l.origin_k;
+    let [sx, sy, sz] = l.shear;
+    let sp = F32s::splat;
+    let a_z = sp(tri[kz]) - oz;
+    let b_z = sp(tri[3 + kz]) - oz;
+    let c_z = sp(tri[6 + kz]) - oz;
+    let ax = (sp(tri[kx]) - ox) - sx * a_z;
+    let ay = (sp(tri[ky]) - oy) - sy * a_z;
+    let bx = (sp(tri[3 + kx]) - ox) - sx * b_z;
+    let by = (sp(tri[3 + ky]) - oy) - sy * b_z;
+    let cx = (sp(tri[6 + kx]) - ox) - sx * c_z;
+    let cy = (sp(tri[6 + ky]) - oy) - sy * c_z;
+    let mut u = cx * by - cy * bx;
+    let mut v = ax * cy - ay * cx;
+    let mut w = bx * ay - by * ax;
+    let zero = F32s::ZERO;
+    let on_edge = (u.simd_eq(zero) | v.simd_eq(zero) | w.simd_eq(zero)).to_bitmask() & m;
+    if on_edge != 0 {
+        recompute_edges_f64(on_edge, [ax, ay, bx, by, cx, cy], &mut u, &mut v, &mut w);
+    }
+    let neg = u.simd_lt(zero) | v.simd_lt(zero) | w.simd_lt(zero);
+    let pos = u.simd_gt(zero) | v.simd_gt(zero) | w.simd_gt(zero);
+    let det = u + v + w;
+    let cand = (!(neg & pos) & det.simd_ne(zero)).to_bitmask() & m;
+    if cand == 0 {
+        return (0, zero, [zero; 3], zero);
+    }
+    let t_scaled = u * (sz * a_z) + v * (sz * b_z) + w * (sz * c_z);
+    let t = t_scaled / det;
+    let hit = (t.simd_ge(l.tmin) & t.simd_lt(tmax)).to_bitmask() & cand;
+    (hit, t, [u, v, w], det)
+}
+
+/// Lanes whose f32 edge functions hit exactly zero get all three recomputed in f64, exactly
+/// as the scalar reference does.
+#[cold]
+#[inline(never)]
+fn recompute_edges_f64(lanes: u32, c: [F32s; 6], u: &mut F32s, v: &mut F32s, w: &mut F32s) {
+    let [ax, ay, bx, by, cx, cy] = c.map(|x| x.to_array());
+    let (mut ua, mut va, mut wa) = (u.to_array(), v.to_array(), w.to_array());
+    for i in 0..LANES {
+        if lanes & (1 << i) != 0 {
+            ua[i] = edge_f64(cx[i], cy[i], bx[i], by[i]);
+            va[i] = edge_f64(ax[i], ay[i], cx[i], cy[i]);
+            wa[i] = edge_f64(bx[i], by[i], ax[i], ay[i]);
+        }
+    }
+    (*u, *v, *w) = (F32s::from(ua), F32s::from(va), F32s::from(wa));
+}
+
+/// Slab constants of one node for all lanes (the SIMD twin of `node_slabs`).
+#[inline(always)]
+fn lane_slabs(node: &obvhs::cwbvh::node::CwBvhNode, l: &Lanes) -> ([F32s; 3], [F32s; 3], [F32s; 3]) {
+    let e = node_extent(node);
+    let p = node.p.to_array();
+    let mut a = [F32s::ZERO; 3];
+    let mut bn = [F32s::ZERO; 3];
+    let mut bf = [F32s::ZERO; 3];
+    for i in 0..3 {
+        let po = F32s::splat(p[i]) - l.origin[i];
+        let b = po * l.inv[i];
+        let delta = l.pad[i] * (F32s::splat(255.0) * F32s::splat(e[i]) + po.abs());
+        a[i] = F32s::splat(e[i]) * l.inv[i];
+        bn[i] = b - delta;
+        bf[i] = b + delta;
+    }
+    (a, bn, bf)
+}
+
+/// Per-child lane masks and entry distances of one node for the lanes in `m`.
+#[inline(always)]
+fn node_lanes(
+    node: &obvhs::cwbvh::node::CwBvhNode,
+    l: &Lanes,
+    oct_inv: u32,
+    tfar: F32s,
+    m: u32,
+    masks: &mut [u32; 8],
+    tnear: &mut [F32s; 8],
+) -> u32 {
+    let (a, bn, bf) = lane_slabs(node, l);
+    let neg = [oct_inv & 4 == 0, oct_inv & 2 == 0, oct_inv & 1 == 0];
+    // Converting the six plane arrays once (6 × vpmovzxbd + vcvtdq2ps) and broadcasting from
+    // memory per child is cheaper than a scalar byte → float conversion per child and plane.
+    let planes = child_planes(node, neg).map(|p| bytes_to_f32s(p).to_array());
+    let mut any = 0;
+    let mut occ = occupied_slots(node);
+    while occ != 0 {
+        let c = occ.trailing_zeros() as usize;
+        occ &= occ - 1;
+        let q = planes.map(|p| F32s::splat(p[c]));
+        let nx = q[0] * a[0] + bn[0];
+        let ny = q[1] * a[1] + bn[1];
+        let nz = q[2] * a[2] + bn[2];
+        let fx = q[3] * a[0] + bf[0];
+        let fy = q[4] * a[1] + bf[1];
+        let fz = q[5] * a[2] + bf[2];
+        let tn = nx.fast_max(ny).fast_max(nz.fast_max(l.tmin));
+        let tf = fx.fast_min(fy).fast_min(fz.fast_min(tfar));
+        let hit = tn.simd_le(tf).to_bitmask() & m;
+        masks[c] = hit;
+        tnear[c] = tn;
+        if hit != 0 {
+            any |= 1 << c;
+        }
+    }
+    any
+}
+
+impl TriangleBvh {
+    /// Closest hits of the active lanes of a packet. For every active lane, `hits` receives its
+    /// hit or [`PacketHits::NONE`]'s values; inactive lanes are left untouched. Returns the mask
+    /// of lanes that hit. Each lane's result equals [`TriangleBvh::intersect`] of that lane's ray
+    /// (up to exact ties in `t`).
+    pub fn intersect_packet(&self, rays: &RayPacket, active: u32, hits: &mut PacketHits) -> u32 {
+        self.intersect_packet_with(rays, active, hits, SINGLE_RAY_THRESHOLD)
+    }
+
+    /// Lanes (among the active ones) that hit anything in `[tmin, tmax)`. Equals
+    /// [`TriangleBvh::occluded`] per lane.
+    pub fn occluded_packet(&self, rays: &RayPacket, active: u32) -> u32 {
+        self.occluded_packet_with(rays, active, SINGLE_RAY_THRESHOLD)
+    }
+
+    /// [`Self::intersect_packet`] with an explicit single-ray threshold (for the bench's
+    /// threshold sweep; `0` never falls back, `8` always traces single rays).
+    pub fn intersect_packet_with(&self, rays: &RayPacket, active: u32, hits: &mut PacketHits, threshold: u32) -> u32 {
+        let active = active & ALL_LANES;
+        let l = Lanes::new(rays, active);
+        let mut best = LaneBest {
+            t: l.tmax,
+            e1: F32s::ZERO,
+            e2: F32s::ZERO,
+            det: F32s::ONE,
+            slot: F32s::splat(f32::from_bits(u32::MAX)),
+        };
+        if !self.is_empty() {
+            let mut rest = l.valid;
+            while rest != 0 {
+                let class = l.class[rest.trailing_zeros() as usize];
+                let group = lanes_of_class(&l, rest, class);
+                rest &= !group;
+                if group.count_ones() <= threshold {
+                    for i in lane_iter(group) {
+                        let mut b = best.lane(i);
+                        self.traverse_closest(&l.lane(i), 0, &mut b);
+                        best.set_lane(i, &b);
+                    }
+                } else {
+                    self.packet_closest(&l, group, &mut best, threshold);
+                }
+            }
+        }
+        let mut hit_mask = 0;
+        for i in lane_iter(active) {
+            let h = self.finish(&best.lane(i));
+            if h.is_some() {
+                hit_mask |= 1 << i;
+            }
+            hits.set(i, h);
+        }
+        #[cfg(feature = "check-scalar")]
+        self.check_packet_closest(rays, active, hits);
+        hit_mask
+    }
+
+    /// [`Self::occluded_packet`] with an explicit single-ray threshold.
+    pub fn occluded_packet_with(&self, rays: &RayPacket, active: u32, threshold: u32) -> u32 {
+        let active = active & ALL_LANES;
+        let l = Lanes::new(rays, active);
+        let mut occluded = 0;
+        if !self.is_empty() {
+            let mut rest = l.valid;
+            while rest != 0 {
+                let class = l.class[rest.trailing_zeros() as usize];
+                let group = lanes_of_class(&l, rest, class);
+                rest &= !group;
+                if group.count_ones() <= threshold {
+                    for i in lane_iter(group) {
+                        let r = l.lane(i);
+                        if self.traverse_any(&r, 0, r.tmax) {
+                            occluded |= 1 << i;
+                        }
+                    }
+                } else {
+                    occluded |= self.packet_any(&l, group, threshold);
+                }
+            }
+        }
+        #[cfg(feature = "check-scalar")]
+        for i in lane_iter(active) {
+            assert_eq!(occluded & (1 << i) != 0, self.occluded(&rays.ray(i)), "packet occlusion lane {i}");
+        }
+        occluded
+    }
+
+    fn packet_closest(&self, l: &Lanes, group: u32, best: &mut LaneBest, threshold: u32) {
+        let r0 = l.lane(group.trailing_zeros() as usize);
+        let (oct_inv, k) = (r0.oct_inv, r0.k);
+        let nodes = self.nodes();
+        let mut stack: FixedStack<Entry, PACKET_STACK> = FixedStack::new();
+        stack.push(Entry { node: 0, mask: group, tnear: l.tmin.to_array() });
+        let mut masks = [0u32; 8];
+        let mut tnear = [F32s::ZERO; 8];
+        while let Some(entry) = stack.pop() {
+            let m = entry.mask & F32s::from(entry.tnear).simd_le(best.t).to_bitmask();
+            if m == 0 {
+                continue;
+            }
+            if m.count_ones() <= threshold {
+                for i in lane_iter(m) {
+                    let mut b = best.lane(i);
+                    if self.traverse_closest(&l.lane(i), entry.node, &mut b) {
+                        best.set_lane(i, &b);
+                    }
+                }
+                continue;
+            }
+            let node = &nodes[entry.node as usize];
+            let hit_children = node_lanes(node, l, oct_inv, best.t, m, &mut masks, &mut tnear);
+            let imask = node.imask as u32;
+            let mut leaves = hit_children & !imask;
+            while leaves != 0 {
+                let slot = leaves.trailing_zeros() as usize;
+                leaves &= leaves - 1;
+                let (first, count) = leaf_range(node, slot);
+                let lm = masks[slot];
+                for i in first..first + count {
+                    let (h, t, e, det) = intersect_triangle_lanes(l, k, self.tri(i), best.t, lm);
+                    if h != 0 {
+                        let sel = mask_of(h);
+                        best.t = sel.select(t, best.t);
+                        best.e1 = sel.select(e[1], best.e1);
+                        best.e2 = sel.select(e[2], best.e2);
+                        best.det = sel.select(det, best.det);
+                        best.slot = sel.select(F32s::splat(f32::from_bits(i)), best.slot);
+                    }
+                }
+            }
+            let inner = hit_children & imask;
+            if inner != 0 {
+                for key in 0..8u32 {
+                    let slot = key ^ oct_inv;
+                    if inner & (1 << slot) != 0 {
+                        let s = slot as usize;
+                        stack.push(Entry {
+                            node: inner_child_index(node.child_base_idx, imask, slot),
+                            mask: masks[s],
+                            tnear: tnear[s].to_array(),
+                        });
+                    }
+                }
+            }
+        }
+    }
+
+    fn packet_any(&self, l: &Lanes, group: u32, threshold: u32) -> u32 {
+        let r0 = l.lane(group.trailing_zeros() as usize);
+        let (oct_inv, k) = (r0.oct_inv, r0.k);
+        let nodes = self.nodes();
+        let tfar = l.tmax;
+        let mut alive = group;
+        let mut stack: FixedStack<Entry, PACKET_STACK> = FixedStack::new();
+        stack.push(Entry { node: 0, mask: group, tnear: l.tmin.to_array() });
+        let mut masks = [0u32; 8];
+        let mut tnear = [F32s::ZERO; 8];
+        while let Some(entry) = stack.pop() {
+            let m = entry.mask & alive;
+            if m == 0 {
+                continue;
+            }
+            if m.count_ones() <= threshold {
+                for i in lane_iter(m) {
+                    let r = l.lane(i);
+                    if self.traverse_any(&r, entry.node, r.tmax) {
+                        alive &= !(1 << i);
+                    }
+                }
+                if alive == 0 {
+                    break;
+                }
+                continue;
+            }
+            let node = &nodes[entry.node as usize];
+            let hit_children = node_lanes(node, l, oct_inv, tfar, m, &mut masks, &mut tnear);
+            let imask = node.imask as u32;
+            let mut leaves = hit_children & !imask;
+            while leaves != 0 {
+                let slot = leaves.trailing_zeros() as usize;
+                leaves &= leaves - 1;
+                let (first, count) = leaf_range(node, slot);
+                for i in first..first + count {
+                    let lm = masks[slot] & alive;
+                    if lm == 0 {
+                        break;
+                    }
+                    let (h, ..) = intersect_triangle_lanes(l, k, self.tri(i), tfar, lm);
+                    alive &= !h;
+                }
+            }
+            if alive == 0 {
+                break;
+            }
+            let inner = hit_children & imask;
+            if inner != 0 {
+                for key in 0..8u32 {
+                    let slot = key ^ oct_inv;
+                    if inner & (1 << slot) != 0 {
+                        let s = slot as usize;
+                        stack.push(Entry {
+                            node: inner_child_index(node.child_base_idx, imask, slot),
+                            mask: masks[s],
+                            tnear: tnear[s].to_array(),
+                        });
+                    }
+                }
+            }
+        }
+        group & !alive
+    }
+
+    #[cfg(feature = "check-scalar")]
+    fn check_packet_closest(&self, rays: &RayPacket, active: u32, hits: &PacketHits) {
+        for i in lane_iter(active) {
+            let ray = rays.ray(i);
+            let single = self.intersect(&ray);
+            let packet = hits.get(i);
+            match (packet, single) {
+                (None, None) => {}
+                (Some(p), Some(s)) => {
+                    assert_eq!(p.t.to_bits(), s.t.to_bits(), "packet lane {i}: t {} vs single {}", p.t, s.t);
+                    if p.prim != s.prim {
+                        // Only an exact tie may pick another triangle.
+                        use crate::bvh::intersect_triangle;
+                        let r = PreparedRay::new(&ray).expect("hit implies valid");
+                        let slot = (0..self.triangles_bvh_order().len() as u32)
+                            .find(|&j| self.original_index(j) == p.prim)
+                            .expect("prim");
+                        let h = intersect_triangle(&r, self.tri(slot), f32::INFINITY).map(|h| h.t);
+                        assert_eq!(h, Some(s.t), "packet lane {i}: prim {} vs single {}", p.prim, s.prim);
+                    }
+                }
+                (p, s) => panic!("packet lane {i}: {p:?} vs single {s:?}"),
+            }
+        }
+    }
+}
+
+/// Lanes of `candidates` whose class is `class`.
+#[inline(always)]
+fn lanes_of_class(l: &Lanes, candidates: u32, class: u32) -> u32 {
+    let mut m = 0;
+    for i in lane_iter(candidates) {
+        if l.class[i] == class {
+            m |= 1 << i;
+        }
+    }
+    m
+}
+
+/// Indices of the set bits of `mask`, lowest first.
+#[inline(always)]
+fn lane_iter(mask: u32) -> impl Iterator<Item = usize> {
+    let mut m = mask;
+    core::iter::from_fn(move || {
+        if m == 0 {
+            None
+        } else {
+            let i = m.trailing_zeros() as usize;
+            m &= m - 1;
+            Some(i)
+        }
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bvh::{BuildQuality, PreparedRay, intersect_triangle};
+    use glam::Vec3;
+
+    fn rng(seed: u64) -> impl FnMut() -> f32 {
+        let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+        move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 40) as f32 / (1u64 << 24) as f32
+        }
+    }
+
+    /// The SIMD triangle test equals the scalar reference lane for lane, bit for bit,
+    /// including rays exactly through vertices and edges (the f64 path).
+    #[test]
+    fn triangle_lanes_match_scalar() {
+        let mut r = rng(7);
+        for case in 0..2000 {
+            let v: Vec<Vec3> = (0..3).map(|_| Vec3::new(r() * 2.0 - 1.0, r() * 2.0 - 1.0, r() * 2.0 - 1.0)).collect();
+            let tri: TriVerts = [v[0].x, v[0].y, v[0].z, v[1].x, v[1].y, v[1].z, v[2].x, v[2].y, v[2].z];
+            // One class per packet: a shared base direction with small perturbations, and every
+            // other case aims lanes exactly at the vertices (axis-aligned rays).
+            let base = Vec3::new(r() - 0.5, r() - 0.5, 1.0 + r());
+            let rays: [Ray; LANES] = core::array::from_fn(|i| {
+                if case % 2 == 1 {
+                    let target = v[i % 3];
+                    Ray::new(target + Vec3::new(0.0, 0.0, 2.0), Vec3::new(0.0, 0.0, -1.0))
+                } else {
+                    let o = Vec3::new(r() - 0.5, r() - 0.5, -3.0);
+                    Ray::new(o, base + Vec3::new(r(), r(), 0.0) * 0.1)
+                }
+            });
+            let packet = RayPacket::from_rays(&rays);
+            let l = Lanes::new(&packet, ALL_LANES);
+            let class = l.class[0];
+            let m = lanes_of_class(&l, l.valid, class);
+            let tmax = F32s::splat(f32::INFINITY);
+            let (h, t, e, det) = intersect_triangle_lanes(&l, l.lane(0).k, &tri, tmax, m);
+            for i in lane_iter(m) {
+                let s = intersect_triangle(&PreparedRay::new(&rays[i]).unwrap(), &tri, f32::INFINITY);
+                assert_eq!(h & (1 << i) != 0, s.is_some(), "case {case} lane {i}");
+                if let Some(s) = s {
+                    assert_eq!(t.to_array()[i].to_bits(), s.t.to_bits());
+                    assert_eq!(det.to_array()[i].to_bits(), s.det.to_bits());
+                    for j in 0..3 {
+                        assert_eq!(e[j].to_array()[i].to_bits(), s.e[j].to_bits());
+                    }
+                }
+            }
+        }
+    }
+
+    fn same_bits(a: &PreparedRay, b: &PreparedRay) -> bool {
+        let f = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        f(&a.origin.to_array()) == f(&b.origin.to_array())
+            && f(&a.inv.to_array()) == f(&b.inv.to_array())
+            && f(&a.pad.to_array()) == f(&b.pad.to_array())
+            && f(&a.shear) == f(&b.shear)
+            && f(&a.origin_k) == f(&b.origin_k)
+            && a.oct_inv == b.oct_inv
+            && a.k == b.k
+            && a.tmin.to_bits() == b.tmin.to_bits()
+            && a.tmax.to_bits() == b.tmax.to_bits()
+            && a.class() == b.class()
+    }
+
+    /// The SIMD lane preparation equals `PreparedRay::new` bit for bit, and agrees on which
+    /// rays are valid, for random rays and edge values (±0, tiny, huge, inf, NaN components).
+    #[test]
+    fn lanes_match_prepared_ray() {
+        let mut r = rng(3);
+        let specials = [0.0, -0.0, 1e-30, -1e-30, 1e-10, 2.3283064e-10, -5e9, 4e9, f32::INFINITY, f32::NAN, 1.0, -1.0];
+        for case in 0..5000 {
+            let mut pick = |scale: f32| {
+                if r() < 0.3 {
+                    specials[(r() * specials.len() as f32) as usize % specials.len()]
+                } else {
+                    (r() * 2.0 - 1.0) * scale
+                }
+            };
+            let rays: [Ray; LANES] = core::array::from_fn(|_| Ray {
+                origin: Vec3::new(pick(10.0), pick(10.0), pick(10.0)),
+                dir: Vec3::new(pick(1.0), pick(1.0), pick(1.0)),
+                tmin: if case % 3 == 0 { pick(1.0) } else { 0.0 },
+                tmax: if case % 2 == 0 { pick(100.0) } else { f32::INFINITY },
+            });
+            let active = (case as u32 * 37) & ALL_LANES;
+            let l = Lanes::new(&RayPacket::from_rays(&rays), active);
+            for i in 0..LANES {
+                let s = PreparedRay::new(&rays[i]);
+                assert_eq!(l.valid & (1 << i) != 0, s.is_some() && active & (1 << i) != 0, "{:?}", rays[i]);
+                if let Some(s) = s.filter(|_| active & (1 << i) != 0) {
+                    assert!(same_bits(&l.lane(i), &s), "{:?}\n{:?}\n{:?}", rays[i], l.lane(i), s);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn packet_hits_round_trip() {
+        let mut p = PacketHits::NONE;
+        let h = Hit { t: 1.5, prim: 3, u: 0.25, v: 0.5 };
+        p.set(2, Some(h));
+        assert_eq!(p.get(2), Some(h));
+        assert_eq!(p.get(1), None);
+    }
+
+    #[test]
+    fn one_triangle_packet() {
+        let tris = [[Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, -1.0, 0.0), Vec3::new(0.0, 1.0, 0.0)]];
+        let (bvh, _) = TriangleBvh::build(&tris, BuildQuality::Medium).unwrap();
+        let rays: [Ray; LANES] =
+            core::array::from_fn(|i| Ray::new(Vec3::new(i as f32 * 0.1 - 0.35, 0.0, 1.0), Vec3::new(0.0, 0.0, -1.0)));
+        let mut hits = PacketHits::NONE;
+        let m = bvh.intersect_packet_with(&RayPacket::from_rays(&rays), ALL_LANES, &mut hits, 0);
+        assert_eq!(m, ALL_LANES);
+        for i in 0..LANES {
+            assert_eq!(hits.get(i), bvh.intersect(&rays[i]));
+        }
+    }
+}

@@ -1,0 +1,716 @@
+//! BVH traversal agreement and robustness: packet == single ray == brute force on random
+//! triangle soups and real scenes; watertightness on shared edges and vertices; near hits;
+//! invalid rays; empty, one-triangle and degenerate (very deep) scenes; inactive lanes.
+
+use std::path::PathBuf;
+
+use glam::Vec3;
+use stereotrace_kernels::bvh::{
+    BuildQuality, BvhError, Hit, MAX_DEPTH, PreparedRay, Ray, Tri, TriangleBvh, intersect_brute_force, node_hits,
+    node_hits_scalar,
+};
+use stereotrace_kernels::packet::{ALL_LANES, PacketHits, RayPacket};
+
+const LANES: usize = 8;
+
+/// xorshift64*: deterministic, no dependency.
+struct Rng(u64);
+
+impl Rng {
+    fn new(seed: u64) -> Self {
+        Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1)
+    }
+    fn u64(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
+    }
+    /// Uniform in [0, 1).
+    fn f(&mut self) -> f32 {
+        (self.u64() >> 40) as f32 / (1u64 << 24) as f32
+    }
+    fn range(&mut self, lo: f32, hi: f32) -> f32 {
+        lo + (hi - lo) * self.f()
+    }
+    fn vec(&mut self, lo: f32, hi: f32) -> Vec3 {
+        Vec3::new(self.range(lo, hi), self.range(lo, hi), self.range(lo, hi))
+    }
+    fn unit(&mut self) -> Vec3 {
+        loop {
+            let v = self.vec(-1.0, 1.0);
+            let l = v.length_squared();
+            if l > 1e-4 && l <= 1.0 {
+                return v / l.sqrt();
+            }
+        }
+    }
+    fn below(&mut self, n: usize) -> usize {
+        (self.u64() % n as u64) as usize
+    }
+}
+
+fn soup(rng: &mut Rng, n: usize, extent: f32, size: f32) -> Vec<Tri> {
+    (0..n)
+        .map(|_| {
+            let c = rng.vec(-extent, extent);
+            [c + rng.vec(-size, size), c + rng.vec(-size, size), c + rng.vec(-size, size)]
+        })
+        .collect()
+}
+
+/// A random point inside triangle `t`.
+fn point_in(rng: &mut Rng, t: &Tri) -> Vec3 {
+    let (mut a, mut b) = (rng.f(), rng.f());
+    if a + b > 1.0 {
+        (a, b) = (1.0 - a, 1.0 - b);
+    }
+    t[0] + (t[1] - t[0]) * a + (t[2] - t[0]) * b
+}
+
+/// Half the rays aim at a random triangle (mostly hits), half go anywhere.
+fn random_rays(rng: &mut Rng, tris: &[Tri], n: usize, extent: f32) -> Vec<Ray> {
+    (0..n)
+        .map(|i| {
+            let o = rng.vec(-extent * 1.5, extent * 1.5);
+            if i % 2 == 0 && !tris.is_empty() {
+                let k = rng.below(tris.len());
+                let target = point_in(rng, &tris[k]);
+                Ray::new(o, target - o)
+            } else {
+                Ray::new(o, rng.unit())
+            }
+        })
+        .collect()
+}
+
+/// The t at which `ray` hits triangle `prim` of `tris` (same watertight test, any t).
+fn t_of(tris: &[Tri], prim: u32, ray: &Ray) -> Option<f32> {
+    intersect_brute_force(&tris[prim as usize..prim as usize + 1], ray).map(|h| h.t)
+}
+
+/// Same hit or miss, `t` bit for bit, same triangle unless both triangles are hit at exactly
+/// that `t` (a tie), same barycentrics when the triangle is the same.
+fn assert_same(tris: &[Tri], ray: &Ray, a: Option<Hit>, b: Option<Hit>, what: &str) {
+    match (a, b) {
+        (None, None) => {}
+        (Some(x), Some(y)) => {
+            assert_eq!(x.t.to_bits(), y.t.to_bits(), "{what}: t {} vs {} for {ray:?}", x.t, y.t);
+            if x.prim == y.prim {
+                assert_eq!((x.u.to_bits(), x.v.to_bits()), (y.u.to_bits(), y.v.to_bits()), "{what}: uv for {ray:?}");
+            } else {
+                assert_eq!(t_of(tris, x.prim, ray), Some(x.t), "{what}: prim {} vs {} not a tie", x.prim, y.prim);
+                assert_eq!(t_of(tris, y.prim, ray), Some(x.t), "{what}: prim {} vs {} not a tie", x.prim, y.prim);
+            }
+        }
+        _ => panic!("{what}: {a:?} vs {b:?} for {ray:?}"),
+    }
+}
+
+/// Packs rays eight at a time (the last packet padded with inactive lanes) and checks every
+/// lane of closest-hit and occlusion packets against the single-ray results, for the given
+/// single-ray thresholds.
+fn check_packets(bvh: &TriangleBvh, tris: &[Tri], rays: &[Ray], singles: &[Option<Hit>], thresholds: &[u32]) {
+    for (c, chunk) in rays.chunks(LANES).enumerate() {
+        let mut lanes = [Ray::new(Vec3::ZERO, Vec3::X); LANES];
+        lanes[..chunk.len()].copy_from_slice(chunk);
+        let active = (1u32 << chunk.len()) - 1;
+        let packet = RayPacket::from_rays(&lanes);
+        for &th in thresholds {
+            let mut hits = PacketHits::NONE;
+            let mask = bvh.intersect_packet_with(&packet, active, &mut hits, th);
+            let occ = bvh.occluded_packet_with(&packet, active, th);
+            for (i, ray) in chunk.iter().enumerate() {
+                let single = singles[c * LANES + i];
+                assert_same(tris, ray, hits.get(i), single, &format!("packet (threshold {th}) lane {i}"));
+                assert_eq!(mask & (1 << i) != 0, single.is_some());
+                assert_eq!(occ & (1 << i) != 0, single.is_some(), "occlusion lane {i} {ray:?}");
+            }
+            assert_eq!(mask & !active, 0);
+            assert_eq!(occ & !active, 0);
+        }
+    }
+}
+
+/// Full agreement check: single == brute force for `brute` rays (all if None), packets ==
+/// single for all, any-hit == closest-hit existence (also with a shortened tmax).
+fn check_scene(bvh: &TriangleBvh, tris: &[Tri], rays: &[Ray], brute: Option<usize>) -> usize {
+    let singles: Vec<Option<Hit>> = rays.iter().map(|r| bvh.intersect(r)).collect();
+    let n_brute = brute.unwrap_or(rays.len()).min(rays.len());
+    for (r, s) in rays.iter().zip(&singles).take(n_brute) {
+        assert_same(tris, r, *s, intersect_brute_force(tris, r), "single vs brute force");
+    }
+    for (r, s) in rays.iter().zip(&singles) {
+        assert_eq!(bvh.occluded(r), s.is_some(), "occluded vs closest for {r:?}");
+        if let Some(h) = s {
+            // Shortened segments: just past the hit is occluded, exactly at it is not
+            // (half-open interval), unless another triangle lies in front.
+            let past = Ray { tmax: h.t * 1.001 + 1e-6, ..*r };
+            assert!(bvh.occluded(&past));
+            let upto = Ray { tmax: h.t, ..*r };
+            assert!(!bvh.occluded(&upto), "hit at t = tmax must not count: {r:?}");
+        }
+    }
+    check_packets(bvh, tris, rays, &singles, &[0, 2, 8]);
+    singles.iter().filter(|h| h.is_some()).count()
+}
+
+#[test]
+fn random_soups_agree() {
+    for (seed, n) in [(1u64, 1usize), (2, 2), (3, 7), (4, 64), (5, 500), (6, 3000)] {
+        let mut rng = Rng::new(seed);
+        let tris = soup(&mut rng, n, 10.0, 1.5);
+        let (bvh, stats) = TriangleBvh::build(&tris, BuildQuality::Medium).unwrap();
+        assert_eq!(stats.triangles, n);
+        assert!(stats.depth >= 1 && stats.depth <= MAX_DEPTH);
+        let rays = random_rays(&mut rng, &tris, 1200, 10.0);
+        let hits = check_scene(&bvh, &tris, &rays, None);
+        assert!(hits > rays.len() / 4, "seed {seed}: only {hits} hits");
+    }
+}
+
+#[test]
+fn every_build_quality_agrees() {
+    let mut rng = Rng::new(11);
+    // Long thin triangles trigger the spatial pre-splits of the High preset.
+    let mut tris = soup(&mut rng, 800, 10.0, 0.8);
+    tris.extend(soup(&mut rng, 40, 10.0, 12.0));
+    for q in [BuildQuality::Fast, BuildQuality::Medium, BuildQuality::High] {
+        let (bvh, stats) = TriangleBvh::build(&tris, q).unwrap();
+        assert_eq!(stats.quality, q);
+        assert!(stats.references >= tris.len());
+        let rays = random_rays(&mut rng, &tris, 600, 10.0);
+        check_scene(&bvh, &tris, &rays, None);
+    }
+}
+
+/// Packets of one origin and nearby directions (one class), like primary rays of a tile, and
+/// packets converging on one point, like shadow rays toward a light.
+#[test]
+fn coherent_packets_agree() {
+    let mut rng = Rng::new(21);
+    let tris = soup(&mut rng, 4000, 10.0, 1.0);
+    let (bvh, _) = TriangleBvh::build(&tris, BuildQuality::Medium).unwrap();
+    let mut rays = Vec::new();
+    for _ in 0..300 {
+        let eye = rng.vec(-15.0, 15.0);
+        let fwd = rng.unit();
+        for _ in 0..LANES {
+            rays.push(Ray::new(eye, fwd + rng.vec(-0.02, 0.02)));
+        }
+        let light = rng.vec(-12.0, 12.0);
+        for _ in 0..LANES {
+            let p = rng.vec(-10.0, 10.0);
+            rays.push(Ray::segment(p, light - p, 1e-4, 1.0));
+        }
+    }
+    check_scene(&bvh, &tris, &rays, Some(400));
+}
+
+#[test]
+fn inactive_lanes_untouched() {
+    let mut rng = Rng::new(31);
+    let tris = soup(&mut rng, 1000, 5.0, 1.0);
+    let (bvh, _) = TriangleBvh::build(&tris, BuildQuality::Medium).unwrap();
+    let sentinel = PacketHits { t: [-7.0; LANES], prim: [0xDEAD_BEEF; LANES], u: [f32::NAN; LANES], v: [42.0; LANES] };
+    for trial in 0..200 {
+        let rays = random_rays(&mut rng, &tris, LANES, 5.0);
+        let packet = RayPacket::from_rays(&rays.clone().try_into().unwrap());
+        let active = (rng.u64() as u32) & ALL_LANES;
+        for th in [0, 2, 8] {
+            let mut hits = sentinel;
+            let mask = bvh.intersect_packet_with(&packet, active, &mut hits, th);
+            let occ = bvh.occluded_packet_with(&packet, active, th);
+            assert_eq!(mask & !active, 0);
+            assert_eq!(occ & !active, 0);
+            for (i, ray) in rays.iter().enumerate() {
+                if active & (1 << i) == 0 {
+                    assert_eq!(hits.t[i].to_bits(), sentinel.t[i].to_bits(), "trial {trial} lane {i}");
+                    assert_eq!(hits.prim[i], sentinel.prim[i]);
+                    assert_eq!(hits.u[i].to_bits(), sentinel.u[i].to_bits());
+                    assert_eq!(hits.v[i].to_bits(), sentinel.v[i].to_bits());
+                } else {
+                    assert_same(&tris, ray, hits.get(i), bvh.intersect(ray), "active lane");
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn invalid_rays_terminate_and_miss() {
+    let mut rng = Rng::new(41);
+    let mut tris = soup(&mut rng, 500, 2.0, 1.0);
+    // A big triangle through the origin, so that any valid direction from near it could hit.
+    tris.push([Vec3::new(-100.0, -100.0, 0.0), Vec3::new(100.0, -100.0, 0.0), Vec3::new(0.0, 100.0, 0.0)]);
+    let (bvh, _) = TriangleBvh::build(&tris, BuildQuality::Medium).unwrap();
+    let o = Vec3::new(0.1, 0.2, 3.0);
+    let nan = f32::NAN;
+    let inf = f32::INFINITY;
+    let bad = [
+        Ray::new(o, Vec3::ZERO),
+        Ray::new(o, Vec3::new(-0.0, -0.0, -0.0)),
+        Ray::new(o, Vec3::new(nan, 0.0, -1.0)),
+        Ray::new(o, Vec3::splat(nan)),
+        Ray::new(o, Vec3::new(0.0, 0.0, -inf)),
+        Ray::new(o, Vec3::new(inf, -inf, inf)),
+        Ray::new(o, Vec3::new(0.0, 0.0, -1e-30)),
+        Ray::new(Vec3::new(nan, 0.0, 0.0), Vec3::new(0.0, 0.0, -1.0)),
+        Ray::new(Vec3::new(0.0, inf, 0.0), Vec3::new(0.0, 0.0, -1.0)),
+        Ray::segment(o, Vec3::new(0.0, 0.0, -1.0), nan, inf),
+        Ray::segment(o, Vec3::new(0.0, 0.0, -1.0), 0.0, nan),
+        Ray::segment(o, Vec3::new(0.0, 0.0, -1.0), 5.0, 1.0),
+    ];
+    for r in &bad {
+        assert!(!r.is_valid(), "{r:?}");
+        assert_eq!(bvh.intersect(r), None, "{r:?}");
+        assert!(!bvh.occluded(r), "{r:?}");
+    }
+    // Mixed into packets with valid lanes: the valid lanes still hit, the invalid ones miss.
+    let good = Ray::new(o, Vec3::new(0.0, 0.0, -1.0));
+    assert!(bvh.intersect(&good).is_some());
+    for chunk in bad.chunks(4) {
+        let mut lanes = [good; LANES];
+        for (i, r) in chunk.iter().enumerate() {
+            lanes[2 * i] = *r;
+        }
+        let packet = RayPacket::from_rays(&lanes);
+        for th in [0, 2, 8] {
+            let mut hits = PacketHits { t: [1.0; LANES], prim: [5; LANES], u: [0.5; LANES], v: [0.5; LANES] };
+            let mask = bvh.intersect_packet_with(&packet, ALL_LANES, &mut hits, th);
+            let occ = bvh.occluded_packet_with(&packet, ALL_LANES, th);
+            for (i, r) in lanes.iter().enumerate() {
+                assert_eq!(hits.get(i), bvh.intersect(r), "lane {i}");
+                assert_eq!(mask & (1 << i) != 0, r.is_valid());
+                assert_eq!(occ & (1 << i) != 0, r.is_valid());
+            }
+        }
+    }
+    // Directions with exact zero components (including -0.0) are valid and traced exactly:
+    // the safe reciprocal keeps 0·inf out of the slab test.
+    for d in
+        [Vec3::new(0.0, 0.0, -1.0), Vec3::new(-0.0, 0.0, -1.0), Vec3::new(0.0, -0.0, -1.0), Vec3::new(1.0, 0.0, 0.0)]
+    {
+        for _ in 0..50 {
+            let r = Ray::new(rng.vec(-3.0, 3.0), d);
+            assert_same(&tris, &r, bvh.intersect(&r), intersect_brute_force(&tris, &r), "axis-aligned");
+        }
+    }
+}
+
+#[test]
+fn empty_scene() {
+    let (bvh, stats) = TriangleBvh::build(&[], BuildQuality::Medium).unwrap();
+    assert!(bvh.is_empty());
+    assert_eq!((stats.triangles, stats.nodes, stats.depth), (0, 0, 0));
+    let r = Ray::new(Vec3::ZERO, Vec3::X);
+    assert_eq!(bvh.intersect(&r), None);
+    assert!(!bvh.occluded(&r));
+    let mut hits = PacketHits { t: [3.0; LANES], ..PacketHits::NONE };
+    assert_eq!(bvh.intersect_packet(&RayPacket::from_rays(&[r; LANES]), ALL_LANES, &mut hits), 0);
+    assert_eq!(hits, PacketHits::NONE);
+    assert_eq!(bvh.occluded_packet(&RayPacket::from_rays(&[r; LANES]), ALL_LANES), 0);
+}
+
+#[test]
+fn one_triangle_scene() {
+    let tris = [[Vec3::new(0.0, 0.0, 5.0), Vec3::new(1.0, 0.0, 5.0), Vec3::new(0.0, 1.0, 5.0)]];
+    let (bvh, stats) = TriangleBvh::build(&tris, BuildQuality::Medium).unwrap();
+    assert_eq!((stats.triangles, stats.depth), (1, 1));
+    let hit = bvh.intersect(&Ray::new(Vec3::new(0.25, 0.25, 0.0), Vec3::Z)).unwrap();
+    assert_eq!((hit.t, hit.prim, hit.u, hit.v), (5.0, 0, 0.25, 0.25));
+    assert_eq!(bvh.intersect(&Ray::new(Vec3::new(0.75, 0.75, 0.0), Vec3::Z)), None);
+    let mut rng = Rng::new(51);
+    let rays: Vec<Ray> = (0..400)
+        .map(|_| {
+            let o = rng.vec(-2.0, 2.0);
+            Ray::new(o, point_in(&mut rng, &tris[0]) - o + rng.vec(-0.3, 0.3))
+        })
+        .collect();
+    check_scene(&bvh, &tris, &rays, None);
+}
+
+#[test]
+fn bad_vertices_are_rejected() {
+    let good = [Vec3::ZERO, Vec3::X, Vec3::Y];
+    for bad in [Vec3::new(f32::NAN, 0.0, 0.0), Vec3::new(0.0, f32::INFINITY, 0.0), Vec3::new(0.0, 0.0, 1e30)] {
+        let tris = [good, [Vec3::ZERO, bad, Vec3::Y]];
+        assert_eq!(TriangleBvh::build(&tris, BuildQuality::Medium).unwrap_err(), BvhError::BadVertex { triangle: 1 });
+    }
+}
+
+/// Aims rays exactly at points of the shared diagonal of a quad split into two triangles
+/// (in both diagonal orientations and with the two triangles wound either way) and at the
+/// shared centre vertex of a fan: every ray must hit. obvhs's own (Möller–Trumbore) test
+/// misses some of the same rays; the count is printed to show the test is sensitive.
+#[test]
+fn shared_edges_and_vertices_are_watertight() {
+    use obvhs::ray::Ray as ORay;
+    use obvhs::triangle::Triangle as OTri;
+    let mut rng = Rng::new(61);
+    let mut obvhs_misses = 0usize;
+    let mut rays_tested = 0usize;
+    let otri = |t: &Tri| OTri { v0: t[0].into(), v1: t[1].into(), v2: t[2].into() };
+    for case in 0..200 {
+        // A random quad (two triangles sharing the edge a–c) in a random plane.
+        let (a, b, c, d) = (rng.vec(-3.0, 3.0), rng.vec(-3.0, 3.0), rng.vec(-3.0, 3.0), rng.vec(-3.0, 3.0));
+        let (t1, t2) = if case % 2 == 0 { ([a, b, c], [a, c, d]) } else { ([c, b, a], [a, c, d]) };
+        let tris = vec![t1, t2];
+        // Make sure the quad is convex enough that points of a–c are interior: b and d on
+        // opposite sides of the line a–c (otherwise skip the case).
+        let n1 = (b - a).cross(c - a);
+        let n2 = (c - a).cross(d - a);
+        if n1.dot(n2) <= 0.1 * n1.length() * n2.length() {
+            continue;
+        }
+        let (bvh, _) = TriangleBvh::build(&tris, BuildQuality::Medium).unwrap();
+        let mut aimed = 0;
+        while aimed < 100 {
+            let s = rng.range(0.05, 0.95);
+            let target = a + (c - a) * s;
+            let o = target + rng.unit() * rng.range(0.5, 20.0);
+            let ray = Ray::new(o, target - o);
+            // The quad is folded along a–c. Seen along the ray, b and d must lie on opposite
+            // sides of a–c (otherwise a–c is a silhouette and a ray just beside it rightly
+            // misses both triangles); keep a margin so rounding cannot flip the side.
+            let e = c - a;
+            let (sb, sd) = (ray.dir.dot(e.cross(b - a)), ray.dir.dot(e.cross(d - a)));
+            let scale = ray.dir.length() * e.length() * (b - a).length().max((d - a).length());
+            if sb * sd >= 0.0 || sb.abs().min(sd.abs()) < 1e-2 * scale {
+                continue;
+            }
+            aimed += 1;
+            rays_tested += 1;
+            assert!(intersect_brute_force(&tris, &ray).is_some(), "triangle test leaked at s = {s}: {ray:?}");
+            let hit = bvh.intersect(&ray);
+            assert!(hit.is_some(), "traversal leaked at s = {s}: {ray:?}");
+            assert!(bvh.occluded(&ray));
+            let mut hits = PacketHits::NONE;
+            assert_eq!(
+                bvh.intersect_packet_with(&RayPacket::from_rays(&[ray; LANES]), ALL_LANES, &mut hits, 0),
+                ALL_LANES
+            );
+            let oray = ORay::new_inf(o.into(), (target - o).into());
+            if otri(&t1).intersect(&oray).is_infinite() && otri(&t2).intersect(&oray).is_infinite() {
+                obvhs_misses += 1;
+            }
+        }
+    }
+    // A fan of 12 triangles around a shared centre: rays through the centre and the spokes.
+    for case in 0..100 {
+        let centre = rng.vec(-1.0, 1.0);
+        let (u, v) = {
+            let n = rng.unit();
+            let u = n.any_orthonormal_vector();
+            (u, n.cross(u))
+        };
+        let k = 12;
+        let rim: Vec<Vec3> = (0..k)
+            .map(|i| {
+                let a = (i as f32 + rng.range(-0.3, 0.3)) / k as f32 * std::f32::consts::TAU;
+                centre + (u * a.cos() + v * a.sin()) * rng.range(0.5, 2.0)
+            })
+            .collect();
+        let tris: Vec<Tri> = (0..k).map(|i| [centre, rim[i], rim[(i + 1) % k]]).collect();
+        let (bvh, _) = TriangleBvh::build(&tris, BuildQuality::Medium).unwrap();
+        let normal = u.cross(v);
+        let mut j = 0;
+        while j < 60 {
+            let target = if j % 2 == 0 { centre } else { centre + (rim[j % k] - centre) * rng.range(0.05, 0.95) };
+            let o = target + rng.unit() * rng.range(0.5, 20.0);
+            let ray = Ray::new(o, target - o);
+            // The rim is rounded off the plane by an ulp or so, so the fan is a very flat
+            // cone: skip rays within ~6° of its plane, which could see a spoke as a silhouette.
+            if ray.dir.normalize().dot(normal).abs() < 0.1 {
+                continue;
+            }
+            j += 1;
+            rays_tested += 1;
+            let hit = bvh.intersect(&ray);
+            assert!(hit.is_some(), "fan case {case} leaked: {ray:?}");
+            assert!(intersect_brute_force(&tris, &ray).is_some());
+            assert!(bvh.occluded(&ray));
+            let mut hits = PacketHits::NONE;
+            assert_eq!(
+                bvh.intersect_packet_with(&RayPacket::from_rays(&[ray; LANES]), ALL_LANES, &mut hits, 0),
+                ALL_LANES
+            );
+            let oray = ORay::new_inf(o.into(), (target - o).into());
+            if tris.iter().all(|t| otri(t).intersect(&oray).is_infinite()) {
+                obvhs_misses += 1;
+            }
+        }
+    }
+    println!(
+        "watertightness: {rays_tested} rays through shared edges/vertices, 0 leaks; obvhs Möller test leaked {obvhs_misses}"
+    );
+}
+
+/// A tessellated grid: rays aimed exactly at grid vertices and edge points (exactly
+/// representable, axis-aligned and oblique) always hit, through the BVH as well.
+#[test]
+fn tessellated_grid_has_no_cracks() {
+    let n = 64;
+    let mut tris = Vec::new();
+    let p = |i: usize, j: usize| Vec3::new(i as f32 * 0.125, j as f32 * 0.125, ((i * 7 + j * 3) % 5) as f32 * 0.0625);
+    for i in 0..n {
+        for j in 0..n {
+            tris.push([p(i, j), p(i + 1, j), p(i + 1, j + 1)]);
+            tris.push([p(i, j), p(i + 1, j + 1), p(i, j + 1)]);
+        }
+    }
+    let (bvh, _) = TriangleBvh::build(&tris, BuildQuality::Medium).unwrap();
+    let mut rng = Rng::new(71);
+    let mut rays = Vec::new();
+    for _ in 0..3000 {
+        let (i, j) = (1 + rng.below(n - 2), 1 + rng.below(n - 2));
+        let target = match rng.below(3) {
+            0 => p(i, j),
+            1 => (p(i, j) + p(i + 1, j + 1)) * 0.5,
+            _ => (p(i, j) + p(i, j + 1)) * 0.5,
+        };
+        let d = match rng.below(3) {
+            0 => Vec3::new(0.0, 0.0, -1.0),
+            1 => Vec3::new(0.25, -0.5, -1.0),
+            _ => Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), -1.0),
+        };
+        rays.push(Ray::new(target - d * 4.0, d));
+    }
+    for r in &rays {
+        assert!(bvh.intersect(r).is_some(), "crack: {r:?}");
+    }
+    check_scene(&bvh, &tris, &rays, Some(500));
+}
+
+/// Hits nearer than obvhs's fixed 1e-4 node epsilon are found, alone (where the leaf box is
+/// exactly flat, so obvhs's traversal, which clamps the entry distance to 1e-4, culls it) and
+/// among other geometry.
+#[test]
+fn near_hits_are_found() {
+    let wall = [Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, -1.0, 0.0), Vec3::new(0.0, 1.0, 0.0)];
+    let mut rng = Rng::new(81);
+    let mut crowded = soup(&mut rng, 2000, 5.0, 0.5);
+    crowded.push(wall);
+    let mut obvhs_found = 0;
+    let mut tested = 0;
+    for tris in [vec![wall], crowded] {
+        let wall_id = (tris.len() - 1) as u32;
+        let (bvh, _) = TriangleBvh::build(&tris, BuildQuality::Medium).unwrap();
+        for dist in [1e-7f32, 1e-6, 1e-5, 5e-5, 9e-5] {
+            for (x, y, dx) in [(0.0f32, 0.0f32, 0.0f32), (0.1, -0.2, 0.5), (-0.3, 0.1, -0.25)] {
+                let ray = Ray::new(Vec3::new(x, y, dist), Vec3::new(dx, 0.0, -1.0));
+                let hit = bvh.intersect(&ray).unwrap_or_else(|| panic!("near hit at {dist} not found"));
+                assert_eq!(hit.prim, wall_id);
+                assert!((hit.t - dist).abs() <= dist * 1e-6, "{} vs {dist}", hit.t);
+                assert!(bvh.occluded(&ray));
+                let rays = [ray; LANES];
+                let mut hits = PacketHits::NONE;
+                assert_eq!(bvh.intersect_packet_with(&RayPacket::from_rays(&rays), ALL_LANES, &mut hits, 0), ALL_LANES);
+                assert_eq!(hits.get(3), Some(hit));
+                assert_eq!(bvh.occluded_packet_with(&RayPacket::from_rays(&rays), ALL_LANES, 0), ALL_LANES);
+                // obvhs's own traversal of the same tree, with our (epsilon-free) triangle test.
+                let oray = obvhs::ray::Ray::new_inf(ray.origin.into(), ray.dir.into());
+                let mut ohit = obvhs::ray::RayHit::none();
+                let otris = bvh.triangles_bvh_order();
+                let r = PreparedRay::new(&ray).unwrap();
+                tested += 1;
+                if bvh.cwbvh().ray_traverse(oray, &mut ohit, |_, id| {
+                    stereotrace_kernels::bvh::intersect_triangle(&r, &otris[id], f32::INFINITY)
+                        .map_or(f32::INFINITY, |h| h.t)
+                }) {
+                    obvhs_found += 1;
+                }
+            }
+        }
+    }
+    println!("near hits: {tested}/{tested} found; obvhs's traversal (1e-4 node epsilon) found {obvhs_found}");
+    assert!(obvhs_found < tested, "the single-triangle case should show obvhs's epsilon");
+}
+
+/// Thousands of coincident triangles: PLOC's tree for them is far deeper than obvhs's
+/// 32-entry stack allows. The build must fall back to a shallow tree and every query must
+/// still find the (tied) hits.
+#[test]
+fn coincident_triangles_do_not_overflow() {
+    for (n, offset) in [(5000usize, false), (3000, true)] {
+        let base = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0)];
+        let mut tris: Vec<Tri> = vec![base; n];
+        if offset {
+            // Nearly coincident: a stack of triangles 1e-6 apart plus some normal geometry.
+            for (i, t) in tris.iter_mut().enumerate() {
+                for v in t.iter_mut() {
+                    v.z = i as f32 * 1e-6;
+                }
+            }
+            let mut rng = Rng::new(91);
+            tris.extend(soup(&mut rng, 500, 3.0, 0.5));
+        }
+        let (bvh, stats) = TriangleBvh::build(&tris, BuildQuality::Medium).unwrap();
+        println!("{n} coincident triangles (offset {offset}): {stats:?}");
+        assert!(stats.depth <= MAX_DEPTH);
+        if !offset {
+            // PLOC makes a chain of these; the fallback must have replaced it.
+            assert!(stats.ploc_depth > MAX_DEPTH && stats.median_fallback, "{stats:?}");
+        }
+        let mut rng = Rng::new(92);
+        let rays: Vec<Ray> = (0..200)
+            .map(|_| {
+                let target = point_in(&mut rng, &base);
+                let o = target + Vec3::new(rng.range(-0.5, 0.5), rng.range(-0.5, 0.5), rng.range(0.5, 2.0));
+                Ray::new(o, target - o)
+            })
+            .collect();
+        let hits = check_scene(&bvh, &tris, &rays, Some(40));
+        assert!(hits >= 190, "{hits}");
+    }
+}
+
+#[test]
+fn node_test_simd_matches_scalar() {
+    let mut rng = Rng::new(101);
+    let tris = soup(&mut rng, 3000, 10.0, 1.0);
+    let (bvh, _) = TriangleBvh::build(&tris, BuildQuality::Medium).unwrap();
+    let nodes = bvh.nodes();
+    for k in 0..20_000 {
+        let node = &nodes[rng.below(nodes.len())];
+        let mut d = rng.unit();
+        match k % 5 {
+            0 => d.x = 0.0,
+            1 => d = Vec3::new(-0.0, 0.0, 1.0),
+            2 => d.y = -0.0,
+            _ => {}
+        }
+        let ray = Ray::segment(rng.vec(-12.0, 12.0), d, [0.0, 1e-3, 2.0][k % 3], [f32::INFINITY, 5.0, 30.0][k % 3]);
+        let Some(r) = PreparedRay::new(&ray) else { continue };
+        assert_eq!(node_hits(node, &r, r.tmax), node_hits_scalar(node, &r, r.tmax), "node {node:?} ray {ray:?}");
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Real scenes (need ../shared; skipped with a message when it is absent).
+
+fn shared_dir() -> Option<PathBuf> {
+    let manifest = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let candidates = [manifest.join("../../shared"), manifest.join("../shared"), PathBuf::from("/work/shared")];
+    candidates.into_iter().find(|p| p.join("scenes").is_dir())
+}
+
+/// Minimal OBJ reader: `v` and `f` lines (polygons fan-triangulated, `v/vt/vn` and negative
+/// indices accepted). Enough for the shared scenes, which are triangles already.
+fn load_obj(path: &std::path::Path) -> Vec<Tri> {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut verts: Vec<Vec3> = Vec::new();
+    let mut tris = Vec::new();
+    for line in text.lines() {
+        let mut it = line.split_whitespace();
+        match it.next() {
+            Some("v") => {
+                let c: Vec<f32> = it.take(3).map(|s| s.parse().unwrap()).collect();
+                verts.push(Vec3::new(c[0], c[1], c[2]));
+            }
+            Some("f") => {
+                let idx: Vec<usize> = it
+                    .map(|s| {
+                        let i: i64 = s.split('/').next().unwrap().parse().unwrap();
+                        if i < 0 { (verts.len() as i64 + i) as usize } else { (i - 1) as usize }
+                    })
+                    .collect();
+                for k in 1..idx.len() - 1 {
+                    tris.push([verts[idx[0]], verts[idx[k]], verts[idx[k + 1]]]);
+                }
+            }
+            _ => {}
+        }
+    }
+    tris
+}
+
+/// `"key": [a, b, c]` from a small JSON file.
+fn json_vec3(text: &str, key: &str) -> Vec3 {
+    let at = text.find(&format!("\"{key}\"")).unwrap();
+    let open = at + text[at..].find('[').unwrap();
+    let close = open + text[open..].find(']').unwrap();
+    let c: Vec<f32> = text[open + 1..close].split(',').map(|s| s.trim().parse().unwrap()).collect();
+    Vec3::new(c[0], c[1], c[2])
+}
+
+fn json_f32(text: &str, key: &str) -> f32 {
+    let at = text.find(&format!("\"{key}\"")).unwrap();
+    let colon = at + text[at..].find(':').unwrap();
+    let end = colon + text[colon..].find([',', '}']).unwrap();
+    text[colon + 1..end].trim().parse().unwrap()
+}
+
+/// Camera rays over a `w`×`h` grid (pixel centres of a 1280×720 frame subsampled) plus
+/// random rays from points inside the scene bounds.
+fn scene_rays(scene: &std::path::Path, tris: &[Tri], w: usize, h: usize, random: usize) -> Vec<Ray> {
+    let cam = std::fs::read_to_string(scene.join("camera.json")).unwrap();
+    let (eye, target, up) = (json_vec3(&cam, "eye"), json_vec3(&cam, "target"), json_vec3(&cam, "up"));
+    let vfov = json_f32(&cam, "vfov_deg").to_radians();
+    let fwd = (target - eye).normalize();
+    let right = fwd.cross(up).normalize();
+    let up = right.cross(fwd);
+    let th = (vfov * 0.5).tan();
+    let aspect = 1280.0 / 720.0;
+    let mut rays = Vec::new();
+    for j in 0..h {
+        for i in 0..w {
+            let x = ((i as f32 + 0.5) / w as f32 * 2.0 - 1.0) * th * aspect;
+            let y = (1.0 - (j as f32 + 0.5) / h as f32 * 2.0) * th;
+            rays.push(Ray::new(eye, fwd + right * x + up * y));
+        }
+    }
+    let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
+    for t in tris {
+        for v in t {
+            lo = lo.min(*v);
+            hi = hi.max(*v);
+        }
+    }
+    let mut rng = Rng::new(111);
+    for k in 0..random {
+        let o = lo + (hi - lo) * Vec3::new(rng.f(), rng.f(), rng.f());
+        let d = if k % 2 == 0 {
+            let t = rng.below(tris.len());
+            point_in(&mut rng, &tris[t]) - o
+        } else {
+            rng.unit()
+        };
+        // Every fourth is a shadow-ray-like segment.
+        rays.push(if k % 4 == 1 { Ray::segment(o, d, 1e-3, 0.5) } else { Ray::new(o, d) });
+    }
+    rays
+}
+
+fn real_scene(name: &str) {
+    let Some(shared) = shared_dir() else {
+        println!("SKIPPED real-scene test `{name}`: ../shared (shared scenes) not found; CI has it");
+        return;
+    };
+    let scene = shared.join("scenes").join(name);
+    let tris = load_obj(&scene.join("scene.obj"));
+    let (bvh, stats) = TriangleBvh::build(&tris, BuildQuality::Medium).unwrap();
+    println!("{name}: {stats:?}");
+    assert_eq!(stats.triangles, tris.len());
+    assert!(!stats.median_fallback);
+    // 160×90 camera rays (packets of 8 consecutive pixels are coherent) and random rays;
+    // brute force (all triangles) on the first 150 camera rays and 150 random ones.
+    let rays = scene_rays(&scene, &tris, 160, 90, 4000);
+    let hits = check_scene(&bvh, &tris, &rays, Some(150));
+    let random_start = 160 * 90;
+    for r in rays[random_start..].iter().take(150) {
+        assert_same(&tris, r, bvh.intersect(r), intersect_brute_force(&tris, r), "random vs brute force");
+    }
+    println!("{name}: {hits}/{} rays hit", rays.len());
+    assert!(hits > rays.len() / 5);
+}
+
+#[test]
+fn real_scene_bunny() {
+    real_scene("bunny");
+}
+
+#[test]
+fn real_scene_sponza() {
+    real_scene("sponza");
+}
