@@ -498,7 +498,10 @@ pub fn node_hits(node: &CwBvhNode, r: &PreparedRay, tmax: f32) -> u32 {
     // No NaN can occur (module notes), so the plain max/min instructions are exact here.
     let tn = nx.fast_max(ny).fast_max(nz.fast_max(sp(r.tmin)));
     let tf = fx.fast_min(fy).fast_min(fz.fast_min(sp(tmax)));
-    tn.simd_le(tf).to_bitmask() & occupied_slots(node)
+    let hits = tn.simd_le(tf).to_bitmask() & occupied_slots(node);
+    #[cfg(feature = "check-scalar")]
+    assert_eq!(hits, node_hits_scalar(node, r, tmax), "SIMD node test disagrees with its scalar reference");
+    hits
 }
 
 /// Maps a mask over child slots to a mask over traversal keys (`key = slot ^ oct_inv`).
