@@ -7,5 +7,9 @@
 
 pub use stereotrace_kernels as kernels;
 
+pub mod camera;
+pub mod commands;
 pub mod cpu;
+pub mod image_io;
+pub mod render;
 pub mod scene;

@@ -1,0 +1,130 @@
+//! The stereo rig: parallel (sensor-shift) cameras offset along the head's right vector.
+//!
+//! Both eyes share orientation and projection and sit at `±separation / 2` along the head
+//! pose's right vector (no toe-in). A separation of 0 gives a mono pair. Each eye's camera
+//! is a validated [`CameraModel`] for the frame extent; the renderer's primary rays come
+//! from that same model (`centre + t · ray(px, py)` with rays of unit view depth), so the
+//! G-buffer depth *is* the hit distance `t` and the compact G-buffer's rebuilt positions
+//! equal the stored ones bit for bit.
+
+use std::fmt;
+
+use crate::kernels::{CameraModel, Extent, FrameError};
+use crate::scene::CameraPose;
+
+/// Default distance between the eyes (metres), the average human interpupillary distance.
+pub const DEFAULT_EYE_SEPARATION: f32 = 0.065;
+
+/// Near and far planes of the projection. Only the x, y and w rows matter to the kernels,
+/// so these only need to bracket nothing in particular; they are kept wide.
+pub const NEAR: f32 = 0.01;
+pub const FAR: f32 = 10_000.0;
+
+/// Which eye.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Eye {
+    Left = 0,
+    Right = 1,
+}
+
+impl Eye {
+    pub const BOTH: [Eye; 2] = [Eye::Left, Eye::Right];
+
+    /// The other eye.
+    pub fn other(self) -> Eye {
+        match self {
+            Eye::Left => Eye::Right,
+            Eye::Right => Eye::Left,
+        }
+    }
+
+    /// `-1` for the left eye, `+1` for the right (the sign of the offset along `right`).
+    pub fn sign(self) -> f32 {
+        match self {
+            Eye::Left => -1.0,
+            Eye::Right => 1.0,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Eye::Left => "left",
+            Eye::Right => "right",
+        }
+    }
+}
+
+impl fmt::Display for Eye {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A parallel stereo rig.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StereoRig {
+    /// Distance between the eyes in scene units (metres).
+    pub separation: f32,
+}
+
+impl Default for StereoRig {
+    fn default() -> Self {
+        Self { separation: DEFAULT_EYE_SEPARATION }
+    }
+}
+
+impl StereoRig {
+    /// A rig with the given separation; refuses negative or non-finite values.
+    pub fn new(separation: f32) -> Result<Self, String> {
+        if !(separation >= 0.0 && separation.is_finite()) {
+            return Err(format!("eye separation must be a finite value >= 0, got {separation}"));
+        }
+        Ok(Self { separation })
+    }
+
+    /// The pose of `eye` for the head pose `head`.
+    pub fn eye_pose(&self, head: &CameraPose, eye: Eye) -> CameraPose {
+        head.offset_right(eye.sign() * 0.5 * self.separation)
+    }
+
+    /// The camera of `eye` for `head` at `extent`.
+    pub fn eye_camera(&self, head: &CameraPose, eye: Eye, extent: Extent) -> Result<CameraModel, FrameError> {
+        camera_for(&self.eye_pose(head, eye), extent)
+    }
+}
+
+/// The kernel camera of a pose at an extent.
+pub fn camera_for(pose: &CameraPose, extent: Extent) -> Result<CameraModel, FrameError> {
+    let aspect = extent.width() as f32 / extent.height() as f32;
+    CameraModel::new(pose.view_proj(aspect, NEAR, FAR), extent)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    fn head() -> CameraPose {
+        CameraPose { eye: Vec3::new(1.0, 1.6, 2.0), forward: -Vec3::Z, up: Vec3::Y, right: Vec3::X, vfov_deg: 60.0 }
+    }
+
+    #[test]
+    fn eyes_are_offset_along_right_by_half_the_separation() {
+        let rig = StereoRig::default();
+        let l = rig.eye_pose(&head(), Eye::Left);
+        let r = rig.eye_pose(&head(), Eye::Right);
+        assert!(((r.eye - l.eye) - Vec3::X * DEFAULT_EYE_SEPARATION).length() < 1e-6);
+        assert_eq!(l.forward, r.forward);
+        let mono = StereoRig::new(0.0).unwrap();
+        assert_eq!(mono.eye_pose(&head(), Eye::Left).eye, mono.eye_pose(&head(), Eye::Right).eye);
+        assert!(StereoRig::new(-1.0).is_err());
+        assert!(StereoRig::new(f32::NAN).is_err());
+    }
+
+    #[test]
+    fn camera_centre_is_the_eye() {
+        let e = Extent::new(64, 36).unwrap();
+        let cam = StereoRig::default().eye_camera(&head(), Eye::Right, e).unwrap();
+        assert!((Vec3::from(cam.centre) - (head().eye + Vec3::X * 0.0325)).length() < 1e-4);
+    }
+}

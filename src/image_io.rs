@@ -1,0 +1,107 @@
+//! Reading and writing images: linear HDR EXR (the data) and tonemapped PNG (a preview).
+//! Every error names the file.
+
+use std::path::{Path, PathBuf};
+
+use crate::kernels::{Extent, RgbBuf};
+
+/// An image file could not be read or written.
+#[derive(Debug, thiserror::Error)]
+#[error("{path}: {message}")]
+pub struct ImageError {
+    pub path: PathBuf,
+    pub message: String,
+}
+
+impl ImageError {
+    fn new(path: &Path, message: impl Into<String>) -> Self {
+        Self { path: path.to_path_buf(), message: message.into() }
+    }
+}
+
+/// Writes `img` as a 32-bit float RGB EXR (linear radiance, nothing clamped).
+pub fn write_exr(path: &Path, img: &RgbBuf) -> Result<(), ImageError> {
+    let e = img.extent();
+    let view = img.view();
+    exr::prelude::write_rgb_file(path, e.width(), e.height(), |x, y| {
+        let [r, g, b] = view.get(x, y);
+        (r, g, b)
+    })
+    .map_err(|err| ImageError::new(path, format!("cannot write EXR: {err}")))
+}
+
+/// Reads the first RGB(A) layer of an EXR as linear f32 RGB.
+pub fn read_exr(path: &Path) -> Result<RgbBuf, ImageError> {
+    let image = exr::prelude::read_first_rgba_layer_from_file(
+        path,
+        |resolution, _| {
+            (resolution.width(), resolution.height(), vec![[0.0f32; 3]; resolution.width() * resolution.height()])
+        },
+        |(w, _, px): &mut (usize, usize, Vec<[f32; 3]>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+            px[pos.y() * *w + pos.x()] = [r, g, b];
+        },
+    )
+    .map_err(|err| ImageError::new(path, format!("cannot read EXR: {err}")))?;
+    let (w, h, px) = image.layer_data.channel_data.pixels;
+    let extent = Extent::new(w, h).map_err(|err| ImageError::new(path, err.to_string()))?;
+    let mut out = RgbBuf::new(extent, 0.0);
+    for y in 0..h {
+        for x in 0..w {
+            out.set(x, y, px[y * w + x]);
+        }
+    }
+    Ok(out)
+}
+
+/// The preview tonemap: exposure, Reinhard `x / (1 + x)`, then the sRGB transfer curve.
+/// Non-finite values show as magenta so they cannot hide.
+pub fn tonemap(rgb: [f32; 3], exposure: f32) -> [u8; 3] {
+    if !rgb.iter().all(|v| v.is_finite()) {
+        return [255, 0, 255];
+    }
+    rgb.map(|v| {
+        let x = (v * exposure).max(0.0);
+        let mapped = x / (1.0 + x);
+        let srgb = if mapped <= 0.003_130_8 { 12.92 * mapped } else { 1.055 * mapped.powf(1.0 / 2.4) - 0.055 };
+        (srgb * 255.0 + 0.5).clamp(0.0, 255.0) as u8
+    })
+}
+
+/// Writes a tonemapped 8-bit PNG preview of `img`.
+pub fn write_png_preview(path: &Path, img: &RgbBuf, exposure: f32) -> Result<(), ImageError> {
+    let e = img.extent();
+    let view = img.view();
+    let mut out = image::RgbImage::new(e.width() as u32, e.height() as u32);
+    for (x, y, p) in out.enumerate_pixels_mut() {
+        *p = image::Rgb(tonemap(view.get(x as usize, y as usize), exposure));
+    }
+    out.save(path).map_err(|err| ImageError::new(path, format!("cannot write PNG: {err}")))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exr_round_trips_hdr_values_exactly() {
+        let dir = std::env::temp_dir().join(format!("stereotrace-exr-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("a.exr");
+        let e = Extent::new(5, 3).unwrap();
+        let mut img = RgbBuf::new(e, 0.0);
+        img.set(1, 2, [1e6, 0.5, 3.25e-3]);
+        img.set(4, 0, [0.0, 65504.5, 7.0]);
+        write_exr(&path, &img).unwrap();
+        assert_eq!(read_exr(&path).unwrap(), img);
+        let err = read_exr(&dir.join("missing.exr")).unwrap_err();
+        assert!(err.to_string().contains("missing.exr"), "{err}");
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn tonemap_is_monotone_and_flags_nan() {
+        assert_eq!(tonemap([0.0; 3], 1.0), [0, 0, 0]);
+        assert!(tonemap([1.0; 3], 1.0)[0] < tonemap([2.0; 3], 1.0)[0]);
+        assert_eq!(tonemap([f32::NAN, 0.0, 0.0], 1.0), [255, 0, 255]);
+    }
+}

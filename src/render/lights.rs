@@ -1,0 +1,238 @@
+//! The per-frame light table used by next-event estimation.
+//!
+//! Every light of the frame becomes one record: each emissive triangle (static, or of a
+//! moving light placed at this frame), each point light, the sun, the environment. One
+//! record is chosen per shadow ray with probability proportional to its approximate power
+//! (distant lights as the power they deliver through a disc of the scene's radius), then a
+//! point on it. Moving area lights also keep their triangles for ray hits, since they are
+//! not part of the static BVH.
+//!
+//! The table is rebuilt in place each frame: vectors are cleared and refilled, so after the
+//! first frame no allocation happens (the real-time runtime relies on it).
+
+use std::f32::consts::PI;
+
+use glam::{Vec2, Vec3};
+
+use crate::scene::sampling::luminance;
+use crate::scene::{Environment, MovingShape, Scene, SunLight};
+
+/// One light of the frame.
+#[derive(Clone, Copy, Debug)]
+pub enum LightRecord {
+    /// A one-sided emissive triangle (emits on the side of `(v1 − v0) × (v2 − v0)`).
+    Triangle {
+        v0: Vec3,
+        e1: Vec3,
+        e2: Vec3,
+        normal: Vec3,
+        area: f32,
+        radiance: Vec3,
+    },
+    Point {
+        position: Vec3,
+        intensity: Vec3,
+    },
+    Sun(SunLight),
+    Environment,
+}
+
+/// A sampled light direction seen from a shading point.
+#[derive(Clone, Copy, Debug)]
+pub struct LightSample {
+    /// Unit direction towards the light.
+    pub wi: Vec3,
+    /// Distance to the sampled point (`inf` for the sun and the environment).
+    pub distance: f32,
+    /// Incident radiance (or intensity / d² for a point light).
+    pub radiance: Vec3,
+    /// Solid-angle density of the direction times the selection probability (for point
+    /// lights: just the selection probability).
+    pub pdf: f32,
+}
+
+/// A triangle of a moving area light, for ray hits.
+#[derive(Clone, Copy, Debug)]
+pub struct MovingTriangle {
+    pub v: [Vec3; 3],
+    pub radiance: Vec3,
+}
+
+/// The light table of one frame.
+#[derive(Clone, Debug, Default)]
+pub struct FrameLights {
+    records: Vec<LightRecord>,
+    /// Cumulative selection probabilities (last = 1).
+    cdf: Vec<f32>,
+    pmf: Vec<f32>,
+    moving_triangles: Vec<MovingTriangle>,
+    /// Bounding sphere (centre, radius²) of all moving triangles, for a cheap reject.
+    moving_bound: (Vec3, f32),
+}
+
+impl FrameLights {
+    /// The table of `scene` at `frame`.
+    pub fn new(scene: &Scene, frame: u32) -> Self {
+        let mut lights = Self::default();
+        lights.update(scene, frame);
+        lights
+    }
+
+    /// Rebuilds the table for `frame`, reusing the vectors' capacity.
+    pub fn update(&mut self, scene: &Scene, frame: u32) {
+        self.records.clear();
+        self.moving_triangles.clear();
+        let mesh = &scene.mesh;
+        for &tri in &scene.lights.area.triangles {
+            let emission = scene.materials[mesh.material[tri as usize] as usize].emission;
+            self.push_triangle(mesh.positions[tri as usize], emission);
+        }
+        for p in &scene.lights.points {
+            self.records.push(LightRecord::Point { position: p.position, intensity: p.intensity });
+        }
+        for m in &scene.lights.moving {
+            let transform = m.path.transform(frame as f32);
+            match &m.shape {
+                MovingShape::Point { intensity } => self
+                    .records
+                    .push(LightRecord::Point { position: transform.translation.into(), intensity: *intensity }),
+                MovingShape::Area { triangles, radiance } => {
+                    for t in triangles {
+                        let v = t.map(|p| transform.transform_point3(p));
+                        self.push_triangle(v, *radiance);
+                        self.moving_triangles.push(MovingTriangle { v, radiance: *radiance });
+                    }
+                }
+            }
+        }
+        if let Some(sun) = scene.lights.sun {
+            self.records.push(LightRecord::Sun(sun));
+        }
+        if scene.lights.environment.is_some() {
+            self.records.push(LightRecord::Environment);
+        }
+        self.moving_bound = bound(&self.moving_triangles);
+        self.build_distribution(scene);
+    }
+
+    fn push_triangle(&mut self, v: [Vec3; 3], radiance: Vec3) {
+        let (e1, e2) = (v[1] - v[0], v[2] - v[0]);
+        let cross = e1.cross(e2);
+        let area = 0.5 * cross.length();
+        if area > 0.0 && area.is_finite() {
+            self.records.push(LightRecord::Triangle { v0: v[0], e1, e2, normal: cross / (2.0 * area), area, radiance });
+        }
+    }
+
+    fn build_distribution(&mut self, scene: &Scene) {
+        let radius = 0.5 * scene.bounds().extent().length().max(1e-3);
+        let disc = PI * radius * radius;
+        let env_power = scene.lights.environment.as_ref().map_or(0.0, |e| luminance(e.mean_radiance()) * PI * disc);
+        self.pmf.clear();
+        self.pmf.extend(self.records.iter().map(|r| match r {
+            LightRecord::Triangle { area, radiance, .. } => PI * area * luminance(*radiance),
+            LightRecord::Point { intensity, .. } => 4.0 * PI * luminance(*intensity),
+            LightRecord::Sun(s) => luminance(s.irradiance) * disc,
+            LightRecord::Environment => env_power,
+        }));
+        let total: f32 = self.pmf.iter().sum();
+        let n = self.pmf.len().max(1) as f32;
+        for p in &mut self.pmf {
+            // Every light keeps some probability, so none is starved by a bright neighbour.
+            *p = if total > 0.0 { 0.9 * (*p / total) + 0.1 / n } else { 1.0 / n };
+        }
+        self.cdf.clear();
+        let mut acc = 0.0;
+        for p in &self.pmf {
+            acc += p;
+            self.cdf.push(acc);
+        }
+        if let Some(last) = self.cdf.last_mut() {
+            *last = 1.0;
+        }
+    }
+
+    /// Number of light records.
+    pub fn len(&self) -> usize {
+        self.records.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.records.is_empty()
+    }
+
+    /// Triangles of moving area lights at this frame.
+    pub fn moving_triangles(&self) -> &[MovingTriangle] {
+        &self.moving_triangles
+    }
+
+    /// Whether a ray from `origin` along unit `dir` can reach the moving lights at all.
+    #[inline]
+    pub fn may_hit_moving(&self, origin: Vec3, dir: Vec3) -> bool {
+        if self.moving_triangles.is_empty() {
+            return false;
+        }
+        let (c, r2) = self.moving_bound;
+        let oc = c - origin;
+        let along = oc.dot(dir);
+        let perp2 = oc.length_squared() - along * along;
+        perp2 <= r2 && (along >= 0.0 || oc.length_squared() <= r2)
+    }
+
+    /// Samples a light as seen from `p`: `u_pick` chooses the record, `u` the point.
+    pub fn sample(&self, environment: Option<&Environment>, p: Vec3, u_pick: f32, u: Vec2) -> Option<LightSample> {
+        if self.records.is_empty() {
+            return None;
+        }
+        let i = self.cdf.partition_point(|&c| c <= u_pick).min(self.records.len() - 1);
+        let pick = self.pmf[i];
+        match self.records[i] {
+            LightRecord::Triangle { v0, e1, e2, normal, area, radiance } => {
+                let s = u.x.sqrt();
+                let (b1, b2) = (s * (1.0 - u.y), s * u.y);
+                let q = v0 + e1 * b1 + e2 * b2;
+                let d = q - p;
+                let dist2 = d.length_squared();
+                let dist = dist2.sqrt();
+                if !(dist > 0.0) {
+                    return None;
+                }
+                let wi = d / dist;
+                // One-sided: the light emits only towards its front.
+                let cos_light = -normal.dot(wi);
+                if cos_light <= 0.0 {
+                    return None;
+                }
+                let pdf = pick * dist2 / (cos_light * area);
+                Some(LightSample { wi, distance: dist, radiance, pdf })
+            }
+            LightRecord::Point { position, intensity } => {
+                let d = position - p;
+                let dist2 = d.length_squared();
+                if !(dist2 > 0.0) {
+                    return None;
+                }
+                let dist = dist2.sqrt();
+                Some(LightSample { wi: d / dist, distance: dist, radiance: intensity / dist2, pdf: pick })
+            }
+            LightRecord::Sun(sun) => {
+                let (wi, pdf) = sun.sample(u);
+                Some(LightSample { wi, distance: f32::INFINITY, radiance: sun.radiance(), pdf: pick * pdf })
+            }
+            LightRecord::Environment => {
+                let (wi, pdf, radiance) = environment?.sample(u);
+                (pdf > 0.0).then_some(LightSample { wi, distance: f32::INFINITY, radiance, pdf: pick * pdf })
+            }
+        }
+    }
+}
+
+fn bound(tris: &[MovingTriangle]) -> (Vec3, f32) {
+    if tris.is_empty() {
+        return (Vec3::ZERO, 0.0);
+    }
+    let n = (tris.len() * 3) as f32;
+    let centre = tris.iter().flat_map(|t| t.v).fold(Vec3::ZERO, |a, v| a + v) / n;
+    let r2 = tris.iter().flat_map(|t| t.v).map(|v| (v - centre).length_squared()).fold(0.0, f32::max);
+    (centre, r2 * 1.0001 + 1e-12)
+}

@@ -1,0 +1,630 @@
+//! Rendering: the BVH, the G-buffer pass and the path tracer with the paper's estimator.
+//!
+//! # The estimator (one sample)
+//! One primary ray, one secondary ray, two shadow rays:
+//! 1. the primary ray through a jittered point of the pixel; emission it sees counts (and
+//!    the environment and sun where it escapes);
+//! 2. next-event estimation at the primary hit: one light record chosen by power, one point
+//!    on it, shadow ray 1;
+//! 3. one BSDF-sampled secondary ray;
+//! 4. next-event estimation at the secondary hit: shadow ray 2.
+//!
+//! Emission reached by the secondary ray (an emitter, the sun, the environment) counts only
+//! where next-event estimation could not have sampled it, i.e. after a delta (mirror) lobe;
+//! otherwise it would be counted twice. The result is an unbiased estimate of transport over
+//! paths with up to two bounces. A mirror at the primary hit gets no next-event estimate (a
+//! delta lobe has zero value towards any sampled light).
+//!
+//! # Specialisation
+//! Every per-sample function is generic over the effect bits `E` ([`effects`]); the public
+//! entry points dispatch on the scene's bits, or on [`effects::ALL`] for the general
+//! integrator, which must give the same image.
+//!
+//! # Determinism
+//! Random numbers are a pure function of (seed, eye, frame, pixel, sample, purpose)
+//! ([`rng`]); rows run in parallel but each pixel's value depends only on its own numbers,
+//! so images are identical across runs and thread counts.
+
+pub mod bsdf;
+pub mod effects;
+pub mod lights;
+pub mod rng;
+
+use std::time::Duration;
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::camera::Eye;
+use crate::kernels::bvh::{BuildQuality, BuildStats, Hit, PreparedRay, Ray, TriangleBvh, intersect_triangle};
+use crate::kernels::gbuffer::{CompactGBuffer, GBuffer, NO_NORMAL, encode_normal};
+use crate::kernels::packet::{PacketHits, RayPacket};
+use crate::kernels::simd::LANES;
+use crate::kernels::{CameraModel, Extent, FrameError, PlaneBuf, RgbBuf};
+use crate::scene::{MaterialKind, Scene};
+use bsdf::ShadingPoint;
+use effects::{ALPHA_MASKS, MOVING_LIGHTS, TEXTURES, has};
+use lights::FrameLights;
+use rng::{Dim, SampleStream};
+
+/// Why rendering could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    #[error("BVH build failed: {0}")]
+    Bvh(#[from] crate::kernels::bvh::BvhError),
+    #[error(transparent)]
+    Frame(#[from] FrameError),
+    #[error("{0}")]
+    Invalid(String),
+}
+
+/// A scene with its BVH, ready to render any frame and eye.
+pub struct Renderer {
+    scene: Scene,
+    bvh: TriangleBvh,
+    bvh_stats: BuildStats,
+    bits: u16,
+}
+
+/// What the primary or secondary ray hit.
+#[derive(Clone, Copy, Debug)]
+enum Surface {
+    /// A triangle of the static mesh.
+    Mesh(Hit),
+    /// A triangle of a moving area light (emits `radiance` on the side of `normal`).
+    MovingLight { t: f32, normal: Vec3, radiance: Vec3 },
+}
+
+impl Surface {
+    fn t(&self) -> f32 {
+        match self {
+            Surface::Mesh(h) => h.t,
+            Surface::MovingLight { t, .. } => *t,
+        }
+    }
+}
+
+/// Counters of one render call.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TraceStats {
+    /// Rays traced (primary, secondary and shadow).
+    pub rays: u64,
+    /// Pixel samples taken.
+    pub samples: u64,
+    /// Samples whose estimate was not finite (replaced by 0).
+    pub non_finite: u64,
+}
+
+impl std::ops::Add for TraceStats {
+    type Output = Self;
+    fn add(self, o: Self) -> Self {
+        Self { rays: self.rays + o.rays, samples: self.samples + o.samples, non_finite: self.non_finite + o.non_finite }
+    }
+}
+
+impl std::iter::Sum for TraceStats {
+    fn sum<I: Iterator<Item = Self>>(iter: I) -> Self {
+        iter.fold(Self::default(), |a, b| a + b)
+    }
+}
+
+/// The G-buffer of one eye and frame: the full layout (depth, position, normal), the
+/// compact layout's octahedral normals, and the material id per pixel (`u32::MAX` for
+/// background). Allocated once, rewritten every frame.
+#[derive(Clone, Debug)]
+pub struct GBufferBuf {
+    pub camera: CameraModel,
+    pub depth: PlaneBuf,
+    pub position: [PlaneBuf; 3],
+    pub normal: [PlaneBuf; 3],
+    pub normal_oct: PlaneBuf<u32>,
+    pub material: PlaneBuf<u32>,
+}
+
+impl GBufferBuf {
+    /// Buffers for frames of `camera.extent`.
+    pub fn new(camera: CameraModel) -> Self {
+        let e = camera.extent;
+        Self {
+            camera,
+            depth: PlaneBuf::new(e, f32::INFINITY),
+            position: [0; 3].map(|_| PlaneBuf::new(e, f32::NAN)),
+            normal: [0; 3].map(|_| PlaneBuf::new(e, f32::NAN)),
+            normal_oct: PlaneBuf::new(e, NO_NORMAL),
+            material: PlaneBuf::new(e, u32::MAX),
+        }
+    }
+
+    pub fn extent(&self) -> Extent {
+        self.depth.extent()
+    }
+
+    /// The full-precision kernel view.
+    pub fn view(&self) -> GBuffer<'_> {
+        GBuffer::new(
+            self.depth.view(),
+            self.position.each_ref().map(|p| p.view()),
+            self.normal.each_ref().map(|p| p.view()),
+        )
+        .expect("planes of one extent")
+    }
+
+    /// The compact kernel view (depth + octahedral normals + camera).
+    pub fn compact(&self) -> CompactGBuffer<'_> {
+        CompactGBuffer::new(self.depth.view(), self.normal_oct.view(), self.camera).expect("planes of one extent")
+    }
+}
+
+/// Which pixels a tracing call fills.
+#[derive(Clone, Copy)]
+pub enum PixelSelection<'a> {
+    All,
+    /// Only pixels whose mask byte is non-zero; the others keep their value.
+    Mask(&'a PlaneBuf<u8>),
+}
+
+/// The parameters of one path-tracing call.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TraceRequest {
+    pub eye: Eye,
+    pub frame: u32,
+    /// Samples per pixel.
+    pub spp: u32,
+    /// Seed of the random numbers (references and comparison frames use different seeds).
+    pub seed: u64,
+    /// Index of the first sample (so that n more samples can be added to m earlier ones with
+    /// the same numbers as one (m + n)-sample render).
+    pub first_sample: u32,
+}
+
+/// Offsets a ray origin off a surface, along the geometric normal towards `dir`.
+#[inline]
+fn spawn(p: Vec3, n: Vec3, dir: Vec3) -> Vec3 {
+    let eps = 1e-4 * p.abs().max_element().max(1.0);
+    if n.dot(dir) >= 0.0 { p + n * eps } else { p - n * eps }
+}
+
+impl Renderer {
+    /// Builds the BVH for `scene` (validated first).
+    pub fn new(scene: Scene) -> Result<Self, RenderError> {
+        scene.validate().map_err(|e| RenderError::Invalid(e.to_string()))?;
+        let (bvh, bvh_stats) = TriangleBvh::build(&scene.mesh.positions, BuildQuality::default())?;
+        let bits = effects::bits_for(scene.effects);
+        Ok(Self { scene, bvh, bvh_stats, bits })
+    }
+
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    pub fn bvh(&self) -> &TriangleBvh {
+        &self.bvh
+    }
+
+    /// How long the BVH build took.
+    pub fn bvh_build_time(&self) -> Duration {
+        self.bvh_stats.total_time
+    }
+
+    pub fn bvh_stats(&self) -> &BuildStats {
+        &self.bvh_stats
+    }
+
+    /// The integrator effect bits of the scene.
+    pub fn effect_bits(&self) -> u16 {
+        self.bits
+    }
+
+    /// The light table of `frame`.
+    pub fn frame_lights(&self, frame: u32) -> FrameLights {
+        FrameLights::new(&self.scene, frame)
+    }
+
+    /// Fills `out` with the G-buffer seen by `out.camera` (one ray per pixel centre, traced
+    /// as 8-wide packets along rows).
+    pub fn render_gbuffer(&self, lights: &FrameLights, out: &mut GBufferBuf) {
+        macro_rules! call {
+            ($e:literal) => {
+                self.gbuffer_pass::<$e>(lights, out)
+            };
+        }
+        crate::dispatch_effects!(self.bits, call)
+    }
+
+    /// Path traces `request.spp` samples into `out` for the pixels `selection` names, with the
+    /// integrator specialised for the scene's effects (`general = false`) or the general one.
+    pub fn trace(
+        &self,
+        lights: &FrameLights,
+        camera: &CameraModel,
+        request: &TraceRequest,
+        selection: PixelSelection<'_>,
+        out: &mut RgbBuf,
+        general: bool,
+    ) -> Result<TraceStats, RenderError> {
+        self.trace_rows(lights, camera, request, selection, 0..camera.extent.height(), out, general)
+    }
+
+    /// [`Renderer::trace`] restricted to the rows `rows` (the budgeted runtime traces the
+    /// frame in row tiles).
+    #[allow(clippy::too_many_arguments)]
+    pub fn trace_rows(
+        &self,
+        lights: &FrameLights,
+        camera: &CameraModel,
+        request: &TraceRequest,
+        selection: PixelSelection<'_>,
+        rows: std::ops::Range<usize>,
+        out: &mut RgbBuf,
+        general: bool,
+    ) -> Result<TraceStats, RenderError> {
+        crate::kernels::frame::same_extent("output image", camera.extent, out.extent())?;
+        if rows.start > rows.end || rows.end > camera.extent.height() {
+            return Err(RenderError::Invalid(format!(
+                "rows {}..{} outside the image height {}",
+                rows.start,
+                rows.end,
+                camera.extent.height()
+            )));
+        }
+        if let PixelSelection::Mask(m) = selection {
+            crate::kernels::frame::same_extent("pixel mask", camera.extent, m.extent())?;
+        }
+        if request.spp == 0 {
+            return Err(RenderError::Invalid("samples per pixel must be at least 1".into()));
+        }
+        let bits = if general { effects::ALL } else { self.bits };
+        macro_rules! call {
+            ($e:literal) => {
+                self.trace_pass::<$e>(lights, camera, request, selection, rows, out)
+            };
+        }
+        Ok(crate::dispatch_effects!(bits, call))
+    }
+
+    // ---- geometry queries ----------------------------------------------------------------
+
+    /// Whether the triangle hit at `h` is cut away by its material's opacity (alpha test at
+    /// 0.5: cut-outs are binary masks such as leaves).
+    #[inline]
+    fn cut_out(&self, h: &Hit) -> bool {
+        let m = &self.scene.materials[self.scene.mesh.material[h.prim as usize] as usize];
+        m.has_cutout() && m.coverage_at(&self.scene.textures, self.scene.mesh.uv(h.prim as usize, h.u, h.v)) < 0.5
+    }
+
+    /// Closest hit of the static mesh, skipping cut-out surfaces.
+    #[inline]
+    fn closest_mesh<const E: u16>(&self, mut ray: Ray) -> Option<Hit> {
+        loop {
+            let h = self.bvh.intersect(&ray)?;
+            if !(has(E, ALPHA_MASKS) && self.cut_out(&h)) {
+                return Some(h);
+            }
+            ray.tmin = h.t.next_up();
+            if ray.tmin >= ray.tmax {
+                return None;
+            }
+        }
+    }
+
+    /// Closest moving-light triangle nearer than `tmax`.
+    #[inline]
+    fn closest_moving(lights: &FrameLights, ray: &Ray, tmax: f32) -> Option<Surface> {
+        if !lights.may_hit_moving(ray.origin, ray.dir.normalize_or_zero()) {
+            return None;
+        }
+        let prepared = PreparedRay::new(&Ray { tmax, ..*ray })?;
+        let mut best: Option<Surface> = None;
+        let mut limit = tmax;
+        for tri in lights.moving_triangles() {
+            let v = tri.v;
+            let verts = [v[0].x, v[0].y, v[0].z, v[1].x, v[1].y, v[1].z, v[2].x, v[2].y, v[2].z];
+            if let Some(h) = intersect_triangle(&prepared, &verts, limit) {
+                limit = h.t;
+                let normal = (v[1] - v[0]).cross(v[2] - v[0]).normalize_or_zero();
+                best = Some(Surface::MovingLight { t: h.t, normal, radiance: tri.radiance });
+            }
+        }
+        best
+    }
+
+    /// Closest surface along `ray`.
+    #[inline]
+    fn closest<const E: u16>(&self, lights: &FrameLights, ray: Ray) -> Option<Surface> {
+        let mesh = self.closest_mesh::<E>(ray).map(Surface::Mesh);
+        if has(E, MOVING_LIGHTS) {
+            let tmax = mesh.map_or(ray.tmax, |s| s.t());
+            if let Some(light) = Self::closest_moving(lights, &ray, tmax) {
+                return Some(light);
+            }
+        }
+        mesh
+    }
+
+    /// Whether anything blocks `ray` (in `[tmin, tmax)`).
+    #[inline]
+    fn occluded<const E: u16>(&self, lights: &FrameLights, ray: Ray) -> bool {
+        let blocked = if has(E, ALPHA_MASKS) { self.closest_mesh::<E>(ray).is_some() } else { self.bvh.occluded(&ray) };
+        blocked || (has(E, MOVING_LIGHTS) && Self::closest_moving(lights, &ray, ray.tmax).is_some())
+    }
+
+    /// Shading information at a mesh hit seen along `dir`.
+    #[inline]
+    fn shade<const E: u16>(&self, h: &Hit, dir: Vec3) -> ShadingPoint {
+        let mesh = &self.scene.mesh;
+        let tri = h.prim as usize;
+        let material = &self.scene.materials[mesh.material[tri] as usize];
+        let mut ng = mesh.geometric_normal(tri);
+        if ng.dot(dir) > 0.0 {
+            ng = -ng;
+        }
+        let mut ns = mesh.shading_normal(tri, h.u, h.v);
+        if ns.dot(ng) < 0.0 {
+            ns = -ns;
+        }
+        let albedo = if has(E, TEXTURES) && material.albedo_texture.is_some() {
+            material.albedo_at(&self.scene.textures, mesh.uv(tri, h.u, h.v))
+        } else {
+            material.albedo
+        };
+        ShadingPoint {
+            position: mesh.point(tri, h.u, h.v),
+            geometric_normal: ng,
+            shading_normal: ns,
+            kind: material.kind,
+            albedo,
+            specular: material.specular,
+            alpha: material.alpha(),
+        }
+    }
+
+    /// Emitted radiance of a surface towards `-dir` (one-sided emitters).
+    #[inline]
+    fn emitted(&self, s: &Surface, dir: Vec3) -> Vec3 {
+        match s {
+            Surface::Mesh(h) => {
+                let tri = h.prim as usize;
+                let m = &self.scene.materials[self.scene.mesh.material[tri] as usize];
+                if m.emission == Vec3::ZERO || self.scene.mesh.cross(tri).dot(dir) >= 0.0 {
+                    Vec3::ZERO
+                } else {
+                    m.emission
+                }
+            }
+            Surface::MovingLight { normal, radiance, .. } => {
+                if normal.dot(dir) < 0.0 {
+                    *radiance
+                } else {
+                    Vec3::ZERO
+                }
+            }
+        }
+    }
+
+    /// Radiance arriving from infinity along `dir` (environment and sun disc).
+    #[inline]
+    fn escaped(&self, dir: Vec3) -> Vec3 {
+        let lights = &self.scene.lights;
+        let env = lights.environment.as_ref().map_or(Vec3::ZERO, |e| e.radiance(dir));
+        let sun = lights.sun.map_or(Vec3::ZERO, |s| s.radiance_towards(dir));
+        env + sun
+    }
+
+    // ---- the estimator ---------------------------------------------------------------------
+
+    /// Next-event estimate at `sp` for outgoing direction `wo`, with one shadow ray.
+    #[inline]
+    fn next_event<const E: u16>(
+        &self,
+        lights: &FrameLights,
+        sp: &ShadingPoint,
+        wo: Vec3,
+        rng: &SampleStream,
+        (pick, point): (Dim, Dim),
+        rays: &mut u64,
+    ) -> Vec3 {
+        let Some(ls) =
+            lights.sample(self.scene.lights.environment.as_ref(), sp.position, rng.get(pick), rng.get2(point))
+        else {
+            return Vec3::ZERO;
+        };
+        let f = bsdf::eval::<E>(sp, wo, ls.wi);
+        let cos = sp.shading_normal.dot(ls.wi);
+        if f == Vec3::ZERO || cos <= 0.0 || !(ls.pdf > 0.0) {
+            return Vec3::ZERO;
+        }
+        let origin = spawn(sp.position, sp.geometric_normal, ls.wi);
+        let tmax = if ls.distance.is_finite() { ls.distance * (1.0 - 1e-4) } else { f32::INFINITY };
+        *rays += 1;
+        if self.occluded::<E>(lights, Ray::segment(origin, ls.wi, 0.0, tmax)) {
+            return Vec3::ZERO;
+        }
+        ls.radiance * f * (cos / ls.pdf)
+    }
+
+    /// One sample of the paper's estimator along the primary ray `ray`.
+    #[inline]
+    fn radiance<const E: u16>(&self, lights: &FrameLights, ray: Ray, rng: &SampleStream, rays: &mut u64) -> Vec3 {
+        *rays += 1;
+        let dir = ray.dir.normalize();
+        let Some(first) = self.closest::<E>(lights, ray) else {
+            return self.escaped(dir);
+        };
+        let mut radiance = self.emitted(&first, dir);
+        let Surface::Mesh(hit) = first else {
+            return radiance;
+        };
+        let sp = self.shade::<E>(&hit, dir);
+        let wo = -dir;
+        if !(sp.kind == MaterialKind::Mirror && has(E, effects::MIRROR)) {
+            radiance += self.next_event::<E>(lights, &sp, wo, rng, (Dim::LightPick1, Dim::LightPoint1), rays);
+        }
+        let Some(bounce) = bsdf::sample::<E>(&sp, wo, rng.get(Dim::Lobe), rng.get2(Dim::Bounce)) else {
+            return radiance;
+        };
+        *rays += 1;
+        let origin = spawn(sp.position, sp.geometric_normal, bounce.wi);
+        let Some(second) = self.closest::<E>(lights, Ray::new(origin, bounce.wi)) else {
+            if bounce.delta {
+                radiance += bounce.weight * self.escaped(bounce.wi);
+            }
+            return radiance;
+        };
+        if bounce.delta {
+            radiance += bounce.weight * self.emitted(&second, bounce.wi);
+        }
+        let Surface::Mesh(hit2) = second else {
+            return radiance;
+        };
+        let sp2 = self.shade::<E>(&hit2, bounce.wi);
+        if !(sp2.kind == MaterialKind::Mirror && has(E, effects::MIRROR)) {
+            let nee = self.next_event::<E>(lights, &sp2, -bounce.wi, rng, (Dim::LightPick2, Dim::LightPoint2), rays);
+            radiance += bounce.weight * nee;
+        }
+        radiance
+    }
+
+    fn trace_pass<const E: u16>(
+        &self,
+        lights: &FrameLights,
+        camera: &CameraModel,
+        request: &TraceRequest,
+        selection: PixelSelection<'_>,
+        rows: std::ops::Range<usize>,
+        out: &mut RgbBuf,
+    ) -> TraceStats {
+        let width = camera.extent.width();
+        let origin = Vec3::from(camera.centre);
+        let inv_spp = 1.0 / request.spp as f32;
+        let span = rows.start * width..rows.end * width;
+        let RgbBuf { r, g, b } = out;
+        (
+            r.as_mut_slice()[span.clone()].par_chunks_mut(width),
+            g.as_mut_slice()[span.clone()].par_chunks_mut(width),
+            b.as_mut_slice()[span].par_chunks_mut(width),
+        )
+            .into_par_iter()
+            .enumerate()
+            .map(|(i, (rr, gr, br))| {
+                let y = rows.start + i;
+                let mut stats = TraceStats::default();
+                let mask_row = match selection {
+                    PixelSelection::All => None,
+                    PixelSelection::Mask(m) => Some(m.view().row(y)),
+                };
+                for x in 0..width {
+                    if mask_row.is_some_and(|m| m[x] == 0) {
+                        continue;
+                    }
+                    let pixel = (y * width + x) as u32;
+                    let mut sum = Vec3::ZERO;
+                    for s in 0..request.spp {
+                        let rng = SampleStream::new(
+                            request.seed,
+                            request.eye as u32,
+                            request.frame,
+                            pixel,
+                            request.first_sample + s,
+                        );
+                        let j = rng.get2(Dim::PixelJitter);
+                        let dir = Vec3::from(camera.ray(x as f32 + j.x, y as f32 + j.y));
+                        let l = self.radiance::<E>(lights, Ray::new(origin, dir), &rng, &mut stats.rays);
+                        if l.is_finite() {
+                            sum += l;
+                        } else {
+                            stats.non_finite += 1;
+                        }
+                    }
+                    stats.samples += u64::from(request.spp);
+                    let v = sum * inv_spp;
+                    rr[x] = v.x;
+                    gr[x] = v.y;
+                    br[x] = v.z;
+                }
+                stats
+            })
+            .sum()
+    }
+
+    fn gbuffer_pass<const E: u16>(&self, lights: &FrameLights, out: &mut GBufferBuf) {
+        let camera = out.camera;
+        let width = camera.extent.width();
+        let origin = Vec3::from(camera.centre);
+        let GBufferBuf { depth, position: [px, py, pz], normal: [nx, ny, nz], normal_oct, material, .. } = out;
+        let rows = (
+            depth.as_mut_slice().par_chunks_mut(width),
+            px.as_mut_slice().par_chunks_mut(width),
+            py.as_mut_slice().par_chunks_mut(width),
+            pz.as_mut_slice().par_chunks_mut(width),
+            nx.as_mut_slice().par_chunks_mut(width),
+            ny.as_mut_slice().par_chunks_mut(width),
+            nz.as_mut_slice().par_chunks_mut(width),
+            normal_oct.as_mut_slice().par_chunks_mut(width),
+            material.as_mut_slice().par_chunks_mut(width),
+        );
+        rows.into_par_iter().enumerate().for_each(|(y, (d, px, py, pz, nx, ny, nz, oct, mat))| {
+            let mut hits = PacketHits::default();
+            let mut x0 = 0;
+            while x0 < width {
+                let lanes = (width - x0).min(LANES);
+                let rays: [Ray; LANES] = core::array::from_fn(|i| {
+                    let x = (x0 + i.min(lanes - 1)) as f32 + 0.5;
+                    Ray::new(origin, Vec3::from(camera.ray(x, y as f32 + 0.5)))
+                });
+                let active = (1u32 << lanes) - 1;
+                self.bvh.intersect_packet(&RayPacket::from_rays(&rays), active, &mut hits);
+                for i in 0..lanes {
+                    let x = x0 + i;
+                    let ray = rays[i];
+                    let mut hit = hits.get(i);
+                    if has(E, ALPHA_MASKS) && hit.is_some_and(|h| self.cut_out(&h)) {
+                        hit = self.closest_mesh::<E>(Ray { tmin: hit.map_or(0.0, |h| h.t.next_up()), ..ray });
+                    }
+                    let mut surface = hit.map(Surface::Mesh);
+                    if has(E, MOVING_LIGHTS) {
+                        let tmax = surface.map_or(f32::INFINITY, |s| s.t());
+                        if let Some(l) = Self::closest_moving(lights, &ray, tmax) {
+                            surface = Some(l);
+                        }
+                    }
+                    let Some(s) = surface else {
+                        d[x] = f32::INFINITY;
+                        for v in [&mut px[x], &mut py[x], &mut pz[x], &mut nx[x], &mut ny[x], &mut nz[x]] {
+                            *v = f32::NAN;
+                        }
+                        oct[x] = NO_NORMAL;
+                        mat[x] = u32::MAX;
+                        continue;
+                    };
+                    // The ray has unit view depth, so t is the depth; the position is formed
+                    // exactly as the compact layout rebuilds it.
+                    let t = s.t();
+                    let p = [0, 1, 2].map(|c| camera.centre[c] + t * ray.dir[c]);
+                    let (n, m) = match s {
+                        Surface::Mesh(h) => {
+                            let sp = self.shade::<E>(&h, ray.dir);
+                            (sp.shading_normal, self.scene.mesh.material[h.prim as usize])
+                        }
+                        Surface::MovingLight { normal, .. } => {
+                            (if normal.dot(ray.dir) > 0.0 { -normal } else { normal }, u32::MAX - 1)
+                        }
+                    };
+                    d[x] = t;
+                    (px[x], py[x], pz[x]) = (p[0], p[1], p[2]);
+                    (nx[x], ny[x], nz[x]) = (n.x, n.y, n.z);
+                    oct[x] = encode_normal(n.to_array());
+                    mat[x] = m;
+                }
+                x0 += LANES;
+            }
+        });
+    }
+}
+
+/// The material id stored for pixels showing a moving light.
+pub const MOVING_LIGHT_MATERIAL: u32 = u32::MAX - 1;
+
+/// Jitter-free ray through a pixel centre (what the G-buffer uses), for tests.
+pub fn pixel_centre_ray(camera: &CameraModel, x: usize, y: usize) -> Ray {
+    Ray::new(Vec3::from(camera.centre), Vec3::from(camera.ray(x as f32 + 0.5, y as f32 + 0.5)))
+}
