@@ -11,5 +11,6 @@ pub mod camera;
 pub mod commands;
 pub mod cpu;
 pub mod image_io;
+pub mod pipeline;
 pub mod render;
 pub mod scene;

@@ -68,8 +68,12 @@ pub use path::{CameraKey, CameraPath, CameraPose, DEFAULT_FRAMES, TransformKey, 
 pub use resolve::resolve;
 pub use texture::{Texture, TextureUsage};
 
+/// The frame height per-scene tolerances are set for (the paper's 1280×720).
+pub const REFERENCE_HEIGHT: usize = 720;
+
 /// Per-scene reprojection discard thresholds (the paper sets them "manually based on the
-/// scale of each test scene").
+/// scale of each test scene"), for frames [`REFERENCE_HEIGHT`] pixels tall; see
+/// [`SceneTolerances::at_height`] for other resolutions.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SceneTolerances {
@@ -89,9 +93,26 @@ impl SceneTolerances {
         Self { position: (0.004 * size).max(1e-4), depth_relative: 0.02, normal_degrees: 25.0 }
     }
 
-    /// The kernel's form (normal threshold as a cosine).
+    /// The kernel's form (normal threshold as a cosine), as set: for frames
+    /// [`REFERENCE_HEIGHT`] pixels tall.
     pub fn to_kernel(&self) -> crate::kernels::reproject::Tolerances {
         crate::kernels::reproject::Tolerances::new(self.position, self.depth_relative, self.normal_degrees)
+    }
+
+    /// The kernel's form for frames `height` pixels tall.
+    ///
+    /// The values are set for the paper's 1280×720. The position and depth tests compare a
+    /// tap's surface with the target's across up to a pixel's footprint, which grows as the
+    /// resolution drops (a pixel at 360 rows spans twice the angle of one at 720), so both
+    /// tolerances scale by `720 / height` and the discard tests keep meaning the same thing
+    /// at any resolution. The normal angle does not depend on the resolution.
+    pub fn at_height(&self, height: usize) -> crate::kernels::reproject::Tolerances {
+        let scale = (REFERENCE_HEIGHT as f32 / height.max(1) as f32).max(1.0);
+        crate::kernels::reproject::Tolerances::new(
+            self.position * scale,
+            self.depth_relative * scale,
+            self.normal_degrees,
+        )
     }
 
     /// All finite, position and depth > 0, angle in (0, 180].

@@ -20,29 +20,45 @@ pub const DEFAULT_FRAMES: u32 = 60;
 /// `times` must be strictly increasing; an empty slice gives zero, one key a constant.
 pub fn spline<const N: usize>(times: &[f32], values: &[[f32; N]], t: f32) -> [f32; N] {
     let n = times.len().min(values.len());
+    spline_by(&times[..n], |&k| k, |i| values[i], t)
+}
+
+/// [`spline`] over keys read through accessors (`time(&key)`, `value(index)`), so paths
+/// evaluate their keys in place: the real-time runtime asks for a pose every frame and must
+/// not allocate.
+fn spline_by<K, const N: usize>(
+    keys: &[K],
+    time: impl Fn(&K) -> f32,
+    value: impl Fn(usize) -> [f32; N],
+    t: f32,
+) -> [f32; N] {
+    let n = keys.len();
     if n == 0 {
         return [0.0; N];
     }
-    if n == 1 || !(t > times[0]) {
-        return values[0];
+    let at = |i: usize| time(&keys[i]);
+    if n == 1 || !(t > at(0)) {
+        return value(0);
     }
-    if t >= times[n - 1] {
-        return values[n - 1];
+    if t >= at(n - 1) {
+        return value(n - 1);
     }
-    let i = times[..n].partition_point(|&k| k <= t).saturating_sub(1).min(n - 2);
-    let (t0, t1) = (times[i], times[i + 1]);
+    let i = keys.partition_point(|k| time(k) <= t).saturating_sub(1).min(n - 2);
+    let (t0, t1) = (at(i), at(i + 1));
     let h = t1 - t0;
     let s = (t - t0) / h;
     let tangent = |k: usize| -> [f32; N] {
         let (a, b) = (k.saturating_sub(1), (k + 1).min(n - 1));
-        let dt = times[b] - times[a];
+        let dt = at(b) - at(a);
+        let (va, vb) = (value(a), value(b));
         let mut m = [0.0; N];
         for (c, mc) in m.iter_mut().enumerate() {
-            *mc = (values[b][c] - values[a][c]) / dt;
+            *mc = (vb[c] - va[c]) / dt;
         }
         m
     };
     let (m0, m1) = (tangent(i), tangent(i + 1));
+    let (v0, v1) = (value(i), value(i + 1));
     let (s2, s3) = (s * s, s * s * s);
     let h00 = 2.0 * s3 - 3.0 * s2 + 1.0;
     let h10 = s3 - 2.0 * s2 + s;
@@ -50,7 +66,7 @@ pub fn spline<const N: usize>(times: &[f32], values: &[[f32; N]], t: f32) -> [f3
     let h11 = s3 - s2;
     let mut out = [0.0; N];
     for (c, o) in out.iter_mut().enumerate() {
-        *o = h00 * values[i][c] + h10 * h * m0[c] + h01 * values[i + 1][c] + h11 * h * m1[c];
+        *o = h00 * v0[c] + h10 * h * m0[c] + h01 * v1[c] + h11 * h * m1[c];
     }
     out
 }
@@ -173,13 +189,11 @@ impl CameraPath {
 
     /// The pose at (possibly fractional) frame `frame`.
     pub fn pose_at(&self, frame: f32) -> CameraPose {
-        let times: Vec<f32> = self.keys.iter().map(|k| k.frame).collect();
-        let eyes: Vec<[f32; 3]> = self.keys.iter().map(|k| k.eye).collect();
-        let targets: Vec<[f32; 3]> = self.keys.iter().map(|k| k.target).collect();
-        let ups: Vec<[f32; 3]> = self.keys.iter().map(|k| k.up).collect();
-        let eye = Vec3::from(spline(&times, &eyes, frame));
-        let target = Vec3::from(spline(&times, &targets, frame));
-        let up_hint = Vec3::from(spline(&times, &ups, frame));
+        let keys = &self.keys;
+        let time = |k: &CameraKey| k.frame;
+        let eye = Vec3::from(spline_by(keys, time, |i| keys[i].eye, frame));
+        let target = Vec3::from(spline_by(keys, time, |i| keys[i].target, frame));
+        let up_hint = Vec3::from(spline_by(keys, time, |i| keys[i].up, frame));
         let forward = (target - eye).try_normalize().unwrap_or(Vec3::NEG_Z);
         let right = forward.cross(up_hint).try_normalize().unwrap_or_else(|| forward.any_orthonormal_vector());
         let up = right.cross(forward);
@@ -244,10 +258,11 @@ impl TransformPath {
 
     /// Translation and yaw (degrees) at `frame`.
     pub fn at(&self, frame: f32) -> (Vec3, f32) {
-        let times: Vec<f32> = self.keys.iter().map(|k| k.frame).collect();
-        let tr: Vec<[f32; 3]> = self.keys.iter().map(|k| k.translation).collect();
-        let yaw: Vec<[f32; 1]> = self.keys.iter().map(|k| [k.yaw_deg]).collect();
-        (Vec3::from(spline(&times, &tr, frame)), spline(&times, &yaw, frame)[0])
+        let keys = &self.keys;
+        let time = |k: &TransformKey| k.frame;
+        let translation = spline_by(keys, time, |i| keys[i].translation, frame);
+        let yaw = spline_by(keys, time, |i| [keys[i].yaw_deg], frame);
+        (Vec3::from(translation), yaw[0])
     }
 
     /// The local-to-world transform at `frame`.

@@ -1,0 +1,760 @@
+//! The embeddable per-frame stereo pipeline.
+//!
+//! Built once for a renderer, a configuration and a frame size, then driven frame by frame
+//! with a head pose (the scene's camera path, or poses a runtime tracks). It owns every
+//! buffer and allocates nothing per frame; it runs on the caller's current rayon pool.
+//!
+//! # Modes (what each eye shows at frame t)
+//! `PT_e` is eye e's `spp`-sample path-traced image, `R_{a→b}` backward reprojection from
+//! view a into view b, `EMA` the temporal accumulation (history reset where its reprojection
+//! was discarded).
+//!
+//! | mode | right eye | left eye |
+//! |---|---|---|
+//! | `path-traced` | `PT_R` | `PT_L` |
+//! | `stereo` (paper IV-B) | `PT_R` | `R_{R→L}(PT_R)` where valid, `PT_L` where discarded |
+//! | `temporal` | `EMA(R_{t−1→t}(hist_R), PT_R)` | same for L |
+//! | `spatiotemporal`, paper order | `acc_R = EMA(…, PT_R)` | `R_{R→L}(acc_R)` where valid; where discarded `EMA(R_{t−1→t}(hist_L), PT_L)`; the shown image is the next history |
+//! | `spatiotemporal`, stereo first | `acc_R` | `EMA(R_{t−1→t}(hist_L), stereo-mode left image)` |
+//! | `stereo-blend` (IV-C) | `½PT_R + ½R_{L→R}(PT_L)` where valid, `PT_R` elsewhere | mirror image |
+//! | `spatiotemporal-blend`, paper order | `½acc_R + ½R_{L→R}(acc_L)` | mirror image; each `acc` accumulates its own `PT` |
+//! | `spatiotemporal-blend`, stereo first | `EMA(R_{t−1→t}(hist_R), stereo-blend right image)` | mirror image |
+//!
+//! Only the pixels an eye needs are traced: in `stereo` and both `spatiotemporal` modes the
+//! left eye traces just the pixels whose stereo reprojection was discarded (2–6 % in the
+//! paper), with exactly the random numbers a full render would use for them.
+//!
+//! # Budget
+//! With a per-frame time budget, G-buffers, reprojection and accumulation always run; path
+//! tracing goes over row tiles in priority order: first every pixel that has no valid
+//! reprojected data at all (disocclusions), then the remaining pixels the mode would trace,
+//! tile by tile, until the budget is spent. Pixels that were not traced keep their
+//! reprojected value (or stay holes where there is none). Tracing stops before a tile is
+//! started once the time is up, so the overrun is at most one tile per thread; the frame
+//! statistics report it.
+
+use std::time::{Duration, Instant};
+
+use crate::camera::{Eye, StereoRig};
+use crate::kernels::accumulate::{self, AccumulateStats, BlendParams, EmaInput, EmaParams, EmaState};
+use crate::kernels::reproject::{
+    self, Reason, ReasonCounts, ReprojectInput, ReprojectOutput, ReprojectParams, TapPolicy, Tolerances,
+};
+use crate::kernels::{CameraModel, Extent, FrameError, PlaneBuf, RgbBuf};
+use crate::render::lights::FrameLights;
+use crate::render::{GBufferBuf, PixelSelection, RenderError, Renderer, TraceRequest, TraceStats};
+use crate::scene::CameraPose;
+
+/// What the pipeline computes (see the module table).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Mode {
+    PathTraced,
+    Stereo,
+    Temporal,
+    Spatiotemporal,
+    StereoBlend,
+    SpatiotemporalBlend,
+}
+
+impl Mode {
+    pub const ALL: [Mode; 6] = [
+        Mode::PathTraced,
+        Mode::Stereo,
+        Mode::Temporal,
+        Mode::Spatiotemporal,
+        Mode::StereoBlend,
+        Mode::SpatiotemporalBlend,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Mode::PathTraced => "path-traced",
+            Mode::Stereo => "stereo",
+            Mode::Temporal => "temporal",
+            Mode::Spatiotemporal => "spatiotemporal",
+            Mode::StereoBlend => "stereo-blend",
+            Mode::SpatiotemporalBlend => "spatiotemporal-blend",
+        }
+    }
+
+    /// Whether the mode accumulates over time (keeps a history).
+    pub fn temporal(self) -> bool {
+        matches!(self, Mode::Temporal | Mode::Spatiotemporal | Mode::SpatiotemporalBlend)
+    }
+
+    /// Whether the mode reprojects between the eyes.
+    pub fn stereo(self) -> bool {
+        !matches!(self, Mode::PathTraced | Mode::Temporal)
+    }
+
+    /// Whether the order of stereo and temporal reprojection matters for this mode.
+    pub fn has_order(self) -> bool {
+        matches!(self, Mode::Spatiotemporal | Mode::SpatiotemporalBlend)
+    }
+}
+
+impl std::fmt::Display for Mode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Which reprojection comes first in the spatiotemporal modes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Order {
+    /// The paper's: temporal accumulation of the source, then stereo reprojection.
+    #[default]
+    Paper,
+    /// Stereo reprojection of the fresh samples, then temporal accumulation.
+    StereoFirst,
+}
+
+impl Order {
+    pub fn name(self) -> &'static str {
+        match self {
+            Order::Paper => "paper",
+            Order::StereoFirst => "stereo-first",
+        }
+    }
+}
+
+/// Which G-buffer layout the reprojection kernels read.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Layout {
+    /// Depth + octahedral normals, positions rebuilt from depth (8 B/px).
+    #[default]
+    Compact,
+    /// Depth, position and normal planes (28 B/px).
+    Full,
+}
+
+/// Everything that decides a pipeline's images.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PipelineConfig {
+    pub mode: Mode,
+    pub order: Order,
+    /// Samples per traced pixel per frame.
+    pub spp: u32,
+    /// EMA weight of the new sample (the paper: 0.2).
+    pub alpha: f32,
+    /// `α = max(α, 1/(n+1))` with a per-pixel history length.
+    pub ramp: bool,
+    pub policy: TapPolicy,
+    pub tolerances: Tolerances,
+    /// Weight of an eye's own samples in the stereo blend (the paper: 0.5).
+    pub blend_own_weight: f32,
+    pub layout: Layout,
+    /// Seed of the path tracer's random numbers.
+    pub seed: u64,
+    /// Time budget for a whole frame; `None` traces everything.
+    pub budget: Option<Duration>,
+    /// Rows per tracing tile under a budget.
+    pub tile_rows: usize,
+    /// Use the general integrator instead of the specialised one.
+    pub general_integrator: bool,
+}
+
+impl PipelineConfig {
+    /// The paper's settings for `mode` at `spp` with `tolerances`.
+    pub fn paper(mode: Mode, spp: u32, tolerances: Tolerances) -> Self {
+        Self {
+            mode,
+            order: Order::Paper,
+            spp,
+            alpha: 0.2,
+            ramp: false,
+            policy: TapPolicy::Renormalize,
+            tolerances,
+            blend_own_weight: 0.5,
+            layout: Layout::Compact,
+            seed: 1,
+            budget: None,
+            tile_rows: 8,
+            general_integrator: false,
+        }
+    }
+
+    fn validate(&self) -> Result<(), String> {
+        if self.spp == 0 {
+            return Err("samples per pixel must be at least 1".into());
+        }
+        if !(self.alpha > 0.0 && self.alpha <= 1.0) {
+            return Err(format!("EMA alpha must be in (0, 1], got {}", self.alpha));
+        }
+        if !(0.0..=1.0).contains(&self.blend_own_weight) {
+            return Err(format!("blend weight must be in [0, 1], got {}", self.blend_own_weight));
+        }
+        if self.tile_rows == 0 {
+            return Err("tile rows must be at least 1".into());
+        }
+        self.tolerances.validate().map_err(|e| e.to_string())
+    }
+}
+
+/// Why a pipeline could not be built or could not run a frame.
+#[derive(Debug, thiserror::Error)]
+pub enum PipelineError {
+    #[error("invalid pipeline configuration: {0}")]
+    Config(String),
+    #[error(transparent)]
+    Frame(#[from] FrameError),
+    #[error(transparent)]
+    Render(#[from] RenderError),
+}
+
+/// Time per stage of one frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StageTimes {
+    pub gbuffer: Duration,
+    pub reprojection: Duration,
+    pub tracing: Duration,
+    pub accumulation: Duration,
+    pub total: Duration,
+}
+
+/// What one frame did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FrameStats {
+    pub frame: u32,
+    pub times: StageTimes,
+    /// Pixels path traced per eye (left, right).
+    pub traced_pixels: [u64; 2],
+    /// Pixels each eye would have traced without a budget.
+    pub wanted_pixels: [u64; 2],
+    pub trace: TraceStats,
+    /// Stereo reprojection into each eye (left, right), by reason; zero where unused.
+    pub stereo_reasons: [ReasonCounts; 2],
+    /// Temporal reprojection of each eye's history, by reason; zero where unused or on the
+    /// first frame.
+    pub temporal_reasons: [ReasonCounts; 2],
+    pub accumulation: [AccumulateStats; 2],
+    pub budget: Option<Duration>,
+    /// False when the budget was set and the frame took longer.
+    pub budget_met: bool,
+}
+
+/// One eye's buffers.
+struct EyeState {
+    camera: CameraModel,
+    prev_camera: Option<CameraModel>,
+    gbuffer: GBufferBuf,
+    prev_gbuffer: GBufferBuf,
+    /// This frame's path-traced samples (where traced).
+    traced: RgbBuf,
+    /// Stereo reprojection of the other eye / blend output / the stereo-mode left image.
+    work: RgbBuf,
+    /// Temporal history: reprojected from `prev_history`, then accumulated in place.
+    history: RgbBuf,
+    prev_history: RgbBuf,
+    len: PlaneBuf,
+    prev_len: PlaneBuf,
+    stereo_reason: PlaneBuf<u8>,
+    temporal_reason: PlaneBuf<u8>,
+    /// The history-validity plane the EMA reads (a combination in some modes).
+    ema_reason: PlaneBuf<u8>,
+    /// Pixels to trace this frame, and (after tracing) where a new sample exists.
+    wanted: PlaneBuf<u8>,
+    has_new: PlaneBuf<u8>,
+    /// Pixels with no valid reprojected data (traced first under a budget).
+    urgent: PlaneBuf<u8>,
+}
+
+impl EyeState {
+    fn new(camera: CameraModel) -> Self {
+        let e = camera.extent;
+        let rgb = || RgbBuf::new(e, 0.0);
+        Self {
+            camera,
+            prev_camera: None,
+            gbuffer: GBufferBuf::new(camera),
+            prev_gbuffer: GBufferBuf::new(camera),
+            traced: rgb(),
+            work: rgb(),
+            history: rgb(),
+            prev_history: rgb(),
+            len: PlaneBuf::new(e, 0.0),
+            prev_len: PlaneBuf::new(e, 0.0),
+            stereo_reason: PlaneBuf::new(e, Reason::Invalid as u8),
+            temporal_reason: PlaneBuf::new(e, Reason::Invalid as u8),
+            ema_reason: PlaneBuf::new(e, Reason::Invalid as u8),
+            wanted: PlaneBuf::new(e, 0),
+            has_new: PlaneBuf::new(e, 0),
+            urgent: PlaneBuf::new(e, 0),
+        }
+    }
+}
+
+/// The per-frame pipeline.
+pub struct Pipeline<'r> {
+    renderer: &'r Renderer,
+    config: PipelineConfig,
+    rig: StereoRig,
+    extent: Extent,
+    lights: FrameLights,
+    eyes: [EyeState; 2],
+    frames_done: u32,
+}
+
+const L: usize = Eye::Left as usize;
+
+fn is_reprojected(code: u8) -> bool {
+    code == Reason::Reprojected as u8
+}
+
+impl<'r> Pipeline<'r> {
+    /// Allocates every buffer for frames of `extent`.
+    pub fn new(
+        renderer: &'r Renderer,
+        config: PipelineConfig,
+        rig: StereoRig,
+        extent: Extent,
+    ) -> Result<Self, PipelineError> {
+        config.validate().map_err(PipelineError::Config)?;
+        let head = renderer.scene().camera.pose_at(0.0);
+        let camera = |eye| rig.eye_camera(&head, eye, extent);
+        Ok(Self {
+            renderer,
+            config,
+            rig,
+            extent,
+            lights: renderer.frame_lights(0),
+            eyes: [EyeState::new(camera(Eye::Left)?), EyeState::new(camera(Eye::Right)?)],
+            frames_done: 0,
+        })
+    }
+
+    pub fn config(&self) -> &PipelineConfig {
+        &self.config
+    }
+
+    pub fn extent(&self) -> Extent {
+        self.extent
+    }
+
+    /// Forgets the history (the next frame starts fresh, as the first one did).
+    pub fn reset(&mut self) {
+        self.frames_done = 0;
+        for e in &mut self.eyes {
+            e.prev_camera = None;
+        }
+    }
+
+    /// The image `eye` shows for the last frame.
+    pub fn output(&self, eye: Eye) -> &RgbBuf {
+        let s = &self.eyes[eye as usize];
+        match (self.config.mode, eye, self.config.order) {
+            (Mode::PathTraced, ..) | (Mode::Stereo, Eye::Right, _) => &s.traced,
+            (Mode::Stereo, Eye::Left, _) | (Mode::StereoBlend, ..) => &s.work,
+            (Mode::SpatiotemporalBlend, _, Order::Paper) => &s.work,
+            (Mode::Temporal | Mode::Spatiotemporal | Mode::SpatiotemporalBlend, ..) => &s.history,
+        }
+    }
+
+    /// The G-buffer of `eye` for the last frame.
+    pub fn gbuffer(&self, eye: Eye) -> &GBufferBuf {
+        &self.eyes[eye as usize].gbuffer
+    }
+
+    /// The stereo reprojection reason codes of `eye` for the last frame (all `Invalid` in
+    /// modes without stereo reprojection into that eye).
+    pub fn stereo_reasons(&self, eye: Eye) -> &PlaneBuf<u8> {
+        &self.eyes[eye as usize].stereo_reason
+    }
+
+    /// The temporal reprojection reason codes of `eye` for the last frame.
+    pub fn temporal_reasons(&self, eye: Eye) -> &PlaneBuf<u8> {
+        &self.eyes[eye as usize].temporal_reason
+    }
+
+    /// Renders frame `frame` (the index keys the random numbers and places moving lights)
+    /// seen from `head`.
+    pub fn render_frame(&mut self, frame: u32, head: &CameraPose) -> Result<FrameStats, PipelineError> {
+        let start = Instant::now();
+        let mut stats = FrameStats { frame, budget: self.config.budget, ..FrameStats::default() };
+        let has_history = self.frames_done > 0;
+
+        // G-buffers of both eyes (last frame's become the temporal source).
+        let t0 = Instant::now();
+        self.lights.update(self.renderer.scene(), frame);
+        for eye in Eye::BOTH {
+            let camera = self.rig.eye_camera(head, eye, self.extent)?;
+            let s = &mut self.eyes[eye as usize];
+            std::mem::swap(&mut s.gbuffer, &mut s.prev_gbuffer);
+            std::mem::swap(&mut s.history, &mut s.prev_history);
+            std::mem::swap(&mut s.len, &mut s.prev_len);
+            s.prev_camera = has_history.then_some(s.camera);
+            s.camera = camera;
+            s.gbuffer.camera = camera;
+            self.renderer.render_gbuffer(&self.lights, &mut s.gbuffer);
+        }
+        stats.times.gbuffer = t0.elapsed();
+
+        let mode = self.config.mode;
+        // Temporal reprojection of each eye's history.
+        if mode.temporal() {
+            let t = Instant::now();
+            for eye in Eye::BOTH {
+                stats.temporal_reasons[eye as usize] = self.reproject_history(eye, has_history)?;
+            }
+            stats.times.reprojection += t.elapsed();
+        }
+
+        match (mode, self.config.order) {
+            (Mode::PathTraced, _) => {
+                for eye in Eye::BOTH {
+                    self.trace_all(eye, &mut stats, start)?;
+                }
+            }
+            (Mode::Stereo, _) => {
+                self.trace_all(Eye::Right, &mut stats, start)?;
+                self.stereo_fill_left(StereoSource::Traced, &mut stats, start)?;
+            }
+            (Mode::Temporal, _) => {
+                for eye in Eye::BOTH {
+                    self.trace_all(eye, &mut stats, start)?;
+                    self.accumulate(eye, Source::Traced, &mut stats)?;
+                }
+            }
+            (Mode::Spatiotemporal, Order::Paper) => {
+                self.trace_all(Eye::Right, &mut stats, start)?;
+                self.accumulate(Eye::Right, Source::Traced, &mut stats)?;
+                self.stereo_fill_left(StereoSource::History, &mut stats, start)?;
+                // Stereo-valid pixels show the reprojected right-eye accumulation as is; the
+                // rest accumulate their own path-traced samples with the left history.
+                let s = &mut self.eyes[L];
+                for ((ema, &stereo), &temporal) in s
+                    .ema_reason
+                    .as_mut_slice()
+                    .iter_mut()
+                    .zip(s.stereo_reason.as_slice())
+                    .zip(s.temporal_reason.as_slice())
+                {
+                    *ema = if is_reprojected(stereo) { Reason::Invalid as u8 } else { temporal };
+                }
+                self.accumulate(Eye::Left, Source::WorkCombined, &mut stats)?;
+            }
+            (Mode::Spatiotemporal, Order::StereoFirst) => {
+                self.trace_all(Eye::Right, &mut stats, start)?;
+                self.stereo_fill_left(StereoSource::Traced, &mut stats, start)?;
+                self.accumulate(Eye::Right, Source::Traced, &mut stats)?;
+                self.accumulate(Eye::Left, Source::Work, &mut stats)?;
+            }
+            (Mode::StereoBlend, _) => {
+                for eye in Eye::BOTH {
+                    self.trace_all(eye, &mut stats, start)?;
+                }
+                for eye in Eye::BOTH {
+                    self.stereo_blend(eye, StereoSource::Traced, &mut stats)?;
+                }
+            }
+            (Mode::SpatiotemporalBlend, Order::Paper) => {
+                for eye in Eye::BOTH {
+                    self.trace_all(eye, &mut stats, start)?;
+                    self.accumulate(eye, Source::Traced, &mut stats)?;
+                }
+                for eye in Eye::BOTH {
+                    self.stereo_blend(eye, StereoSource::History, &mut stats)?;
+                }
+            }
+            (Mode::SpatiotemporalBlend, Order::StereoFirst) => {
+                for eye in Eye::BOTH {
+                    self.trace_all(eye, &mut stats, start)?;
+                }
+                for eye in Eye::BOTH {
+                    self.stereo_blend(eye, StereoSource::Traced, &mut stats)?;
+                }
+                for eye in Eye::BOTH {
+                    self.accumulate(eye, Source::Work, &mut stats)?;
+                }
+            }
+        }
+        self.frames_done += 1;
+        stats.times.total = start.elapsed();
+        stats.budget_met = self.config.budget.is_none_or(|b| stats.times.total <= b);
+        Ok(stats)
+    }
+
+    fn reproject_params(&self) -> ReprojectParams {
+        ReprojectParams { tolerances: self.config.tolerances, policy: self.config.policy, band_rows: 16 }
+    }
+
+    /// Reprojects `eye`'s previous history into this frame (`history`, `len`,
+    /// `temporal_reason`); on the first frame every pixel is marked invalid.
+    fn reproject_history(&mut self, eye: Eye, has_history: bool) -> Result<ReasonCounts, PipelineError> {
+        let params = self.reproject_params();
+        let ramp = self.config.ramp;
+        let layout = self.config.layout;
+        let s = &mut self.eyes[eye as usize];
+        let Some(prev_camera) = s.prev_camera.filter(|_| has_history) else {
+            s.temporal_reason.as_mut_slice().fill(Reason::Invalid as u8);
+            return Ok(ReasonCounts::default());
+        };
+        let (history, len, reason) = (&mut s.history, &mut s.len, &mut s.temporal_reason);
+        let out = ReprojectOutput {
+            colour: history.view_mut(),
+            extra: ramp.then(|| len.view_mut()),
+            reason: reason.view_mut(),
+            weight: None,
+        };
+        let colour = s.prev_history.view();
+        let extra = ramp.then(|| s.prev_len.view());
+        let counts = match layout {
+            Layout::Compact => {
+                let (t, src) = (s.gbuffer.compact(), s.prev_gbuffer.compact());
+                let input = ReprojectInput { target: &t, source: &src, source_camera: &prev_camera, colour, extra };
+                reproject::reproject(&input, out, &params)?
+            }
+            Layout::Full => {
+                let (t, src) = (s.gbuffer.view(), s.prev_gbuffer.view());
+                let input = ReprojectInput { target: &t, source: &src, source_camera: &prev_camera, colour, extra };
+                reproject::reproject(&input, out, &params)?
+            }
+        };
+        Ok(counts)
+    }
+
+    /// Stereo reprojection of the other eye's `source` image into `eye`'s `work` buffer.
+    fn stereo_into(&mut self, eye: Eye, source: StereoSource) -> Result<ReasonCounts, PipelineError> {
+        let params = self.reproject_params();
+        let layout = self.config.layout;
+        let (target, other) = match eye {
+            Eye::Left => {
+                let [l, r] = &mut self.eyes;
+                (l, &*r)
+            }
+            Eye::Right => {
+                let [l, r] = &mut self.eyes;
+                (r, &*l)
+            }
+        };
+        let colour = match source {
+            StereoSource::Traced => other.traced.view(),
+            StereoSource::History => other.history.view(),
+        };
+        let out = ReprojectOutput {
+            colour: target.work.view_mut(),
+            extra: None,
+            reason: target.stereo_reason.view_mut(),
+            weight: None,
+        };
+        let counts = match layout {
+            Layout::Compact => {
+                let (t, src) = (target.gbuffer.compact(), other.gbuffer.compact());
+                let input =
+                    ReprojectInput { target: &t, source: &src, source_camera: &other.camera, colour, extra: None };
+                reproject::reproject(&input, out, &params)?
+            }
+            Layout::Full => {
+                let (t, src) = (target.gbuffer.view(), other.gbuffer.view());
+                let input =
+                    ReprojectInput { target: &t, source: &src, source_camera: &other.camera, colour, extra: None };
+                reproject::reproject(&input, out, &params)?
+            }
+        };
+        Ok(counts)
+    }
+
+    /// The stereo-mode left image in `work`: the right eye's `source` reprojected where
+    /// valid, path traced where discarded.
+    fn stereo_fill_left(
+        &mut self,
+        source: StereoSource,
+        stats: &mut FrameStats,
+        start: Instant,
+    ) -> Result<(), PipelineError> {
+        let t = Instant::now();
+        stats.stereo_reasons[L] = self.stereo_into(Eye::Left, source)?;
+        stats.times.reprojection += t.elapsed();
+        let s = &mut self.eyes[L];
+        let temporal_valid = self.config.mode.temporal() && self.frames_done > 0;
+        for (((wanted, urgent), &stereo), &temporal) in s
+            .wanted
+            .as_mut_slice()
+            .iter_mut()
+            .zip(s.urgent.as_mut_slice())
+            .zip(s.stereo_reason.as_slice())
+            .zip(s.temporal_reason.as_slice())
+        {
+            *wanted = u8::from(!is_reprojected(stereo));
+            // Urgent: neither a stereo sample nor a temporal history to fall back on.
+            *urgent = u8::from(!(is_reprojected(stereo) || (temporal_valid && is_reprojected(temporal))));
+        }
+        self.trace_wanted(Eye::Left, Target::Work, stats, start)?;
+        // Where nothing was traced, the stereo sample (if valid) is the new sample.
+        let s = &mut self.eyes[L];
+        for (has, &stereo) in s.has_new.as_mut_slice().iter_mut().zip(s.stereo_reason.as_slice()) {
+            *has |= u8::from(is_reprojected(stereo));
+        }
+        Ok(())
+    }
+
+    /// `eye`'s `work` = blend of its own image and the other eye's reprojection.
+    fn stereo_blend(&mut self, eye: Eye, source: StereoSource, stats: &mut FrameStats) -> Result<(), PipelineError> {
+        let t = Instant::now();
+        stats.stereo_reasons[eye as usize] = self.stereo_into(eye, source)?;
+        stats.times.reprojection += t.elapsed();
+        let t = Instant::now();
+        let params = BlendParams { own_weight: self.config.blend_own_weight, band_rows: 16 };
+        let s = &mut self.eyes[eye as usize];
+        let own = match source {
+            StereoSource::Traced => s.traced.view(),
+            StereoSource::History => s.history.view(),
+        };
+        let blend = accumulate::blend(&own, s.work.view_mut(), &s.stereo_reason.view(), &params)?;
+        let acc = &mut stats.accumulation[eye as usize];
+        acc.non_finite += blend.non_finite;
+        acc.holes += blend.holes;
+        stats.times.accumulation += t.elapsed();
+        Ok(())
+    }
+
+    /// Path traces every pixel of `eye` (those without valid history first under a budget).
+    fn trace_all(&mut self, eye: Eye, stats: &mut FrameStats, start: Instant) -> Result<(), PipelineError> {
+        let temporal_valid = self.config.mode.temporal() && self.frames_done > 0;
+        let s = &mut self.eyes[eye as usize];
+        s.wanted.as_mut_slice().fill(1);
+        for (urgent, &temporal) in s.urgent.as_mut_slice().iter_mut().zip(s.temporal_reason.as_slice()) {
+            *urgent = u8::from(!(temporal_valid && is_reprojected(temporal)));
+        }
+        self.trace_wanted(eye, Target::Traced, stats, start)
+    }
+
+    /// Traces the `wanted` pixels of `eye` into `target`: all of them without a budget;
+    /// with one, the `urgent` ones first, then the rest tile by tile while time remains.
+    /// Leaves `has_new` = what was traced.
+    fn trace_wanted(
+        &mut self,
+        eye: Eye,
+        target: Target,
+        stats: &mut FrameStats,
+        start: Instant,
+    ) -> Result<(), PipelineError> {
+        let t = Instant::now();
+        let config = self.config;
+        let s = &mut self.eyes[eye as usize];
+        let request = TraceRequest { eye, frame: stats.frame, spp: config.spp, seed: config.seed, first_sample: 0 };
+        let out = match target {
+            Target::Traced => &mut s.traced,
+            Target::Work => &mut s.work,
+        };
+        let wanted_count = s.wanted.as_slice().iter().filter(|&&w| w != 0).count() as u64;
+        stats.wanted_pixels[eye as usize] += wanted_count;
+        let height = self.extent.height();
+        match config.budget {
+            None => {
+                let trace = self.renderer.trace_rows(
+                    &self.lights,
+                    &s.camera,
+                    &request,
+                    PixelSelection::Mask(&s.wanted),
+                    0..height,
+                    out,
+                    config.general_integrator,
+                )?;
+                stats.trace = stats.trace + trace;
+                s.has_new.as_mut_slice().copy_from_slice(s.wanted.as_slice());
+                stats.traced_pixels[eye as usize] += wanted_count;
+            }
+            Some(budget) => {
+                // Urgent pixels first (whole frame), then the others tile by tile.
+                for (has, (&w, &u)) in
+                    s.has_new.as_mut_slice().iter_mut().zip(s.wanted.as_slice().iter().zip(s.urgent.as_slice()))
+                {
+                    *has = w & u;
+                }
+                let urgent_count = s.has_new.as_slice().iter().filter(|&&h| h != 0).count() as u64;
+                let trace = self.renderer.trace_rows(
+                    &self.lights,
+                    &s.camera,
+                    &request,
+                    PixelSelection::Mask(&s.has_new),
+                    0..height,
+                    out,
+                    config.general_integrator,
+                )?;
+                stats.trace = stats.trace + trace;
+                stats.traced_pixels[eye as usize] += urgent_count;
+                // The rest: `wanted` minus `urgent`, as a mask in `urgent` (reused).
+                for (u, (&w, &h)) in
+                    s.urgent.as_mut_slice().iter_mut().zip(s.wanted.as_slice().iter().zip(s.has_new.as_slice()))
+                {
+                    *u = w & !h & 1;
+                }
+                let tile = config.tile_rows;
+                let mut y0 = 0;
+                while y0 < height && start.elapsed() < budget {
+                    let rows = y0..(y0 + tile).min(height);
+                    let trace = self.renderer.trace_rows(
+                        &self.lights,
+                        &s.camera,
+                        &request,
+                        PixelSelection::Mask(&s.urgent),
+                        rows.clone(),
+                        out,
+                        config.general_integrator,
+                    )?;
+                    stats.trace = stats.trace + trace;
+                    let w = self.extent.width();
+                    let span = rows.start * w..rows.end * w;
+                    for (has, &u) in s.has_new.as_mut_slice()[span.clone()].iter_mut().zip(&s.urgent.as_slice()[span]) {
+                        if u != 0 {
+                            *has = 1;
+                            stats.traced_pixels[eye as usize] += 1;
+                        }
+                    }
+                    y0 = rows.end;
+                }
+            }
+        }
+        stats.times.tracing += t.elapsed();
+        Ok(())
+    }
+
+    /// EMA of `eye`'s reprojected history with this frame's `source` samples.
+    fn accumulate(&mut self, eye: Eye, source: Source, stats: &mut FrameStats) -> Result<(), PipelineError> {
+        let t = Instant::now();
+        let params = EmaParams { alpha: self.config.alpha, ramp: self.config.ramp, band_rows: 16 };
+        let ramp = self.config.ramp;
+        let s = &mut self.eyes[eye as usize];
+        let (new, reason) = match source {
+            Source::Traced => (s.traced.view(), s.temporal_reason.view()),
+            Source::Work => (s.work.view(), s.temporal_reason.view()),
+            Source::WorkCombined => (s.work.view(), s.ema_reason.view()),
+        };
+        let input = EmaInput { new, reason, has_new: Some(s.has_new.view()) };
+        let state = EmaState { accum: s.history.view_mut(), history_len: ramp.then(|| s.len.view_mut()) };
+        let acc = accumulate::ema(&input, state, &params)?;
+        let total = &mut stats.accumulation[eye as usize];
+        total.non_finite += acc.non_finite;
+        total.holes += acc.holes;
+        total.resets += acc.resets;
+        stats.times.accumulation += t.elapsed();
+        Ok(())
+    }
+}
+
+/// Which image of the other eye a stereo reprojection reads.
+#[derive(Clone, Copy)]
+enum StereoSource {
+    Traced,
+    History,
+}
+
+/// Where new samples for the EMA come from.
+#[derive(Clone, Copy)]
+enum Source {
+    Traced,
+    Work,
+    /// `work`, with the combined validity plane (paper-order spatiotemporal left eye).
+    WorkCombined,
+}
+
+/// Which buffer tracing writes.
+#[derive(Clone, Copy)]
+enum Target {
+    Traced,
+    Work,
+}

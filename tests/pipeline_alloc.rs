@@ -1,0 +1,67 @@
+//! A frame through a warmed-up pipeline allocates nothing, in every mode (one test per file:
+//! the counting allocator sees the whole process).
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use stereotrace::camera::StereoRig;
+use stereotrace::kernels::Extent;
+use stereotrace::pipeline::{Mode, Order, Pipeline, PipelineConfig};
+use stereotrace::render::Renderer;
+use stereotrace::scene::resolve;
+
+struct Counting;
+
+static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
+
+// SAFETY: forwards to the system allocator unchanged; only counts.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        // SAFETY: same contract as the caller's.
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: same contract as the caller's.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        // SAFETY: same contract as the caller's.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+#[test]
+fn frames_after_the_first_allocate_nothing() {
+    // The moving-light scene exercises the per-frame light table too.
+    let renderer = Renderer::new(resolve("living-room-moving-light").unwrap()).unwrap();
+    let e = Extent::new(64, 36).unwrap();
+    let poses: Vec<_> = (0..4).map(|f| renderer.scene().camera.pose_at(f as f32)).collect();
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+    for mode in Mode::ALL {
+        for order in [Order::Paper, Order::StereoFirst] {
+            for budget in [None, Some(std::time::Duration::from_micros(300))] {
+                let mut cfg = PipelineConfig::paper(mode, 1, renderer.scene().tolerances.at_height(36));
+                cfg.order = order;
+                cfg.ramp = true;
+                cfg.budget = budget;
+                let mut pipeline = Pipeline::new(&renderer, cfg, StereoRig::default(), e).unwrap();
+                let allocated = pool.install(|| {
+                    for f in 0..2 {
+                        pipeline.render_frame(f, &poses[f as usize]).unwrap();
+                    }
+                    let before = ALLOCATIONS.load(Ordering::SeqCst);
+                    for f in 2..4 {
+                        pipeline.render_frame(f, &poses[f as usize]).unwrap();
+                    }
+                    ALLOCATIONS.load(Ordering::SeqCst) - before
+                });
+                assert_eq!(allocated, 0, "{mode} {order:?} budget {budget:?}: {allocated} allocations in two frames");
+            }
+        }
+    }
+}
