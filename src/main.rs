@@ -12,6 +12,42 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Measure real-time stereo throughput: fps, per-stage times, share traced, speed-up.
+    Throughput {
+        /// A built-in scene name, a manifest (*.toml) or a scene folder.
+        #[arg(long, default_value = "atrium")]
+        scene: String,
+        /// Resolution per eye, WIDTHxHEIGHT.
+        #[arg(long, default_value = "1280x720", value_parser = stereotrace::commands::parse_resolution)]
+        res: stereotrace::kernels::Extent,
+        /// Worker threads.
+        #[arg(long, default_value_t = 2)]
+        threads: usize,
+        /// Frames to measure (after one warm-up frame).
+        #[arg(long, default_value_t = 20)]
+        frames: u32,
+        /// Samples per traced pixel.
+        #[arg(long, default_value_t = 1)]
+        spp: u32,
+        /// Pipeline mode.
+        #[arg(long, value_enum, default_value_t = stereotrace::pipeline::Mode::Spatiotemporal)]
+        mode: stereotrace::pipeline::Mode,
+        /// Order of stereo and temporal reprojection (spatiotemporal modes).
+        #[arg(long, value_enum, default_value_t = stereotrace::pipeline::Order::Paper)]
+        order: stereotrace::pipeline::Order,
+        /// G-buffer layout the reprojection reads.
+        #[arg(long, value_enum, default_value_t = stereotrace::pipeline::Layout::Compact)]
+        layout: stereotrace::pipeline::Layout,
+        /// Per-frame time budget in milliseconds (tracing stops when it is spent).
+        #[arg(long)]
+        budget_ms: Option<f64>,
+        /// Skip the full-stereo baseline run (no speed-up figure).
+        #[arg(long)]
+        no_baseline: bool,
+        /// Print one JSON object instead of text.
+        #[arg(long)]
+        json: bool,
+    },
     /// Path trace frames of a scene and write linear HDR EXR files and PNG previews.
     Render {
         /// A built-in scene name (see `stereotrace scenes`), a manifest (*.toml) or a scene folder.
@@ -62,6 +98,28 @@ fn main() -> ExitCode {
     }
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Throughput { scene, res, threads, frames, spp, mode, order, layout, budget_ms, no_baseline, json } => {
+            let opts = stereotrace::commands::throughput::ThroughputOptions {
+                scene,
+                extent: res,
+                threads,
+                frames,
+                spp,
+                mode,
+                order,
+                layout,
+                budget_ms,
+                baseline: !no_baseline,
+            };
+            stereotrace::commands::throughput::run(&opts).and_then(|report| {
+                if json {
+                    println!("{}", serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?);
+                } else {
+                    print!("{}", report.text());
+                }
+                Ok(())
+            })
+        }
         Command::Render { scene, frames, first_frame, spp, res, eye, out, eye_separation, seed, exposure, general } => {
             let opts = stereotrace::commands::render::RenderOptions {
                 scene,

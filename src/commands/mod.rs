@@ -2,6 +2,7 @@
 //! errors).
 
 pub mod render;
+pub mod throughput;
 
 use crate::kernels::Extent;
 

@@ -1,0 +1,233 @@
+//! `stereotrace throughput`: the thin real-time driver. Runs the pipeline for a scene and
+//! mode on a fixed thread pool, then the same frames with both eyes fully path traced, and
+//! reports frames per second, per-stage times (median and p95), Mrays/s, the share of
+//! left-eye pixels path traced and the speed-up over full stereo path tracing, all measured
+//! in the same run.
+
+use std::time::Duration;
+
+use serde::Serialize;
+
+use crate::camera::{Eye, StereoRig};
+use crate::kernels::Extent;
+use crate::pipeline::{FrameStats, Layout, Mode, Order, Pipeline, PipelineConfig};
+use crate::render::Renderer;
+
+/// Options of the throughput command.
+#[derive(Clone, Debug)]
+pub struct ThroughputOptions {
+    pub scene: String,
+    pub extent: Extent,
+    pub threads: usize,
+    pub frames: u32,
+    pub spp: u32,
+    pub mode: Mode,
+    pub order: Order,
+    pub layout: Layout,
+    pub budget_ms: Option<f64>,
+    /// Also measure full stereo path tracing for the speed-up (doubles the run time).
+    pub baseline: bool,
+}
+
+/// Median and 95th percentile of a series, in milliseconds.
+#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
+pub struct Spread {
+    pub median_ms: f64,
+    pub p95_ms: f64,
+    pub max_ms: f64,
+}
+
+impl Spread {
+    fn of(mut values: Vec<f64>) -> Self {
+        if values.is_empty() {
+            return Self::default();
+        }
+        values.sort_by(f64::total_cmp);
+        let pick = |q: f64| values[((values.len() - 1) as f64 * q).round() as usize];
+        Self { median_ms: pick(0.5), p95_ms: pick(0.95), max_ms: values[values.len() - 1] }
+    }
+}
+
+/// Everything the driver measured (the `--json` object).
+#[derive(Clone, Debug, Serialize)]
+pub struct ThroughputReport {
+    pub scene: String,
+    pub width: usize,
+    pub height: usize,
+    pub threads: usize,
+    pub mode: String,
+    pub order: String,
+    pub layout: String,
+    pub spp: u32,
+    pub frames_measured: usize,
+    pub simd_level: &'static str,
+    pub stereo_fps: f64,
+    pub frame: Spread,
+    pub gbuffer: Spread,
+    pub reprojection: Spread,
+    pub tracing: Spread,
+    pub accumulation: Spread,
+    pub mrays_per_s: f64,
+    /// Share of left-eye pixels path traced (median over frames).
+    pub left_traced_share: f64,
+    /// Share of right-eye pixels path traced.
+    pub right_traced_share: f64,
+    /// Median frame time of full stereo path tracing at the same spp, if measured.
+    pub full_stereo_frame_ms: Option<f64>,
+    /// `full_stereo_frame_ms / frame.median_ms`.
+    pub speedup_over_full_stereo: Option<f64>,
+    pub budget_ms: Option<f64>,
+    pub budget_misses: usize,
+    /// Worst overrun beyond the budget.
+    pub worst_overrun_ms: f64,
+}
+
+fn ms(d: Duration) -> f64 {
+    d.as_secs_f64() * 1e3
+}
+
+/// Runs `frames + 1` frames (the first, without history, is not measured) and returns the
+/// stats of the measured ones.
+fn run_frames(
+    renderer: &Renderer,
+    config: PipelineConfig,
+    extent: Extent,
+    frames: u32,
+) -> Result<Vec<FrameStats>, String> {
+    let mut pipeline = Pipeline::new(renderer, config, StereoRig::default(), extent).map_err(|e| e.to_string())?;
+    let path = &renderer.scene().camera;
+    let mut stats = Vec::with_capacity(frames as usize);
+    for i in 0..=frames {
+        // Walk the camera path forward and back so any number of frames stays on it.
+        let n = path.frames.max(2);
+        let period = 2 * (n - 1);
+        let k = i % period;
+        let frame = if k < n { k } else { period - k };
+        let head = path.pose(frame);
+        let s = pipeline.render_frame(i, &head).map_err(|e| e.to_string())?;
+        if i > 0 {
+            stats.push(s);
+        }
+    }
+    Ok(stats)
+}
+
+/// Runs the driver.
+pub fn run(opts: &ThroughputOptions) -> Result<ThroughputReport, String> {
+    if opts.frames == 0 {
+        return Err("--frames must be at least 1".into());
+    }
+    if opts.threads == 0 {
+        return Err("--threads must be at least 1".into());
+    }
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(opts.threads)
+        .build()
+        .map_err(|e| format!("cannot start {} threads: {e}", opts.threads))?;
+    let scene = crate::scene::resolve(&opts.scene).map_err(|e| e.to_string())?;
+    let name = scene.name.clone();
+    let renderer = Renderer::new(scene).map_err(|e| e.to_string())?;
+    let tolerances = renderer.scene().tolerances.at_height(opts.extent.height());
+    let mut config = PipelineConfig::paper(opts.mode, opts.spp, tolerances);
+    config.order = opts.order;
+    config.layout = opts.layout;
+    config.budget = opts.budget_ms.map(|b| Duration::from_secs_f64(b / 1e3));
+    let stats = pool.install(|| run_frames(&renderer, config, opts.extent, opts.frames))?;
+    let baseline = if opts.baseline && opts.mode != Mode::PathTraced {
+        let full = PipelineConfig { mode: Mode::PathTraced, budget: None, ..config };
+        let s = pool.install(|| run_frames(&renderer, full, opts.extent, opts.frames))?;
+        Some(Spread::of(s.iter().map(|f| ms(f.times.total)).collect()))
+    } else if opts.mode == Mode::PathTraced {
+        Some(Spread::of(stats.iter().map(|f| ms(f.times.total)).collect()))
+    } else {
+        None
+    };
+
+    let series = |f: fn(&FrameStats) -> Duration| Spread::of(stats.iter().map(|s| ms(f(s))).collect());
+    let frame = series(|s| s.times.total);
+    let pixels = opts.extent.pixels() as f64;
+    let share = |eye: Eye| {
+        let mut v: Vec<f64> = stats.iter().map(|s| s.traced_pixels[eye as usize] as f64 / pixels).collect();
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let total_time: f64 = stats.iter().map(|s| s.times.total.as_secs_f64()).sum();
+    let rays: u64 = stats.iter().map(|s| s.trace.rays).sum();
+    let tracing_time: f64 = stats.iter().map(|s| s.times.tracing.as_secs_f64()).sum();
+    let (misses, worst) = match opts.budget_ms {
+        Some(b) => stats.iter().fold((0, 0.0f64), |(n, w), s| {
+            let t = ms(s.times.total);
+            (n + usize::from(t > b), w.max(t - b))
+        }),
+        None => (0, 0.0),
+    };
+    Ok(ThroughputReport {
+        scene: name,
+        width: opts.extent.width(),
+        height: opts.extent.height(),
+        threads: opts.threads,
+        mode: opts.mode.name().into(),
+        order: opts.order.name().into(),
+        layout: format!("{:?}", opts.layout).to_lowercase(),
+        spp: opts.spp,
+        frames_measured: stats.len(),
+        simd_level: crate::cpu::simd_level(),
+        stereo_fps: stats.len() as f64 / total_time,
+        frame,
+        gbuffer: series(|s| s.times.gbuffer),
+        reprojection: series(|s| s.times.reprojection),
+        tracing: series(|s| s.times.tracing),
+        accumulation: series(|s| s.times.accumulation),
+        mrays_per_s: if tracing_time > 0.0 { rays as f64 / tracing_time / 1e6 } else { 0.0 },
+        left_traced_share: share(Eye::Left),
+        right_traced_share: share(Eye::Right),
+        full_stereo_frame_ms: baseline.map(|b| b.median_ms),
+        speedup_over_full_stereo: baseline.map(|b| b.median_ms / frame.median_ms),
+        budget_ms: opts.budget_ms,
+        budget_misses: misses,
+        worst_overrun_ms: worst.max(0.0),
+    })
+}
+
+impl ThroughputReport {
+    /// The human-readable summary.
+    pub fn text(&self) -> String {
+        let stage =
+            |name: &str, s: &Spread| format!("  {name:<13} {:>9.2} ms median {:>9.2} ms p95\n", s.median_ms, s.p95_ms);
+        let mut out = format!(
+            "{} {}x{} {} threads, mode {} (order {}, {} G-buffer), {} spp, {}: {} frames measured\n",
+            self.scene,
+            self.width,
+            self.height,
+            self.threads,
+            self.mode,
+            self.order,
+            self.layout,
+            self.spp,
+            self.simd_level,
+            self.frames_measured
+        );
+        out += &format!("  stereo fps    {:>9.2}\n", self.stereo_fps);
+        out += &stage("frame", &self.frame);
+        out += &stage("g-buffers", &self.gbuffer);
+        out += &stage("reprojection", &self.reprojection);
+        out += &stage("path tracing", &self.tracing);
+        out += &stage("accumulation", &self.accumulation);
+        out += &format!("  Mrays/s       {:>9.2} (while tracing)\n", self.mrays_per_s);
+        out += &format!(
+            "  traced        {:>8.1} % of left-eye pixels, {:.1} % of right-eye pixels\n",
+            100.0 * self.left_traced_share,
+            100.0 * self.right_traced_share
+        );
+        if let (Some(full), Some(speedup)) = (self.full_stereo_frame_ms, self.speedup_over_full_stereo) {
+            out += &format!("  full stereo   {full:>9.2} ms median (both eyes path traced): speed-up {speedup:.2}x\n");
+        }
+        if let Some(b) = self.budget_ms {
+            out += &format!(
+                "  budget        {b:>9.2} ms: {} of {} frames over, worst overrun {:.2} ms\n",
+                self.budget_misses, self.frames_measured, self.worst_overrun_ms
+            );
+        }
+        out
+    }
+}
