@@ -1,0 +1,125 @@
+//! The command-line tool: every bad input gets a message and a non-zero exit, never a panic;
+//! the main job writes what it says.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn stereotrace(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_stereotrace")).args(args).output().expect("the binary runs")
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("stereotrace-cli-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+/// Fails unless the command exited non-zero with `needle` in its error output and without a
+/// panic.
+fn assert_refused(out: &Output, needle: &str) {
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "expected failure, got success: {err}");
+    assert!(err.contains(needle), "stderr does not mention '{needle}': {err}");
+    assert!(!err.contains("panicked"), "the tool panicked: {err}");
+}
+
+#[test]
+fn render_writes_exr_and_png_for_both_eyes() {
+    let dir = temp_dir("render");
+    let out =
+        stereotrace(&["render", "--scene", "cornell", "--spp", "2", "--res", "32x18", "--out", dir.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for eye in ["left", "right"] {
+        for ext in ["exr", "png"] {
+            let f = dir.join(format!("cornell/{eye}_000.{ext}"));
+            assert!(f.metadata().map(|m| m.len() > 0).unwrap_or(false), "{} missing", f.display());
+        }
+    }
+    let img = stereotrace::image_io::read_exr(&dir.join("cornell/left_000.exr")).unwrap();
+    assert_eq!((img.extent().width(), img.extent().height()), (32, 18));
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn unknown_scenes_list_the_built_ins() {
+    let out = stereotrace(&["render", "--scene", "no-such-scene", "--res", "8x8", "--out", "/tmp"]);
+    assert_refused(&out, "atrium");
+}
+
+#[test]
+fn bad_resolutions_and_counts_are_refused() {
+    assert_refused(&stereotrace(&["render", "--res", "0x10"]), "zero");
+    assert_refused(&stereotrace(&["render", "--res", "1280"]), "WIDTHxHEIGHT");
+    assert_refused(&stereotrace(&["render", "--res", "99999x10"]), "too large");
+    assert_refused(&stereotrace(&["render", "--res", "8x8", "--spp", "0", "--out", "/tmp"]), "spp");
+    assert_refused(&stereotrace(&["render", "--res", "8x8", "--frames", "1000", "--out", "/tmp"]), "camera path");
+    assert_refused(&stereotrace(&["render", "--res", "8x8", "--eye-separation=-1", "--out", "/tmp"]), "separation");
+    assert_refused(&stereotrace(&["throughput", "--scene", "cornell", "--res", "16x9", "--frames", "0"]), "frames");
+}
+
+#[test]
+fn malformed_scene_files_name_the_file() {
+    let dir = temp_dir("bad-scene");
+    std::fs::create_dir_all(&dir).unwrap();
+    let manifest = dir.join("broken.toml");
+    std::fs::write(&manifest, "name = \"x\"\nmesh = [1, 2\n").unwrap();
+    let out =
+        stereotrace(&["render", "--scene", manifest.to_str().unwrap(), "--res", "8x8", "--out", dir.to_str().unwrap()]);
+    assert_refused(&out, "broken.toml");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn unwritable_output_is_an_error_not_a_panic() {
+    let dir = temp_dir("unwritable");
+    std::fs::create_dir_all(&dir).unwrap();
+    // A file where the output folder should go.
+    let blocker = dir.join("out");
+    std::fs::write(&blocker, b"not a folder").unwrap();
+    let out = stereotrace(&["render", "--res", "8x8", "--spp", "1", "--out", blocker.to_str().unwrap()]);
+    assert_refused(&out, "out");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn throughput_reports_json_with_every_field() {
+    let out = stereotrace(&[
+        "throughput",
+        "--scene",
+        "cornell",
+        "--res",
+        "32x18",
+        "--frames",
+        "2",
+        "--mode",
+        "spatiotemporal",
+        "--json",
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    for key in [
+        "stereo_fps",
+        "frame",
+        "gbuffer",
+        "reprojection",
+        "tracing",
+        "accumulation",
+        "mrays_per_s",
+        "left_traced_share",
+        "speedup_over_full_stereo",
+    ] {
+        assert!(v.get(key).is_some(), "missing {key}: {v}");
+    }
+    assert!(v["left_traced_share"].as_f64().unwrap() < 0.5);
+    assert_eq!(v["right_traced_share"].as_f64().unwrap(), 1.0);
+}
+
+#[test]
+fn scenes_lists_every_built_in() {
+    let out = stereotrace(&["scenes"]);
+    assert!(out.status.success());
+    let text = String::from_utf8_lossy(&out.stdout);
+    for name in stereotrace::scene::builtin_names() {
+        assert!(text.contains(name), "{name} missing from:\n{text}");
+    }
+}
