@@ -115,6 +115,8 @@ fn assert_bits(what: &str, a: &PlaneBuf, b: &PlaneBuf) {
 /// channel).
 pub fn reproject(data: &[u8]) {
     let mut bytes = Bytes(data);
+    // Row padding of every plane (0 = packed); padding holds NaN, which must never be read.
+    let pad = usize::from(bytes.u8() % 4);
     let extent = extent_from(&mut bytes);
     let source_extent = if bytes.u8() % 4 == 0 { extent_from(&mut bytes) } else { extent };
     let scene = AnalyticScene::room(bytes.unit(1.0, 12.0));
@@ -141,16 +143,77 @@ pub fn reproject(data: &[u8]) {
     let source_finite = [&source.colour.r, &source.colour.g, &source.colour.b].into_iter().all(all_finite);
     let extra = PlaneBuf::from_vec((0..source_extent.pixels()).map(|i| (i % 7) as f32).collect(), source_extent)
         .expect("extent matches");
+    let (target, source) = (Strided::new(&target, pad), Strided::new(&source, pad));
     let (tf, sf) = (target.gbuffer(), source.gbuffer());
     check_reprojection(&tf, &sf, &source, None, &params, source_finite);
     let (tc, sc) = (target.compact(), source.compact());
     check_reprojection(&tc, &sc, &source, Some(&extra), &params, source_finite);
 }
 
+/// A copy of a frame's planes with `pad` extra elements per row (filled with NaN or an
+/// invalid normal, so reading padding would show).
+struct Strided {
+    frame: SynthFrame,
+    stride: usize,
+    depth: Vec<f32>,
+    position: [Vec<f32>; 3],
+    normal: [Vec<f32>; 3],
+    normal_oct: Vec<u32>,
+    colour: [Vec<f32>; 3],
+}
+
+fn padded<T: Copy + Send + Sync>(p: &PlaneBuf<T>, stride: usize, fill: T) -> Vec<T> {
+    let e = p.extent();
+    let mut out = vec![fill; stride * e.height()];
+    for y in 0..e.height() {
+        out[y * stride..y * stride + e.width()].copy_from_slice(p.view().row(y));
+    }
+    out
+}
+
+impl Strided {
+    fn new(frame: &SynthFrame, pad: usize) -> Self {
+        let stride = frame.extent().width() + pad;
+        let f = |p: &PlaneBuf| padded(p, stride, f32::NAN);
+        Self {
+            stride,
+            depth: f(&frame.depth),
+            position: frame.position.each_ref().map(f),
+            normal: frame.normal.each_ref().map(f),
+            normal_oct: padded(&frame.normal_oct, stride, u32::MAX),
+            colour: [&frame.colour.r, &frame.colour.g, &frame.colour.b].map(f),
+            frame: frame.clone(),
+        }
+    }
+
+    fn plane<'a, T: Copy>(&self, data: &'a [T]) -> crate::frame::Plane<'a, T> {
+        let e = self.frame.extent();
+        crate::frame::Plane::new(data, e.width(), e.height(), self.stride).expect("padded plane")
+    }
+
+    fn gbuffer(&self) -> crate::gbuffer::GBuffer<'_> {
+        let [px, py, pz] = &self.position;
+        let [nx, ny, nz] = &self.normal;
+        let position = [self.plane(px), self.plane(py), self.plane(pz)];
+        let normal = [self.plane(nx), self.plane(ny), self.plane(nz)];
+        crate::gbuffer::GBuffer::new(self.plane(&self.depth), position, normal).expect("one extent")
+    }
+
+    fn compact(&self) -> crate::gbuffer::CompactGBuffer<'_> {
+        crate::gbuffer::CompactGBuffer::new(self.plane(&self.depth), self.plane(&self.normal_oct), self.frame.camera)
+            .expect("one extent")
+    }
+
+    fn colour(&self) -> crate::frame::RgbPlanes<'_> {
+        let [r, g, b] = &self.colour;
+        crate::frame::RgbPlanes::new(self.plane(r), self.plane(g), self.plane(b)).expect("one extent")
+    }
+}
+
 fn check_reprojection<L: SurfaceLayout>(
     target: &L,
     source: &L,
-    source_frame: &SynthFrame,
+    source_frame: &Strided,
     extra: Option<&PlaneBuf>,
     params: &ReprojectParams,
     source_finite: bool,
@@ -158,8 +221,8 @@ fn check_reprojection<L: SurfaceLayout>(
     let input = ReprojectInput {
         target,
         source,
-        source_camera: &source_frame.camera,
-        colour: source_frame.colour.view(),
+        source_camera: &source_frame.frame.camera,
+        colour: source_frame.colour(),
         extra: extra.map(|p| p.view()),
     };
     let e = target.extent();
@@ -216,6 +279,7 @@ fn check_reprojection<L: SurfaceLayout>(
 /// Fuzzes the whole-image bilinear resampler.
 pub fn bilinear(data: &[u8]) {
     let mut bytes = Bytes(data);
+    let pad = usize::from(bytes.u8() % 4);
     let source_extent = extent_from(&mut bytes);
     let target_extent = extent_from(&mut bytes);
     let mut source = RgbBuf::new(source_extent, 0.0);
@@ -245,11 +309,25 @@ pub fn bilinear(data: &[u8]) {
         }
     }
     let source_finite = [&source.r, &source.g, &source.b].into_iter().all(all_finite);
+    // Every input plane with `pad` elements of NaN (or 0 for the mask) after each row.
+    let (sw, tw) = (source_extent.width() + pad, target_extent.width() + pad);
+    let src = [&source.r, &source.g, &source.b].map(|p| padded(p, sw, f32::NAN));
+    let (mx, my, mask) = (padded(&map_x, tw, f32::NAN), padded(&map_y, tw, f32::NAN), padded(&valid, sw, 0u8));
+    fn view(d: &[f32], e: Extent, stride: usize) -> crate::frame::Plane<'_> {
+        crate::frame::Plane::new(d, e.width(), e.height(), stride).expect("padded")
+    }
+    let source_view = crate::frame::RgbPlanes::new(
+        view(&src[0], source_extent, sw),
+        view(&src[1], source_extent, sw),
+        view(&src[2], source_extent, sw),
+    )
+    .expect("one extent");
+    let mask_view = crate::frame::Plane::new(&mask, source_extent.width(), source_extent.height(), sw).expect("padded");
     let input = ResampleInput {
-        source: source.view(),
-        source_valid: use_mask.then(|| valid.view()),
-        map_x: map_x.view(),
-        map_y: map_y.view(),
+        source: source_view,
+        source_valid: use_mask.then_some(mask_view),
+        map_x: view(&mx, target_extent, tw),
+        map_y: view(&my, target_extent, tw),
     };
     let run = |simd: bool| {
         let mut colour = RgbBuf::new(target_extent, f32::NAN);
