@@ -20,6 +20,13 @@
 //! entry points dispatch on the scene's bits, or on [`effects::ALL`] for the general
 //! integrator, which must give the same image.
 //!
+//! # Tracing
+//! [`Renderer::trace`] runs the estimator on groups of eight pixels stage by stage and traces
+//! the coherent stages (primary rays, shadow rays from the primary hits) as 8-lane packets
+//! (module `packets`); [`Renderer::trace_single_rays`] is the single-ray reference
+//! (`Renderer::radiance`, one pixel and sample at a time). Both give the same image except
+//! where a ray hits two triangles at exactly the same distance.
+//!
 //! # Determinism
 //! Random numbers are a pure function of (seed, eye, frame, pixel, sample, purpose)
 //! ([`rng`]); rows run in parallel but each pixel's value depends only on its own numbers,
@@ -28,6 +35,7 @@
 pub mod bsdf;
 pub mod effects;
 pub mod lights;
+mod packets;
 pub mod rng;
 
 use std::time::Duration;
@@ -38,7 +46,6 @@ use rayon::prelude::*;
 use crate::camera::Eye;
 use crate::kernels::bvh::{BuildQuality, BuildStats, Hit, PreparedRay, Ray, TriangleBvh, intersect_triangle};
 use crate::kernels::gbuffer::{CompactGBuffer, GBuffer, NO_NORMAL, encode_normal};
-use crate::kernels::packet::{PacketHits, RayPacket};
 use crate::kernels::simd::LANES;
 use crate::kernels::{CameraModel, Extent, FrameError, PlaneBuf, RgbBuf};
 use crate::scene::{MaterialKind, Scene};
@@ -155,6 +162,16 @@ impl GBufferBuf {
     }
 }
 
+/// How a tracing call traces its rays.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Kernel {
+    /// Groups of up to eight pixels, each stage of the estimator traced as one packet
+    /// ([`packets`]).
+    Packets,
+    /// The single-ray reference.
+    SingleRays,
+}
+
 /// Which pixels a tracing call fills.
 #[derive(Clone, Copy)]
 pub enum PixelSelection<'a> {
@@ -258,6 +275,39 @@ impl Renderer {
         out: &mut RgbBuf,
         general: bool,
     ) -> Result<TraceStats, RenderError> {
+        self.trace_with(lights, camera, request, selection, rows, out, general, Kernel::Packets)
+    }
+
+    /// [`Renderer::trace`] by the single-ray reference loop: every ray traced alone, one
+    /// pixel and sample at a time. It computes the same estimator with the same random
+    /// numbers, so images equal [`Renderer::trace`]'s except where a ray hits two triangles at
+    /// exactly the same distance (packet and single-ray traversal may pick different ones).
+    /// The oracle for the packet loop's tests, and its bench baseline.
+    pub fn trace_single_rays(
+        &self,
+        lights: &FrameLights,
+        camera: &CameraModel,
+        request: &TraceRequest,
+        selection: PixelSelection<'_>,
+        out: &mut RgbBuf,
+        general: bool,
+    ) -> Result<TraceStats, RenderError> {
+        let rows = 0..camera.extent.height();
+        self.trace_with(lights, camera, request, selection, rows, out, general, Kernel::SingleRays)
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn trace_with(
+        &self,
+        lights: &FrameLights,
+        camera: &CameraModel,
+        request: &TraceRequest,
+        selection: PixelSelection<'_>,
+        rows: std::ops::Range<usize>,
+        out: &mut RgbBuf,
+        general: bool,
+        kernel: Kernel,
+    ) -> Result<TraceStats, RenderError> {
         crate::kernels::frame::same_extent("output image", camera.extent, out.extent())?;
         if rows.start > rows.end || rows.end > camera.extent.height() {
             return Err(RenderError::Invalid(format!(
@@ -276,7 +326,10 @@ impl Renderer {
         let bits = if general { effects::ALL } else { self.bits };
         macro_rules! call {
             ($e:literal) => {
-                self.trace_pass::<$e>(lights, camera, request, selection, rows, out)
+                match kernel {
+                    Kernel::Packets => self.trace_pass::<$e>(lights, camera, request, selection, rows, out),
+                    Kernel::SingleRays => self.trace_pass_single::<$e>(lights, camera, request, selection, rows, out),
+                }
             };
         }
         Ok(crate::dispatch_effects!(bits, call))
@@ -412,6 +465,30 @@ impl Renderer {
 
     // ---- the estimator ---------------------------------------------------------------------
 
+    /// The ray-free half of next-event estimation at `sp` for outgoing direction `wo`: the
+    /// shadow ray and the contribution it carries if nothing blocks it, or `None` where the
+    /// estimate is zero without tracing (no light sample, zero BSDF value, the light below the
+    /// surface).
+    #[inline]
+    fn light_sample<const E: u16>(
+        &self,
+        lights: &FrameLights,
+        sp: &ShadingPoint,
+        wo: Vec3,
+        rng: &SampleStream,
+        (pick, point): (Dim, Dim),
+    ) -> Option<(Ray, Vec3)> {
+        let ls = lights.sample(self.scene.lights.environment.as_ref(), sp.position, rng.get(pick), rng.get2(point))?;
+        let f = bsdf::eval::<E>(sp, wo, ls.wi);
+        let cos = sp.shading_normal.dot(ls.wi);
+        if f == Vec3::ZERO || cos <= 0.0 || !(ls.pdf > 0.0) {
+            return None;
+        }
+        let origin = spawn(sp.position, sp.geometric_normal, ls.wi);
+        let tmax = if ls.distance.is_finite() { ls.distance * (1.0 - 1e-4) } else { f32::INFINITY };
+        Some((Ray::segment(origin, ls.wi, 0.0, tmax), ls.radiance * f * (cos / ls.pdf)))
+    }
+
     /// Next-event estimate at `sp` for outgoing direction `wo`, with one shadow ray.
     #[inline]
     fn next_event<const E: u16>(
@@ -420,26 +497,14 @@ impl Renderer {
         sp: &ShadingPoint,
         wo: Vec3,
         rng: &SampleStream,
-        (pick, point): (Dim, Dim),
+        dims: (Dim, Dim),
         rays: &mut u64,
     ) -> Vec3 {
-        let Some(ls) =
-            lights.sample(self.scene.lights.environment.as_ref(), sp.position, rng.get(pick), rng.get2(point))
-        else {
+        let Some((ray, contribution)) = self.light_sample::<E>(lights, sp, wo, rng, dims) else {
             return Vec3::ZERO;
         };
-        let f = bsdf::eval::<E>(sp, wo, ls.wi);
-        let cos = sp.shading_normal.dot(ls.wi);
-        if f == Vec3::ZERO || cos <= 0.0 || !(ls.pdf > 0.0) {
-            return Vec3::ZERO;
-        }
-        let origin = spawn(sp.position, sp.geometric_normal, ls.wi);
-        let tmax = if ls.distance.is_finite() { ls.distance * (1.0 - 1e-4) } else { f32::INFINITY };
         *rays += 1;
-        if self.occluded::<E>(lights, Ray::segment(origin, ls.wi, 0.0, tmax)) {
-            return Vec3::ZERO;
-        }
-        ls.radiance * f * (cos / ls.pdf)
+        if self.occluded::<E>(lights, ray) { Vec3::ZERO } else { contribution }
     }
 
     /// One sample of the paper's estimator along the primary ray `ray`.
@@ -484,7 +549,83 @@ impl Renderer {
         radiance
     }
 
+    /// The packet loop: each row's selected pixels in groups of eight, each stage of a
+    /// sample traced as one packet ([`packets`]). Rows run in parallel.
     fn trace_pass<const E: u16>(
+        &self,
+        lights: &FrameLights,
+        camera: &CameraModel,
+        request: &TraceRequest,
+        selection: PixelSelection<'_>,
+        rows: std::ops::Range<usize>,
+        out: &mut RgbBuf,
+    ) -> TraceStats {
+        let width = camera.extent.width();
+        let inv_spp = 1.0 / request.spp as f32;
+        let pass = packets::Pass { lights, camera, request };
+        let span = rows.start * width..rows.end * width;
+        let RgbBuf { r, g, b } = out;
+        (
+            r.as_mut_slice()[span.clone()].par_chunks_mut(width),
+            g.as_mut_slice()[span.clone()].par_chunks_mut(width),
+            b.as_mut_slice()[span].par_chunks_mut(width),
+        )
+            .into_par_iter()
+            .enumerate()
+            .map(|(i, (rr, gr, br))| {
+                let y = rows.start + i;
+                let mut stats = TraceStats::default();
+                let mask_row = match selection {
+                    PixelSelection::All => None,
+                    PixelSelection::Mask(m) => Some(m.view().row(y)),
+                };
+                let mut next = 0;
+                loop {
+                    // The next (up to) eight selected pixels of the row; unused lanes repeat
+                    // the last one but stay inactive.
+                    let mut xs = [0usize; LANES];
+                    let mut n = 0;
+                    while next < width && n < LANES {
+                        if mask_row.is_none_or(|m| m[next] != 0) {
+                            xs[n] = next;
+                            n += 1;
+                        }
+                        next += 1;
+                    }
+                    if n == 0 {
+                        break;
+                    }
+                    for k in n..LANES {
+                        xs[k] = xs[n - 1];
+                    }
+                    let active = (1u32 << n) - 1;
+                    let mut sum = [Vec3::ZERO; LANES];
+                    for s in 0..request.spp {
+                        let l = self.sample_group::<E>(&pass, y, &xs, active, s, &mut stats.rays);
+                        for k in 0..n {
+                            if l[k].is_finite() {
+                                sum[k] += l[k];
+                            } else {
+                                stats.non_finite += 1;
+                            }
+                        }
+                    }
+                    stats.samples += u64::from(request.spp) * n as u64;
+                    for k in 0..n {
+                        let (x, v) = (xs[k], sum[k] * inv_spp);
+                        rr[x] = v.x;
+                        gr[x] = v.y;
+                        br[x] = v.z;
+                    }
+                }
+                stats
+            })
+            .sum()
+    }
+
+    /// The single-ray reference loop: one pixel and sample at a time through
+    /// [`Renderer::radiance`].
+    fn trace_pass_single<const E: u16>(
         &self,
         lights: &FrameLights,
         camera: &CameraModel,
@@ -563,7 +704,6 @@ impl Renderer {
             material.as_mut_slice().par_chunks_mut(width),
         );
         rows.into_par_iter().enumerate().for_each(|(y, (d, px, py, pz, nx, ny, nz, oct, mat))| {
-            let mut hits = PacketHits::default();
             let mut x0 = 0;
             while x0 < width {
                 let lanes = (width - x0).min(LANES);
@@ -572,21 +712,11 @@ impl Renderer {
                     Ray::new(origin, Vec3::from(camera.ray(x, y as f32 + 0.5)))
                 });
                 let active = (1u32 << lanes) - 1;
-                self.bvh.intersect_packet(&RayPacket::from_rays(&rays), active, &mut hits);
+                let surfaces = self.closest_packet::<E>(lights, &rays, active, packets::PRIMARY);
                 for i in 0..lanes {
                     let x = x0 + i;
                     let ray = rays[i];
-                    let mut hit = hits.get(i);
-                    if has(E, ALPHA_MASKS) && hit.is_some_and(|h| self.cut_out(&h)) {
-                        hit = self.closest_mesh::<E>(Ray { tmin: hit.map_or(0.0, |h| h.t.next_up()), ..ray });
-                    }
-                    let mut surface = hit.map(Surface::Mesh);
-                    if has(E, MOVING_LIGHTS) {
-                        let tmax = surface.map_or(f32::INFINITY, |s| s.t());
-                        if let Some(l) = Self::closest_moving(lights, &ray, tmax) {
-                            surface = Some(l);
-                        }
-                    }
+                    let surface = surfaces[i];
                     let Some(s) = surface else {
                         d[x] = f32::INFINITY;
                         for v in [&mut px[x], &mut py[x], &mut pz[x], &mut nx[x], &mut ny[x], &mut nz[x]] {
