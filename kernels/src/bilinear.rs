@@ -122,9 +122,14 @@ impl Footprints {
     /// SIMD twin of [`Footprint::new`].
     #[inline(always)]
     pub fn new(sx: F32s, sy: F32s, extent: Extent) -> Self {
+        Self::new_splat(sx, sy, F32s::splat(extent.width() as f32), F32s::splat(extent.height() as f32))
+    }
+
+    /// [`Footprints::new`] with the extent's width and height already splatted (`w`, `h`).
+    #[inline(always)]
+    pub fn new_splat(sx: F32s, sy: F32s, w: F32s, h: F32s) -> Self {
         let half = F32s::splat(0.5);
         let (u, v) = (sx - half, sy - half);
-        let (w, h) = (F32s::splat(extent.width() as f32), F32s::splat(extent.height() as f32));
         let minus_one = F32s::splat(-1.0);
         let inside = u.simd_ge(minus_one) & u.simd_lt(w) & v.simd_ge(minus_one) & v.simd_lt(h);
         let u = inside.select(u, F32s::ZERO);

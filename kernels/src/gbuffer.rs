@@ -163,6 +163,18 @@ pub struct CompactGBuffer<'a> {
     normal: Plane<'a, u32>,
     /// The camera that rendered this G-buffer.
     camera: CameraModel,
+    /// Its ray corner, per-pixel steps and centre, splatted once (the decode then reads each
+    /// as a memory operand instead of broadcasting it on every use).
+    rays: CameraLanes,
+}
+
+/// [`CameraModel`]'s position-rebuilding parameters as lanes.
+#[derive(Clone, Copy)]
+struct CameraLanes {
+    corner: [F32s; 3],
+    dx: [F32s; 3],
+    dy: [F32s; 3],
+    centre: [F32s; 3],
 }
 
 impl<'a> CompactGBuffer<'a> {
@@ -170,7 +182,13 @@ impl<'a> CompactGBuffer<'a> {
     pub fn new(depth: Plane<'a>, normal: Plane<'a, u32>, camera: CameraModel) -> Result<Self, FrameError> {
         same_extent("normal plane", depth.extent(), normal.extent())?;
         same_extent("camera extent", depth.extent(), camera.extent)?;
-        Ok(Self { depth, normal, camera })
+        let rays = CameraLanes {
+            corner: camera.ray_origin_corner.map(F32s::splat),
+            dx: camera.ray_dx.map(F32s::splat),
+            dy: camera.ray_dy.map(F32s::splat),
+            centre: camera.centre.map(F32s::splat),
+        };
+        Ok(Self { depth, normal, camera, rays })
     }
 
     pub fn depth(&self) -> Plane<'a> {
@@ -187,12 +205,10 @@ impl<'a> CompactGBuffer<'a> {
 
     #[inline(always)]
     fn positions(&self, depth: F32s, px: F32s, py: F32s) -> [F32s; 3] {
-        let c = &self.camera;
-        [0, 1, 2].map(|i| {
-            let ray =
-                F32s::splat(c.ray_origin_corner[i]) + px * F32s::splat(c.ray_dx[i]) + py * F32s::splat(c.ray_dy[i]);
-            F32s::splat(c.centre[i]) + depth * ray
-        })
+        let c = &self.rays;
+        // The order of `CameraModel::unproject_pixel`: (corner + px·dx) + py·dy.
+        let at = |i: usize| c.centre[i] + depth * ((c.corner[i] + px * c.dx[i]) + py * c.dy[i]);
+        [at(0), at(1), at(2)]
     }
 }
 

@@ -7,6 +7,9 @@
 //! gives bit-identical results, which is what the agreement tests check. `wide`'s `mul_add`
 //! fuses on some targets and not others, and its `recip` is an approximation on x86.
 //!
+//! The one exception is SSIM ([`crate::ssim`]): it is checked against its f64 reference to a
+//! tolerance, not bitwise, and uses fused multiply-add (its module docs say where and why).
+//!
 //! # Width
 //! [`F32s`] is `wide::f32x8`: one AVX register at the x86-64-v3 baseline, two SSE halves at
 //! the SSE2 baseline. The kernels are written for [`LANES`] lanes and never assume more.

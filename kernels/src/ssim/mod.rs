@@ -51,12 +51,17 @@
 //!    worst such voxel (up to two more passes), and if still above, by the exact f64 window
 //!    formula. [`SsimResult::refined`] counts them: 0 on LDR content; on a synthetic HDR frame
 //!    (a 1000-level emitter above 0.01–10 shading, fireflies to 10⁶) about 0.4%, the dark
-//!    windows of the tiles the emitter's edge crosses.
+//!    windows of the tiles the emitter's edge crosses. The 3-D variant first runs a cheaper
+//!    conservative *screen* (each mixed magnitude bounded by the largest per-channel one, with
+//!    slack for rounding); only vectors it fires on pay for the exact estimate, and it never
+//!    passes a voxel the estimate would flag, so the refined voxels are the same.
 //!
 //! Accuracy, measured against the exact formula voxel by voxel on adversarial HDR images
 //! (levels from 0.02 to 10⁵ in blocks of 5–38 px, noise down to 10⁻⁴ relative): the worst
 //! voxel is off by 5e-5, the estimate is within 1.6× of the actual error, and the mean
-//! (the result) by at most 5e-7; on ordinary images the mean agrees to about 1e-9.
+//! (the result) by at most 5e-7; on ordinary images the mean agrees to about 1e-9. (These
+//! figures predate the fused multiply-adds below; the tests' bounds, 1e-6 against the f64
+//! reference and the brute-force oracle with the HDR cases included, hold at both builds.)
 //!
 //! Variances are clamped at 0, `σd²` at `2(σx² + σy² + C2)` (what keeps the structure term
 //! ≥ −1; the tighter exact bound `2(σx² + σy²)` would trust the possibly ill-conditioned
@@ -78,11 +83,24 @@
 //!
 //! With nothing usable, `ssim` (or `rmse`) is NaN and its count is 0.
 //!
+//! # Fused multiply-add: the one exception to the determinism policy
+//! Every other kernel of the crate is bit-identical to its scalar reference and computes
+//! `a·b + c` with two roundings (see [`crate::simd`]). SSIM is checked against its f64
+//! reference to a tolerance (`|Δssim| ≤ 1e-6`), not bitwise, so its fast kernel may and does
+//! use fused multiply-add (`wide`'s `mul_add` / `mul_neg_add`) in the two filter passes, the
+//! channel mixing and the map: one instruction and one rounding instead of two. `wide` fuses
+//! only where the build targets FMA (x86-64-v3, the workspace default, and above); at the
+//! SSE2 baseline the same calls round twice, so the two builds differ in the last bits of
+//! the result, well within the tolerance (the tests run at both levels). A given build is
+//! still deterministic (independent of the thread count) and symmetric bit for bit: sums
+//! whose operands trade places when the images are swapped (`x'² + y'²`, `μx² + μy²`) stay
+//! unfused.
+//!
 //! # Kernels
 //! [`ssim`] is the fused f32x8 kernel: per row band (on the caller's rayon pool) and
-//! 64-column tile, a horizontal pass per input row into a ring of 11 filtered rows (33 KB),
-//! then the vertical pass, the channel mixing, the map and the accumulation; the
-//! intermediates never leave L1/L2. It allocates nothing. [`ssim_scalar`] is the
+//! 64-column tile, a horizontal pass per input row into a ring of 14 filtered rows (43 KB),
+//! then a vertical pass for 4 output rows at a time, the channel mixing, the map and the
+//! accumulation; the intermediates never leave L1/L2. It allocates nothing. [`ssim_scalar`] is the
 //! reference: f64, whole-image planes, centred (two-level) variances, exclusion by an
 //! explicit dilated mask. The two agree to about 1e-8 on ordinary images (the tests assert
 //! `|Δssim| ≤ 1e-6`, `|Δrmse| ≤ 1e-6·rmse` and equal counts); they are not bitwise equal,

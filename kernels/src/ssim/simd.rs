@@ -6,9 +6,16 @@
 //! at the image borders) is sanitised (unusable samples become NaN, which then poisons
 //! exactly the windows that contain them), turned into the four product planes `x'`, `y'`,
 //! `x'² + y'²`, `(d − s_d)²` (with `x' = x − s`, `d = x − y`), and filtered horizontally into
-//! one slot of a ring of 11 rows. As soon as an output row's 11 input rows are in the ring,
-//! the vertical pass, the channel mixing, the map and the accumulation run for it. Scratch
-//! is about 46 KB per band, on the stack; the ring (33 KB) and the planes stay in L1/L2.
+//! one slot of a ring of [`RING`] rows. As soon as the last of [`KB`] output rows has its 11
+//! input rows in the ring, one vertical pass filters all `KB` of them (each ring row loaded
+//! once for all of them), then the channel mixing, the map and the accumulation run row by
+//! row. Scratch is about 62 KB per band, on the stack; the ring (43 KB) and the planes stay
+//! in L1/L2.
+//!
+//! Fused multiply-add: the filters, the mixing and the map use `mul_add` where it saves an
+//! operation (see the module docs of `ssim` for why SSIM, unlike every other kernel, may);
+//! sums whose operands swap when the two images swap (`x'² + y'²`, `μx² + μy²`, …) stay
+//! unfused, because only that keeps the kernel symmetric bit for bit.
 //!
 //! Every loop over a tile row runs over the whole tile (constant trip counts, so no bounds
 //! checks survive). Tail strategy: a padded lane array. The lanes beyond the image width read
@@ -24,19 +31,45 @@ use super::{
 };
 use crate::bands::{SharedRows, for_each_band};
 use crate::frame::{PlaneMut, RgbPlanes};
-use crate::simd::{F32s, LANES, lane_offsets, load, store};
+
+/// The lane type: the crate's 8 lanes ([`crate::simd::F32s`]: AVX at x86-64-v3, two SSE
+/// halves at the SSE2 baseline). The kernel is written against `V` and `LANES` only. 16
+/// lanes (`wide::f32x16` under `target_feature = "avx512f"`) were tried with
+/// `target-cpu=native` on the Zen 4 CI machine: 12.7–14.1 ms per 1280×720 frame against
+/// 11.4–11.7 ms for 8 lanes in the same build (which already gains AVX-512's 32 registers),
+/// so the kernel stays at 8.
+type V = crate::simd::F32s;
+use crate::simd::{LANES, lane_offsets};
+
+/// Loads `LANES` floats from `a[i..]` (callers use constant trip counts, so the bounds
+/// checks fold away).
+#[inline(always)]
+fn load<const N: usize>(a: &[f32; N], i: usize) -> V {
+    V::from(<[f32; LANES]>::try_from(&a[i..i + LANES]).expect("LANES elements"))
+}
+
+#[inline(always)]
+fn store<const N: usize>(a: &mut [f32; N], i: usize, v: V) {
+    a[i..i + LANES].copy_from_slice(&v.to_array());
+}
 
 /// Output columns per tile: a multiple of [`LANES`] and at most 64 (pending voxels are one
-/// `u64` bit mask per row and channel). The ring is `11 × 3 × 4 × TILE` floats: 33 KB.
+/// `u64` bit mask per row and channel).
 pub(super) const TILE: usize = 64;
 /// Output rows per tile (and per local shift).
 pub(super) const BLOCK_ROWS: usize = 64;
-/// Columns of halo on each side of a row segment: at least [`RADIUS`], a multiple of
-/// [`LANES`] so that the segment's interior starts on a vector.
+/// Columns of halo on each side of a row segment: at least [`RADIUS`], and `SEG` a multiple
+/// of [`LANES`].
 const PAD: usize = 8;
 const SEG: usize = TILE + 2 * PAD;
 /// Product planes per channel: `x'`, `y'`, `x'² + y'²`, `(d − s_d)²`.
 const PLANES: usize = 4;
+/// Output rows per vertical pass. The vertical pass loads each ring row once for `KB`
+/// output rows instead of once per output row (11 loads per output vector become
+/// `(KB + 10) / KB`): 1 → 4 took 22% off the kernel's time; 8 was no faster than 4.
+const KB: usize = 4;
+/// Ring rows: the `KB + 10` input rows of the `KB` output rows of one vertical pass.
+const RING: usize = TAPS + KB - 1;
 /// At most this many parallel bands (their partial sums live on the caller's stack and are
 /// added in order).
 const MAX_BANDS: usize = 256;
@@ -52,21 +85,30 @@ const ERROR_UNITS: f64 = 4.0;
 /// `E[x'²]`, twice that on `μ'²` through the square): used where underestimating the
 /// error would let a wrong `σ²` vouch for itself.
 const BOUND_UNITS: f64 = 64.0;
+/// Relative slack of the refinement screen ([`screen`]): its magnitude bounds are inflated
+/// by this and its limits deflated by twice this, far more than the few roundings in which
+/// the screen and the exact test can differ, so the screen never passes a voxel the exact
+/// test would flag.
+const SCREEN_SLACK: f64 = 1.0 / 1024.0;
 
 /// Splatted constants.
 struct Consts {
     /// `w[k]`: the weight at offsets ±k.
-    w: [F32s; RADIUS + 1],
-    m: [[F32s; 3]; 3],
-    c1: F32s,
-    c2: F32s,
-    /// Refine where `num > limit · den` (see [`map`]).
-    limit: F32s,
-    limit_lum: F32s,
+    w: [V; RADIUS + 1],
+    m: [[V; 3]; 3],
+    c1: V,
+    c2: V,
+    /// Refine where `num > limit · den` (see [`flags`]).
+    limit: V,
+    limit_lum: V,
     limit_f64: f64,
     limit_lum_f64: f64,
     /// Worst-case relative error of a cancelled statistic ([`BOUND_UNITS`]).
-    bound: F32s,
+    bound: V,
+    /// The screen's inflation of magnitude bounds and its deflated limits.
+    slack: V,
+    screen_limit: V,
+    screen_limit_lum: V,
 }
 
 impl Consts {
@@ -74,19 +116,23 @@ impl Consts {
         let g = gaussian_weights();
         let m = channel_mixing_matrix();
         let unit = f64::from(f32::EPSILON) / 2.0;
-        // Half of the threshold for each term (see [`map`]).
+        // Half of the threshold for each term (see [`flags`]).
         let limit = REFINE_THRESHOLD / 2.0 / (ERROR_UNITS * unit);
         let limit_lum = REFINE_THRESHOLD / 2.0 / (6.0 * ERROR_UNITS * unit);
+        let deflate = 1.0 - 2.0 * SCREEN_SLACK;
         Self {
-            w: core::array::from_fn(|k| F32s::splat(g[RADIUS + k] as f32)),
-            m: m.map(|row| row.map(|v| F32s::splat(v as f32))),
-            c1: F32s::splat(C1 as f32),
-            c2: F32s::splat(C2 as f32),
-            limit: F32s::splat(limit as f32),
-            limit_lum: F32s::splat(limit_lum as f32),
+            w: core::array::from_fn(|k| V::splat(g[RADIUS + k] as f32)),
+            m: m.map(|row| row.map(|v| V::splat(v as f32))),
+            c1: V::splat(C1 as f32),
+            c2: V::splat(C2 as f32),
+            limit: V::splat(limit as f32),
+            limit_lum: V::splat(limit_lum as f32),
             limit_f64: limit,
             limit_lum_f64: limit_lum,
-            bound: F32s::splat((BOUND_UNITS * unit) as f32),
+            bound: V::splat((BOUND_UNITS * unit) as f32),
+            slack: V::splat((1.0 + SCREEN_SLACK) as f32),
+            screen_limit: V::splat((limit * deflate) as f32),
+            screen_limit_lum: V::splat((limit_lum * deflate) as f32),
         }
     }
 }
@@ -108,6 +154,14 @@ struct Tile {
     nv: usize,
 }
 
+impl Tile {
+    /// Vectors of a row whose lanes all lie inside the image.
+    #[inline(always)]
+    fn full_vectors(&self) -> usize {
+        (self.c1 - self.c0) / LANES
+    }
+}
+
 struct Ctx<'a> {
     a: &'a RgbPlanes<'a>,
     b: &'a RgbPlanes<'a>,
@@ -117,15 +171,20 @@ struct Ctx<'a> {
     k: Consts,
 }
 
+/// Horizontally filtered rows of one product plane: `[row % RING][column − c0]`.
+type RingPlane = [[f32; TILE]; RING];
+
 struct Scratch {
     /// Row segments: `[image][channel][column − (c0 − PAD)]`.
     seg: [[[f32; SEG]; 3]; 2],
     /// Products: `[channel][plane][column − (c0 − PAD)]`.
     prod: [[[f32; SEG]; PLANES]; 3],
-    /// Horizontally filtered rows: `[row % 11][channel][plane][column − c0]`.
-    ring: [[[[f32; TILE]; PLANES]; 3]; TAPS],
-    /// Vertically filtered statistics of the current output row: `[channel][plane][column − c0]`.
-    vbuf: [[[f32; TILE]; PLANES]; 3],
+    /// Horizontally filtered rows, `[channel][plane]`: plane-major, so that the vertical
+    /// pass reads each plane's `RING` rows from one contiguous 3.5 KB block.
+    ring: [[RingPlane; PLANES]; 3],
+    /// Vertically filtered statistics of the current output rows:
+    /// `[row − o][channel][plane][column − c0]`.
+    vbuf: [[[[f32; TILE]; PLANES]; 3]; KB],
     /// Voxels still to be computed after a pass: `[row − r0][channel]`, bit = column − c0.
     pending: [[u64; 3]; BLOCK_ROWS],
 }
@@ -135,8 +194,8 @@ impl Scratch {
         Self {
             seg: [[[0.0; SEG]; 3]; 2],
             prod: [[[0.0; SEG]; PLANES]; 3],
-            ring: [[[[0.0; TILE]; PLANES]; 3]; TAPS],
-            vbuf: [[[0.0; TILE]; PLANES]; 3],
+            ring: [[[[0.0; TILE]; RING]; PLANES]; 3],
+            vbuf: [[[[0.0; TILE]; PLANES]; 3]; KB],
             pending: [[0; 3]; BLOCK_ROWS],
         }
     }
@@ -167,24 +226,27 @@ impl Sums {
 }
 
 #[inline(always)]
-fn widen_add(acc: &mut f64x4, v: F32s) {
+fn widen_add(acc: &mut f64x4, v: V) {
     let a = v.to_array();
-    *acc += f64x4::new([a[0] as f64, a[1] as f64, a[2] as f64, a[3] as f64]);
-    *acc += f64x4::new([a[4] as f64, a[5] as f64, a[6] as f64, a[7] as f64]);
+    for q in a.chunks_exact(4) {
+        *acc += f64x4::new([q[0] as f64, q[1] as f64, q[2] as f64, q[3] as f64]);
+    }
 }
 
 /// All-ones lanes for the set bits of `bits` (bit i = lane i).
 #[inline(always)]
-fn bits_mask(bits: u32) -> F32s {
-    let lane = F32s::from(core::array::from_fn::<f32, LANES, _>(|i| if bits >> i & 1 == 1 { 1.0 } else { 0.0 }));
-    lane.simd_eq(F32s::ONE)
+fn bits_mask(bits: u32) -> V {
+    let lane = V::from(core::array::from_fn::<f32, LANES, _>(|i| if bits >> i & 1 == 1 { 1.0 } else { 0.0 }));
+    lane.simd_eq(V::ONE)
 }
 
 #[inline(always)]
-fn count(mask: F32s) -> u32 {
+fn count(mask: V) -> u32 {
     mask.to_bitmask().count_ones()
 }
 
+/// Bit mask of the lanes of one vector.
+const LANE_BITS: u64 = (1 << LANES) - 1;
 pub(super) fn run(a: &RgbPlanes<'_>, b: &RgbPlanes<'_>, params: &SsimParams) -> SsimResult {
     let (width, height) = (a.extent().width(), a.extent().height());
     let band_rows = params.band_rows.max(1).max(height.div_ceil(MAX_BANDS));
@@ -343,6 +405,7 @@ fn run_pass(ctx: &Ctx<'_>, s: &mut Scratch, t: &Tile, pass: usize, shifts: &Shif
     let last = (t.r1 + RADIUS).min(ctx.height);
     let mut next_out = t.r0;
     let mut worst = Worst::new();
+    let own = OwnColumns::new(t);
     for y in first..last {
         // The tile's rows are 5 KB apart in each of six planes: without a hint every row
         // segment waits for memory (measured: 16% of the time in the copy).
@@ -353,14 +416,25 @@ fn run_pass(ctx: &Ctx<'_>, s: &mut Scratch, t: &Tile, pass: usize, shifts: &Shif
         }
         let src = segment(ctx, &mut s.seg, t.c0, y);
         if pass == 0 && (t.r0..t.r1).contains(&y) {
-            products::<true>(&mut s.prod, &src, shifts, t, sums);
+            products::<true>(&mut s.prod, &src, shifts, &own, sums);
         } else {
-            products::<false>(&mut s.prod, &src, shifts, t, sums);
+            products::<false>(&mut s.prod, &src, shifts, &own, sums);
         }
-        horizontal(&ctx.k, s, y % TAPS);
-        while next_out < t.r1 && (next_out + RADIUS).min(ctx.height - 1) <= y {
-            emit_row(ctx, s, t, pass, shifts, next_out, sums, &mut worst);
-            next_out += 1;
+        horizontal(&ctx.k, s, y % RING);
+        // Output rows go out `KB` at a time, as soon as the last one's window is complete
+        // (fewer at the tile's end). The ring holds the `KB + 10` rows they read.
+        while next_out < t.r1 {
+            let n = KB.min(t.r1 - next_out);
+            if (next_out + n - 1 + RADIUS).min(ctx.height - 1) > y {
+                break;
+            }
+            match n {
+                1 => emit_rows::<1>(ctx, s, t, pass, shifts, next_out, sums, &mut worst),
+                2 => emit_rows::<2>(ctx, s, t, pass, shifts, next_out, sums, &mut worst),
+                3 => emit_rows::<3>(ctx, s, t, pass, shifts, next_out, sums, &mut worst),
+                _ => emit_rows::<KB>(ctx, s, t, pass, shifts, next_out, sums, &mut worst),
+            }
+            next_out += n;
         }
     }
     worst.next(ctx.variant, shifts)
@@ -369,30 +443,33 @@ fn run_pass(ctx: &Ctx<'_>, s: &mut Scratch, t: &Tile, pass: usize, shifts: &Shif
 /// Hints the row segment of row `y` starting at column `c0` into the cache.
 #[inline(always)]
 fn prefetch_segment(ctx: &Ctx<'_>, c0: usize, y: usize) {
+    let start = c0.saturating_sub(PAD);
+    let end = (c0 + TILE + PAD).min(ctx.width);
     for planes in [ctx.a, ctx.b] {
         for plane in planes.channels() {
-            let row = plane.row(y);
-            let end = (c0 + TILE + PAD).min(row.len());
-            let mut i = c0.saturating_sub(PAD);
+            // Pointer arithmetic, not indexing: a prefetch needs no bounds check (it never
+            // faults), and the checks were a third of this function's time.
+            let row = plane.row(y).as_ptr();
+            let mut i = start;
             while i < end {
-                prefetch(&row[i]);
+                prefetch(row.wrapping_add(i));
                 i += 64 / size_of::<f32>();
             }
-            prefetch(&row[end - 1]);
+            prefetch(row.wrapping_add(end - 1));
         }
     }
 }
 
 #[inline(always)]
-fn prefetch(v: &f32) {
+fn prefetch(p: *const f32) {
     #[cfg(target_arch = "x86_64")]
     // SAFETY: SSE is part of the x86-64 baseline, and a prefetch is a hint: it never faults
     // and changes nothing the program can observe.
     unsafe {
-        core::arch::x86_64::_mm_prefetch::<{ core::arch::x86_64::_MM_HINT_T0 }>((v as *const f32).cast::<i8>());
+        core::arch::x86_64::_mm_prefetch::<{ core::arch::x86_64::_MM_HINT_T0 }>(p.cast::<i8>());
     }
     #[cfg(not(target_arch = "x86_64"))]
-    let _ = v;
+    let _ = p;
 }
 
 /// Row `y` of every plane, columns `c0 − PAD ‥ c0 + TILE + PAD`: borrowed from the images
@@ -400,9 +477,13 @@ fn prefetch(v: &f32) {
 /// every segment cost 7%: six small `memcpy` calls per row.)
 #[inline(always)]
 fn segment<'s>(ctx: &Ctx<'s>, seg: &'s mut [[[f32; SEG]; 3]; 2], c0: usize, y: usize) -> [[&'s [f32; SEG]; 3]; 2] {
-    let rows = [ctx.a, ctx.b].map(|p| p.channels().map(|c| c.row(y)));
+    // (Written out: `[_; N].map` here was not inlined and cost 4%.)
+    let (a, b) = (&ctx.a, &ctx.b);
+    let rows = [[a.r.row(y), a.g.row(y), a.b.row(y)], [b.r.row(y), b.g.row(y), b.b.row(y)]];
     if c0 >= PAD && c0 - PAD + SEG <= ctx.width {
-        return rows.map(|img| img.map(|row| row[c0 - PAD..c0 - PAD + SEG].try_into().expect("SEG elements")));
+        let cut =
+            |i: usize, c: usize| -> &'s [f32; SEG] { rows[i][c][c0 - PAD..][..SEG].try_into().expect("SEG elements") };
+        return [[cut(0, 0), cut(0, 1), cut(0, 2)], [cut(1, 0), cut(1, 1), cut(1, 2)]];
     }
     let start = c0 as isize - PAD as isize;
     // Segment indices [lo, hi) hold in-image columns; lo ≤ PAD < hi because c0 < width.
@@ -424,21 +505,26 @@ fn segment<'s>(ctx: &Ctx<'s>, seg: &'s mut [[[f32; SEG]; 3]; 2], c0: usize, y: u
 /// trip counts let the compiler drop every bounds check). With `COUNT`, also adds the
 /// tile's own columns of this row to the RMSE sums and the unusable-sample counts (a
 /// separate pass over the row cost 4%).
+///
+/// `x'² + y'²` is two products and a sum, not a fused multiply-add: swapping the images
+/// swaps `x'` and `y'`, and only the unfused form gives the same bits both ways (the kernel
+/// is symmetric bit for bit).
 #[inline(always)]
 fn products<const COUNT: bool>(
     prod: &mut [[[f32; SEG]; PLANES]; 3],
     src: &[[&[f32; SEG]; 3]; 2],
     sh: &Shifts,
-    t: &Tile,
+    own: &OwnColumns,
     sums: &mut Sums,
 ) {
-    let max = F32s::splat(MAX_SAMPLE);
-    let nan = F32s::splat(f32::NAN);
-    let mut sq = F32s::ZERO;
-    let own = PAD / LANES..PAD / LANES + t.nv;
+    let max = V::splat(MAX_SAMPLE);
+    let nan = V::splat(f32::NAN);
+    let mut sq = V::ZERO;
+    // Lanes of the tile's own columns that hold an unusable sample in this row.
+    let mut bad = V::ZERO;
     for c in 0..3 {
-        let shift = F32s::splat(sh.s[c]);
-        let dshift = F32s::splat(sh.sd[c]);
+        let shift = V::splat(sh.s[c]);
+        let dshift = V::splat(sh.sd[c]);
         let (xs, ys) = (src[0][c], src[1][c]);
         let [px, py, ps, pd] = &mut prod[c];
         for v in 0..SEG / LANES {
@@ -455,26 +541,73 @@ fn products<const COUNT: bool>(
             store(py, i, yp);
             store(ps, i, xp * xp + yp * yp);
             store(pd, i, dp * dp);
-            if COUNT && own.contains(&v) {
-                let inside = lanes(t, v - PAD / LANES);
-                let both = ux & uy & inside;
-                sums.non_finite += u64::from(count(!ux & inside) + count(!uy & inside));
-                sums.sq_n += u64::from(count(both));
-                // At most 24 terms per lane in f32 before the f64 sum: relative error ≤ 1.5e-6.
-                sq += both.select(d * d, F32s::ZERO);
+            if COUNT {
+                let inside = own.mask[v];
+                bad |= inside & !(ux & uy);
+                // NaN where a sample is unusable: then `bad` is set and the row is recounted.
+                // At most 3·SEG/LANES terms per lane in f32 before the f64 sum: relative
+                // error ≤ 1.5e-6.
+                sq += inside.select(d * d, V::ZERO);
             }
         }
     }
     if COUNT {
-        widen_add(&mut sums.sq, sq);
+        if bad.none() {
+            // The common case: every own sample of the row usable.
+            widen_add(&mut sums.sq, sq);
+            sums.sq_n += 3 * own.count;
+        } else {
+            count_row(src, own, sums);
+        }
     }
+}
+
+/// The tile's own columns within a row segment.
+struct OwnColumns {
+    /// Per segment vector: all-ones in the lanes of columns `c0 ..< c1`.
+    mask: [V; SEG / LANES],
+    /// `c1 − c0`.
+    count: u64,
+}
+
+impl OwnColumns {
+    fn new(t: &Tile) -> Self {
+        let width = V::splat((t.c1 - t.c0) as f32);
+        let mut mask = [V::ZERO; SEG / LANES];
+        for (v, m) in mask.iter_mut().enumerate() {
+            let col = lane_offsets() + V::splat(v as f32 * LANES as f32 - PAD as f32);
+            *m = col.simd_ge(V::ZERO) & col.simd_lt(width);
+        }
+        Self { mask, count: (t.c1 - t.c0) as u64 }
+    }
+}
+
+/// The RMSE sums and unusable-sample counts of a row with unusable samples.
+#[cold]
+fn count_row(src: &[[&[f32; SEG]; 3]; 2], own: &OwnColumns, sums: &mut Sums) {
+    let max = V::splat(MAX_SAMPLE);
+    let mut sq = V::ZERO;
+    for c in 0..3 {
+        for v in 0..SEG / LANES {
+            let i = v * LANES;
+            let (x, y) = (load(src[0][c], i), load(src[1][c], i));
+            let (ux, uy) = (x.abs().simd_le(max), y.abs().simd_le(max));
+            let inside = own.mask[v];
+            let both = ux & uy & inside;
+            sums.non_finite += u64::from(count(!ux & inside) + count(!uy & inside));
+            sums.sq_n += u64::from(count(both));
+            let d = x - y;
+            sq += both.select(d * d, V::ZERO);
+        }
+    }
+    widen_add(&mut sums.sq, sq);
 }
 
 /// Lane mask of vector `j` of a tile (lanes inside the image).
 #[inline(always)]
-fn lanes(t: &Tile, j: usize) -> F32s {
+fn lanes(t: &Tile, j: usize) -> V {
     let inside = (t.c1 - t.c0 - j * LANES).min(LANES);
-    lane_offsets().simd_lt(F32s::splat(inside as f32))
+    lane_offsets().simd_lt(V::splat(inside as f32))
 }
 
 /// The horizontal 11-tap pass of every product plane into ring slot `slot` (whole tile).
@@ -484,12 +617,12 @@ fn horizontal(k: &Consts, s: &mut Scratch, slot: usize) {
     for c in 0..3 {
         for q in 0..PLANES {
             let src = &s.prod[c][q];
-            let dst = &mut s.ring[slot][c][q];
+            let dst = &mut s.ring[c][q][slot];
             for j in 0..TILE / LANES {
                 let i = PAD + j * LANES;
                 let mut acc = w[0] * load(src, i);
                 for (r, &wr) in w.iter().enumerate().skip(1) {
-                    acc += wr * (load(src, i - r) + load(src, i + r));
+                    acc = wr.mul_add(load(src, i - r) + load(src, i + r), acc);
                 }
                 store(dst, j * LANES, acc);
             }
@@ -497,98 +630,246 @@ fn horizontal(k: &Consts, s: &mut Scratch, slot: usize) {
     }
 }
 
-/// The vertical 11-tap pass of every plane for output row `o` into `vbuf` (whole tile).
+/// The vertical 11-tap pass of every plane for the `K` output rows `o .. o + K` into `vbuf`
+/// (whole tile); `slots[i]` is the ring slot of input row `o − 5 + i` (clamped).
 #[inline(always)]
-fn vertical(k: &Consts, s: &mut Scratch, slots: &[usize; TAPS]) {
+fn vertical<const K: usize>(k: &Consts, s: &mut Scratch, slots: &[usize; RING]) {
     let w = &k.w;
     for c in 0..3 {
         for q in 0..PLANES {
-            let ring = &s.ring;
-            let at_slot = |i: usize| &ring[slots[i]][c][q];
-            let rows = [
-                at_slot(0),
-                at_slot(1),
-                at_slot(2),
-                at_slot(3),
-                at_slot(4),
-                at_slot(5),
-                at_slot(6),
-                at_slot(7),
-                at_slot(8),
-                at_slot(9),
-                at_slot(10),
-            ];
-            let dst = &mut s.vbuf[c][q];
+            let ring = &s.ring[c][q];
+            let vbuf = &mut s.vbuf;
             for j in 0..TILE / LANES {
                 let col = j * LANES;
-                let at = |i: usize| load(rows[i], col);
-                let mut acc = w[0] * at(5);
-                acc += w[1] * (at(4) + at(6));
-                acc += w[2] * (at(3) + at(7));
-                acc += w[3] * (at(2) + at(8));
-                acc += w[4] * (at(1) + at(9));
-                acc += w[5] * (at(0) + at(10));
-                store(dst, col, acc);
+                // Every row loaded once, before any store: the compiler cannot tell that the
+                // stores into `vbuf` leave the ring alone, and would reload otherwise.
+                let mut at = [V::ZERO; RING];
+                for (i, v) in at.iter_mut().enumerate().take(K + 2 * RADIUS) {
+                    *v = load(&ring[slots[i] % RING], col);
+                }
+                let mut out = [V::ZERO; K];
+                for (r, o) in out.iter_mut().enumerate() {
+                    let mut acc = w[0] * at[r + 5];
+                    acc = w[1].mul_add(at[r + 4] + at[r + 6], acc);
+                    acc = w[2].mul_add(at[r + 3] + at[r + 7], acc);
+                    acc = w[3].mul_add(at[r + 2] + at[r + 8], acc);
+                    acc = w[4].mul_add(at[r + 1] + at[r + 9], acc);
+                    *o = w[5].mul_add(at[r] + at[r + 10], acc);
+                }
+                for (r, &o) in out.iter().enumerate() {
+                    store(&mut vbuf[r][c][q], col, o);
+                }
             }
         }
     }
-}
-
-/// The window statistics of one vector of voxels and what the pass does with them.
-#[derive(Default)]
-struct Voxels {
-    /// Map values, clamped to [−1, 1].
-    val: [F32s; 3],
-    /// Lanes whose window holds only usable samples.
-    finite: [F32s; 3],
-    /// Lanes whose estimated rounding error is above the threshold.
-    flagged: [F32s; 3],
-    /// The error estimates as fractions `[cs_num, cs_den, lum_num, lum_den]` (for ranking
-    /// flagged voxels).
-    score: [[F32s; 4]; 3],
-    /// Per-channel 2-D means, for re-shifting.
-    mx: [F32s; 3],
-    my: [F32s; 3],
-    md: [F32s; 3],
 }
 
 /// `max(v, 0)`. The voxel math uses the plain `maxps`/`minps` (`fast_max`/`fast_min`, one
 /// instruction instead of three): NaN lanes may come out as numbers, but they are excluded
 /// by the separate finiteness mask, never by these results.
 #[inline(always)]
-fn max0(v: F32s) -> F32s {
-    v.fast_max(F32s::ZERO)
+fn max0(v: V) -> V {
+    v.fast_max(V::ZERO)
 }
 
-/// The (possibly mixed) window statistics of one vector of voxels.
+/// Filtered statistics of one vector of voxels in one channel: `x = E[x']`, `y = E[y']`,
+/// `s = E[x'² + y'²]`, `d = E[(d − s_d)²]`.
+#[derive(Clone, Copy)]
+struct Stats {
+    x: V,
+    y: V,
+    s: V,
+    d: V,
+}
+
+#[inline(always)]
+fn stats(planes: &[[f32; TILE]; PLANES], col: usize) -> Stats {
+    Stats { x: load(&planes[0], col), y: load(&planes[1], col), s: load(&planes[2], col), d: load(&planes[3], col) }
+}
+
+/// The window statistics of one channel's voxels: for the 2-D window of the channel itself
+/// ([`own`]) or mixed over the 3-D window ([`mix`]).
 #[derive(Clone, Copy)]
 struct Window {
     /// Unshifted means and `μx − μy`.
-    mx: F32s,
-    my: F32s,
-    md: F32s,
+    mx: V,
+    my: V,
+    md: V,
     /// `σx² + σy²` and `σd²`, clamped at 0.
-    vs: F32s,
-    vd: F32s,
-    /// The magnitudes cancelled to get `vs` and `vd`: their rounding errors scale with them.
-    mag_s: F32s,
-    mag_d: F32s,
-    /// `|μx'| + |μy'|`: the rounding error of `md` and of the means scales with it.
-    mag_m: F32s,
+    vs: V,
+    vd: V,
+    /// The between-channel parts of `vs` and `vd` (0 for a 2-D window).
+    bs: V,
+    bd: V,
 }
 
-/// What [`map`] returns: the value, the refinement flag and the two error estimates as
-/// fractions (for ranking flagged voxels).
+/// The channel's own 2-D window.
+#[inline(always)]
+fn own(st: &Stats, shift: V, dshift: V) -> Window {
+    let md = st.x - st.y;
+    let mdp = md - dshift;
+    Window {
+        mx: st.x + shift,
+        my: st.y + shift,
+        md,
+        // Unfused, for the symmetry (see [`products`]).
+        vs: max0(st.s - (st.x * st.x + st.y * st.y)),
+        vd: max0(mdp.mul_neg_add(mdp, st.d)),
+        bs: V::ZERO,
+        bd: V::ZERO,
+    }
+}
+
+/// The channel pairs whose differences the mixing uses.
+const PAIRS: [(usize, usize); 3] = [(1, 0), (2, 0), (2, 1)];
+
+/// For channel `c`, `q₃ − q_c = Σ_{c'≠c} M[c][c']·(q_c' − q_c)` from the pair differences
+/// `d` (signed accordingly); zero (exactly) when the channels agree.
+#[inline(always)]
+fn spread(m: &[[V; 3]; 3], c: usize, d: &[V; 3]) -> V {
+    match c {
+        0 => m[0][1].mul_add(d[0], m[0][2] * d[1]),
+        1 => m[1][0].mul_neg_add(d[0], m[1][2] * d[2]),
+        _ => -m[2][0].mul_add(d[1], m[2][1] * d[2]),
+    }
+}
+
+/// `Σ_{c'≠c} M[c][c']·p(c, c')` for a symmetric pair quantity `p`.
+#[inline(always)]
+fn side(m: &[[V; 3]; 3], c: usize, p: &[V; 3]) -> V {
+    match c {
+        0 => m[0][1].mul_add(p[0], m[0][2] * p[1]),
+        1 => m[1][0].mul_add(p[0], m[1][2] * p[2]),
+        _ => m[2][0].mul_add(p[1], m[2][1] * p[2]),
+    }
+}
+
+/// The 3-D windows of all three channels from their 2-D windows.
+///
+/// Differences of the unshifted channel means come from the shifted means (small) plus the
+/// difference of the shifts (a constant, `ds`), so a large common level never enters. The
+/// variances mix by the law of total variance: `Σ M·(μ_c' − μ₃)² = Σ M·(μ_c' − μ_c)² −
+/// (μ₃ − μ_c)²`, well conditioned because `M[c][c] ≥ 0.27` (the subtracted square is at
+/// most 73% of the sum).
+#[inline(always)]
+fn mix(m: &[[V; 3]; 3], st: &[Stats; 3], w: &[Window; 3], ds: &[V; 3]) -> [Window; 3] {
+    let mut dx = [V::ZERO; 3];
+    let mut dy = [V::ZERO; 3];
+    let mut dd = [V::ZERO; 3];
+    let mut pxy = [V::ZERO; 3];
+    let mut pd = [V::ZERO; 3];
+    let mut dvs = [V::ZERO; 3];
+    let mut dvd = [V::ZERO; 3];
+    for (i, &(a, b)) in PAIRS.iter().enumerate() {
+        dx[i] = (st[a].x - st[b].x) + ds[i];
+        dy[i] = (st[a].y - st[b].y) + ds[i];
+        dd[i] = w[a].md - w[b].md;
+        // Unfused, for the symmetry (swapping the images swaps dx and dy).
+        pxy[i] = dx[i] * dx[i] + dy[i] * dy[i];
+        pd[i] = dd[i] * dd[i];
+        dvs[i] = w[a].vs - w[b].vs;
+        dvd[i] = w[a].vd - w[b].vd;
+    }
+    let d = Diffs { dx, dy, dd, pxy, pd, dvs, dvd };
+    [mixed(m, 0, &w[0], &d), mixed(m, 1, &w[1], &d), mixed(m, 2, &w[2], &d)]
+}
+
+/// The pair differences [`mix`] works from.
+struct Diffs {
+    dx: [V; 3],
+    dy: [V; 3],
+    dd: [V; 3],
+    pxy: [V; 3],
+    pd: [V; 3],
+    dvs: [V; 3],
+    dvd: [V; 3],
+}
+
+/// Channel `c`'s 3-D window from its 2-D window `w`. (A function, not a closure: closures
+/// returning a window were not inlined, which cost 20%.)
+#[inline(always)]
+fn mixed(m: &[[V; 3]; 3], c: usize, w: &Window, d: &Diffs) -> Window {
+    let (ex, ey, ed) = (spread(m, c, &d.dx), spread(m, c, &d.dy), spread(m, c, &d.dd));
+    let bs = max0(side(m, c, &d.pxy) - (ex * ex + ey * ey));
+    let bd = max0(ed.mul_neg_add(ed, side(m, c, &d.pd)));
+    Window {
+        mx: w.mx + ex,
+        my: w.my + ey,
+        md: w.md + ed,
+        vs: (w.vs + spread(m, c, &d.dvs)) + bs,
+        vd: (w.vd + spread(m, c, &d.dvd)) + bd,
+        bs,
+        bd,
+    }
+}
+
+/// The map value of one window and the parts of it the refinement test reuses.
 struct Mapped {
-    val: F32s,
-    flagged: F32s,
-    cs_num: F32s,
-    cs_den: F32s,
-    lum_num: F32s,
-    lum_den: F32s,
+    /// Clamped to [−1, 1].
+    val: V,
+    lum_den: V,
+    /// `σd²` clamped to `2(σx² + σy² + C2)`.
+    vdc: V,
 }
 
-/// The map value and the conditioning test.
+/// The map in the difference form (module docs).
+#[inline(always)]
+fn map(k: &Consts, w: &Window) -> Mapped {
+    let lum_den = (w.mx * w.mx + w.my * w.my) + k.c1;
+    let lum_num = w.md.mul_neg_add(w.md, lum_den);
+    let cs_den = w.vs + k.c2;
+    // σd² ≤ 2(σx² + σy²) holds exactly, but `vs` may be the badly conditioned one of the two
+    // (clamping to it would hide the deficit from the error estimate): clamp only as far as
+    // the structure term needs to stay ≥ −1.
+    let vdc = w.vd.fast_min(cs_den + cs_den);
+    let cs_num = cs_den - vdc;
+    let val = ((lum_num * cs_num) / (lum_den * cs_den)).fast_max(-V::ONE).fast_min(V::ONE);
+    Mapped { val, lum_den, vdc }
+}
+
+/// The magnitudes cancelled in a window's statistics: their rounding errors scale with them.
+#[derive(Clone, Copy)]
+struct Mags {
+    /// Cancelled to get `vs` (`E[x'² + y'²]`).
+    s: V,
+    /// Cancelled to get `vd`. `md` comes from two separately rounded means, so `mdp²`
+    /// carries an error of about `2|mdp|·γu(|x'| + |y'|)`.
+    d: V,
+    /// `|μx'| + |μy'|`: the rounding error of `md` and of the means scales with it.
+    m: V,
+}
+
+#[inline(always)]
+fn own_mags(st: &Stats, w: &Window, dshift: V) -> Mags {
+    let m = st.x.abs() + st.y.abs();
+    let mdp = w.md - dshift;
+    Mags { s: st.s, d: (mdp + mdp).abs().mul_add(m, st.d), m }
+}
+
+/// The magnitudes of the 3-D windows: they mix like the statistics they belong to.
+#[inline(always)]
+fn mix_mags(m: &[[V; 3]; 3], g: &[Mags; 3], win: &[Window; 3]) -> [Mags; 3] {
+    let mut ds = [V::ZERO; 3];
+    let mut dd = [V::ZERO; 3];
+    let mut dm = [V::ZERO; 3];
+    for (i, &(a, b)) in PAIRS.iter().enumerate() {
+        ds[i] = g[a].s - g[b].s;
+        dd[i] = g[a].d - g[b].d;
+        dm[i] = g[a].m - g[b].m;
+    }
+    let mut out = *g;
+    for c in 0..3 {
+        out[c] = Mags {
+            s: (g[c].s + spread(m, c, &ds)) + win[c].bs,
+            d: (g[c].d + spread(m, c, &dd)) + win[c].bd,
+            m: g[c].m + spread(m, c, &dm),
+        };
+    }
+    out
+}
+
+/// The refinement test of one window's voxels: the flag and the two error estimates as
+/// fractions `[cs_num, cs_den, lum_num, lum_den]` (for ranking flagged voxels).
 ///
 /// Structure term: the estimated error is `γu·(mag_d + (vd / cs_lo)·mag_s) / cs_lo`, with
 /// `cs_lo` the smallest `σx² + σy² + C2` consistent with the worst-case rounding error of
@@ -597,144 +878,147 @@ struct Mapped {
 /// `6γu·(|μx'| + |μy'|)·|md| / (μx² + μy² + C1)` (small unless the shift is far from the
 /// local mean). Each is tested against half of [`REFINE_THRESHOLD`], without a division.
 #[inline(always)]
-fn map(k: &Consts, w: &Window) -> Mapped {
-    let lum_den = w.mx * w.mx + w.my * w.my + k.c1;
-    let lum_num = lum_den - w.md * w.md;
-    let cs_den = w.vs + k.c2;
-    // σd² ≤ 2(σx² + σy²) holds exactly, but `vs` may be the badly conditioned one of the two
-    // (clamping to it would hide the deficit from the error estimate): clamp only as far as
-    // the structure term needs to stay ≥ −1.
-    let vd = w.vd.fast_min(cs_den + cs_den);
-    let cs_num = cs_den - vd;
-    let val = ((lum_num * cs_num) / (lum_den * cs_den)).fast_max(-F32s::ONE).fast_min(F32s::ONE);
+fn flags(k: &Consts, w: &Window, g: &Mags, mp: &Mapped) -> (V, [V; 4]) {
     // The estimate must not trust `vs` itself: where its error exceeds it (a badly shifted
     // window), the computed `cs_den` can be far too large and would hide everything.
-    let cs_lo = max0(w.vs - k.bound * w.mag_s) + k.c2;
-    let e_num = w.mag_d * cs_lo + vd * w.mag_s;
+    let cs_lo = max0(k.bound.mul_neg_add(g.s, w.vs)) + k.c2;
+    let e_num = g.d.mul_add(cs_lo, mp.vdc * g.s);
     let e_den = cs_lo * cs_lo;
-    let l_num = w.mag_m * w.md.abs();
-    let flagged = e_num.simd_gt(k.limit * e_den) | l_num.simd_gt(k.limit_lum * lum_den);
-    Mapped { val, flagged, cs_num: e_num, cs_den: e_den, lum_num: l_num, lum_den }
+    let l_num = g.m * w.md.abs();
+    let flagged = e_num.simd_gt(k.limit * e_den) | l_num.simd_gt(k.limit_lum * mp.lum_den);
+    (flagged, [e_num, e_den, l_num, mp.lum_den])
 }
 
+/// A cheap stand-in for [`flags`] over the three mixed windows of the 3-D variant: true in
+/// every lane where [`flags`] flags some channel (and in a few more). It bounds each mixed
+/// magnitude by the largest per-channel one (the mixing is a convex combination plus the
+/// between-channel part) instead of mixing them, with [`SCREEN_SLACK`] to spare; the test is
+/// monotonic in those bounds. Only vectors it fires on pay for the exact test (none on LDR
+/// content), so the refined voxels are the same as with the exact test everywhere.
 #[inline(always)]
-fn voxels(k: &Consts, variant: SsimVariant, st: &[[F32s; PLANES]; 3], sh: &Shifts, ds: &[F32s; 3], v: &mut Voxels) {
-    let mut win = [Window {
-        mx: F32s::ZERO,
-        my: F32s::ZERO,
-        md: F32s::ZERO,
-        vs: F32s::ZERO,
-        vd: F32s::ZERO,
-        mag_s: F32s::ZERO,
-        mag_d: F32s::ZERO,
-        mag_m: F32s::ZERO,
-    }; 3];
+fn screen(k: &Consts, st: &[Stats; 3], own: &[Window; 3], win: &[Window; 3], mp: &[Mapped; 3], sd: &[V; 3]) -> V {
+    let max3 = |a: [V; 3]| a[0].fast_max(a[1]).fast_max(a[2]);
+    let mut mag_m = [V::ZERO; 3];
+    let mut mdp = [V::ZERO; 3];
     for c in 0..3 {
-        let [xp, yp, s2, d2] = st[c];
-        let shift = F32s::splat(sh.s[c]);
-        v.mx[c] = xp + shift;
-        v.my[c] = yp + shift;
-        v.md[c] = xp - yp;
-        let mdp = v.md[c] - F32s::splat(sh.sd[c]);
-        let mag_m = xp.abs() + yp.abs();
-        win[c] = Window {
-            mx: v.mx[c],
-            my: v.my[c],
-            md: v.md[c],
-            vs: max0(s2 - (xp * xp + yp * yp)),
-            vd: max0(d2 - mdp * mdp),
-            mag_s: s2,
-            // `md` comes from two separately rounded means, so `mdp²` carries an error of
-            // about 2|mdp|·γu(|x'| + |y'|).
-            mag_d: d2 + (mdp + mdp).abs() * mag_m,
-            mag_m,
-        };
-        // NaN or ±∞ anywhere in the window makes the sum non-finite.
-        v.finite[c] = (xp + yp + s2 + d2).is_finite();
+        mag_m[c] = st[c].x.abs() + st[c].y.abs();
+        mdp[c] = (own[c].md - sd[c]).abs();
     }
-    let out = |v: &mut Voxels, c: usize, w: &Window| {
-        let m = map(k, w);
-        v.val[c] = m.val;
-        v.flagged[c] = m.flagged;
-        v.score[c] = [m.cs_num, m.cs_den, m.lum_num, m.lum_den];
+    let mm = max3(mag_m) * k.slack;
+    let ms = max3([st[0].s, st[1].s, st[2].s]) * k.slack;
+    let mdp = max3(mdp);
+    let md = (mdp + mdp).mul_add(mm, max3([st[0].d, st[1].d, st[2].d])) * k.slack;
+    let mut fire = V::ZERO;
+    for c in 0..3 {
+        let (s, d) = (ms + win[c].bs, md + win[c].bd);
+        let lo = max0(k.bound.mul_neg_add(s, win[c].vs)) + k.c2;
+        let e = d.mul_add(lo, mp[c].vdc * s);
+        // `≥`, not `>`: where both sides overflow to +∞, the exact test must decide.
+        fire |=
+            e.simd_ge(k.screen_limit * (lo * lo)) | (mm * win[c].md.abs()).simd_ge(k.screen_limit_lum * mp[c].lum_den);
+    }
+    fire
+}
+
+/// The windows of one vector of voxels in all three channels: each channel's own and the
+/// ones the map uses (mixed for the 3-D variant).
+#[inline(always)]
+fn windows(k: &Consts, variant: SsimVariant, st: &[Stats; 3], sh: &Shifts, ds: &[V; 3]) -> ([Window; 3], [Window; 3]) {
+    // (Plain arrays, not `core::array::from_fn` or `[_; 3].map`: those closures are not
+    // always inlined here, which cost 60%.)
+    let own = [
+        own(&st[0], V::splat(sh.s[0]), V::splat(sh.sd[0])),
+        own(&st[1], V::splat(sh.s[1]), V::splat(sh.sd[1])),
+        own(&st[2], V::splat(sh.s[2]), V::splat(sh.sd[2])),
+    ];
+    let win = match variant {
+        SsimVariant::PerChannel => own,
+        SsimVariant::Volume => mix(&k.m, st, &own, ds),
     };
+    (own, win)
+}
+
+/// Lanes whose windows hold only usable samples, per channel. An unusable sample is NaN
+/// after [`products`], which makes its channel's `x'² + y'²` plane NaN wherever a window
+/// holds it, so that one plane tells (usable samples cannot overflow any statistic).
+#[inline(always)]
+fn finite(variant: SsimVariant, st: &[Stats; 3]) -> [V; 3] {
     match variant {
-        SsimVariant::PerChannel => {
-            for (c, w) in win.iter().enumerate() {
-                out(v, c, w);
-            }
-        }
+        SsimVariant::PerChannel => [st[0].s.simd_eq(st[0].s), st[1].s.simd_eq(st[1].s), st[2].s.simd_eq(st[2].s)],
         SsimVariant::Volume => {
-            // Differences of the unshifted channel means for the pairs (1,0), (2,0), (2,1):
-            // from the shifted means (small) plus the difference of the shifts (a constant),
-            // so a large common level never enters.
-            // (Plain arrays and loops: `[_; 3].map` is not inlined here and cost 10%.)
-            const PAIRS: [(usize, usize); 3] = [(1, 0), (2, 0), (2, 1)];
-            let mut dx = [F32s::ZERO; 3];
-            let mut dy = [F32s::ZERO; 3];
-            let mut dd = [F32s::ZERO; 3];
-            let mut pxy = [F32s::ZERO; 3];
-            let mut pd = [F32s::ZERO; 3];
-            let mut dvs = [F32s::ZERO; 3];
-            let mut dvd = [F32s::ZERO; 3];
-            let mut dms = [F32s::ZERO; 3];
-            let mut dmd = [F32s::ZERO; 3];
-            let mut dmm = [F32s::ZERO; 3];
-            for (i, &(a, b)) in PAIRS.iter().enumerate() {
-                dx[i] = (st[a][0] - st[b][0]) + ds[i];
-                dy[i] = (st[a][1] - st[b][1]) + ds[i];
-                dd[i] = v.md[a] - v.md[b];
-                pxy[i] = dx[i] * dx[i] + dy[i] * dy[i];
-                pd[i] = dd[i] * dd[i];
-                dvs[i] = win[a].vs - win[b].vs;
-                dvd[i] = win[a].vd - win[b].vd;
-                dms[i] = win[a].mag_s - win[b].mag_s;
-                dmd[i] = win[a].mag_d - win[b].mag_d;
-                dmm[i] = win[a].mag_m - win[b].mag_m;
-            }
-            let m = &k.m;
-            // For channel c, `q₃ − q_c = Σ_{c'≠c} M[c][c']·(q_c' − q_c)` with the pair
-            // differences signed accordingly; zero (exactly) when the channels agree.
-            let e = |c: usize, d: &[F32s; 3]| match c {
-                0 => m[0][1] * d[0] + m[0][2] * d[1],
-                1 => m[1][2] * d[2] - m[1][0] * d[0],
-                _ => -(m[2][0] * d[1] + m[2][1] * d[2]),
-            };
-            // `Σ_{c'≠c} M[c][c']·p(c, c')` for a symmetric pair quantity `p`.
-            let side = |c: usize, p: &[F32s; 3]| match c {
-                0 => m[0][1] * p[0] + m[0][2] * p[1],
-                1 => m[1][0] * p[0] + m[1][2] * p[2],
-                _ => m[2][0] * p[1] + m[2][1] * p[2],
-            };
-            for c in 0..3 {
-                let (ex, ey, ed) = (e(c, &dx), e(c, &dy), e(c, &dd));
-                // Law of total variance: Σ M·(μ_c' − μ₃)² = Σ M·(μ_c' − μ_c)² − (μ₃ − μ_c)²,
-                // well conditioned because M[c][c] ≥ 0.27 (the subtracted square is at most
-                // 73% of the sum).
-                let between_s = max0(side(c, &pxy) - (ex * ex + ey * ey));
-                let between_d = max0(side(c, &pd) - ed * ed);
-                let mixed = Window {
-                    mx: v.mx[c] + ex,
-                    my: v.my[c] + ey,
-                    md: v.md[c] + ed,
-                    vs: (win[c].vs + e(c, &dvs)) + between_s,
-                    vd: (win[c].vd + e(c, &dvd)) + between_d,
-                    // The rounding errors mix like the statistics they belong to.
-                    mag_s: (win[c].mag_s + e(c, &dms)) + between_s,
-                    mag_d: (win[c].mag_d + e(c, &dmd)) + between_d,
-                    mag_m: win[c].mag_m + e(c, &dmm),
-                };
-                out(v, c, &mixed);
-            }
-            let finite = v.finite[0] & v.finite[1] & v.finite[2];
-            v.finite = [finite; 3];
+            let all = st[0].s + st[1].s + st[2].s;
+            [all.simd_eq(all); 3]
         }
     }
 }
 
-/// Vertical pass, map and accumulation for output row `o`.
+/// The common case of pass 0: the map values, and the lanes that are usable and pass the
+/// refinement test in every channel.
+#[inline(always)]
+fn fast_voxels(k: &Consts, variant: SsimVariant, st: &[Stats; 3], sh: &Shifts, ds: &[V; 3]) -> ([V; 3], V) {
+    let (own, win) = windows(k, variant, st, sh, ds);
+    let mp = [map(k, &win[0]), map(k, &win[1]), map(k, &win[2])];
+    let fin = finite(variant, st);
+    let fire = match variant {
+        SsimVariant::Volume => {
+            let sd = [V::splat(sh.sd[0]), V::splat(sh.sd[1]), V::splat(sh.sd[2])];
+            screen(k, st, &own, &win, &mp, &sd)
+        }
+        SsimVariant::PerChannel => {
+            let mut any = V::ZERO;
+            for c in 0..3 {
+                let g = own_mags(&st[c], &own[c], V::splat(sh.sd[c]));
+                any |= flags(k, &win[c], &g, &mp[c]).0;
+            }
+            any
+        }
+    };
+    ([mp[0].val, mp[1].val, mp[2].val], fin[0] & fin[1] & fin[2] & !fire)
+}
+
+/// Everything a pass needs to decide about one vector of voxels.
+struct Voxels {
+    /// Map values, clamped to [−1, 1].
+    val: [V; 3],
+    /// Lanes whose window holds only usable samples.
+    finite: [V; 3],
+    /// Lanes whose estimated rounding error is above the threshold.
+    flagged: [V; 3],
+    /// The error estimates as fractions (see [`flags`]).
+    score: [[V; 4]; 3],
+    /// Per-channel 2-D windows, for re-shifting.
+    own: [Window; 3],
+}
+
+/// The map values with the exact refinement test (the values are the same bits as
+/// [`fast_voxels`]'s: the same code computes them).
+#[inline(always)]
+fn exact_voxels(k: &Consts, variant: SsimVariant, st: &[Stats; 3], sh: &Shifts, ds: &[V; 3]) -> Voxels {
+    let (own, win) = windows(k, variant, st, sh, ds);
+    let mp = [map(k, &win[0]), map(k, &win[1]), map(k, &win[2])];
+    let g = [
+        own_mags(&st[0], &own[0], V::splat(sh.sd[0])),
+        own_mags(&st[1], &own[1], V::splat(sh.sd[1])),
+        own_mags(&st[2], &own[2], V::splat(sh.sd[2])),
+    ];
+    let g = match variant {
+        SsimVariant::PerChannel => g,
+        SsimVariant::Volume => mix_mags(&k.m, &g, &win),
+    };
+    let f = [flags(k, &win[0], &g[0], &mp[0]), flags(k, &win[1], &g[1], &mp[1]), flags(k, &win[2], &g[2], &mp[2])];
+    Voxels {
+        val: [mp[0].val, mp[1].val, mp[2].val],
+        finite: finite(variant, st),
+        flagged: [f[0].0, f[1].0, f[2].0],
+        score: [f[0].1, f[1].1, f[2].1],
+        own,
+    }
+}
+
+/// Vertical pass for output rows `o .. o + K`, then the map and accumulation of each.
 #[allow(clippy::too_many_arguments)]
-fn emit_row(
+#[inline(always)]
+fn emit_rows<const K: usize>(
     ctx: &Ctx<'_>,
     s: &mut Scratch,
     t: &Tile,
@@ -744,60 +1028,81 @@ fn emit_row(
     sums: &mut Sums,
     worst: &mut Worst,
 ) {
-    let k = &ctx.k;
-    let mut slots = [0usize; TAPS];
+    let rows = o - t.r0..o - t.r0 + K;
+    if pass > 0 && s.pending[rows].iter().all(|p| *p == [0; 3]) {
+        return;
+    }
+    let mut slots = [0usize; RING];
     for (i, slot) in slots.iter_mut().enumerate() {
-        *slot = (o + i).saturating_sub(RADIUS).min(ctx.height - 1) % TAPS;
+        *slot = (o + i).saturating_sub(RADIUS).min(ctx.height - 1) % RING;
     }
-    let mut ds = [F32s::ZERO; 3];
-    for (i, (a, b)) in [(1, 0), (2, 0), (2, 1)].into_iter().enumerate() {
-        ds[i] = F32s::splat(sh.s[a] - sh.s[b]);
+    vertical::<K>(&ctx.k, s, &slots);
+    for r in 0..K {
+        emit_row(ctx, s, t, pass, sh, o + r, r, sums, worst);
     }
+}
+
+/// Map and accumulation for output row `o`, whose vertical statistics are in `vbuf[vb]`.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn emit_row(
+    ctx: &Ctx<'_>,
+    s: &mut Scratch,
+    t: &Tile,
+    pass: usize,
+    sh: &Shifts,
+    o: usize,
+    vb: usize,
+    sums: &mut Sums,
+    worst: &mut Worst,
+) {
+    let k = &ctx.k;
     let row = o - t.r0;
     let pending = s.pending[row];
     if pass > 0 && pending == [0; 3] {
         return;
     }
-    vertical(k, s, &slots);
-    let mut st = [[F32s::ZERO; PLANES]; 3];
-    let mut v = Voxels::default();
-    let mut row_sum = [F32s::ZERO; 3];
+    let mut ds = [V::ZERO; 3];
+    for (i, &(a, b)) in PAIRS.iter().enumerate() {
+        ds[i] = V::splat(sh.s[a] - sh.s[b]);
+    }
+    let full = t.full_vectors();
+    let mut row_sum = [V::ZERO; 3];
     let mut row_count = [0u64; 3];
     for j in 0..t.nv.min(TILE / LANES) {
-        let mut want = [0xffu32; 3];
+        let mut want = [LANE_BITS as u32; 3];
         if pass > 0 {
             for (w, &p) in want.iter_mut().zip(&pending) {
-                *w = ((p >> (j * LANES)) & 0xff) as u32;
+                *w = ((p >> (j * LANES)) & LANE_BITS) as u32;
             }
         }
         if want == [0; 3] {
             continue;
         }
         let col = j * LANES;
-        for c in 0..3 {
-            for q in 0..PLANES {
-                st[c][q] = load(&s.vbuf[c][q], col);
+        let vbuf = &s.vbuf[vb];
+        let st = [stats(&vbuf[0], col), stats(&vbuf[1], col), stats(&vbuf[2], col)];
+        // Common case: a full vector of usable, well-conditioned voxels in every channel.
+        if pass == 0 && j < full {
+            let (val, ok) = fast_voxels(k, ctx.variant, &st, sh, &ds);
+            if ok.all() {
+                for c in 0..3 {
+                    row_sum[c] += val[c];
+                    row_count[c] += LANES as u64;
+                }
+                continue;
             }
         }
-        voxels(k, ctx.variant, &st, sh, &ds, &mut v);
+        let v = exact_voxels(k, ctx.variant, &st, sh, &ds);
         let inside = lanes(t, j);
-        // Common case: eight usable, well-conditioned voxels in every channel.
-        let ok = inside & v.finite[0] & v.finite[1] & v.finite[2] & !(v.flagged[0] | v.flagged[1] | v.flagged[2]);
-        if pass == 0 && ok.all() {
-            for c in 0..3 {
-                row_sum[c] += v.val[c];
-                row_count[c] += LANES as u64;
-            }
-            continue;
-        }
         for (c, &want) in want.iter().enumerate() {
             let candidates = v.finite[c] & inside & if pass == 0 { inside } else { bits_mask(want) };
             let flagged = candidates & v.flagged[c];
             let accept = candidates & !flagged;
             let accepted = count(accept);
             if accepted > 0 {
-                // At most 8 terms per lane in f32 before the f64 sum.
-                row_sum[c] += accept.select(v.val[c], F32s::ZERO);
+                // At most TILE / LANES terms per lane in f32 before the f64 sum.
+                row_sum[c] += accept.select(v.val[c], V::ZERO);
                 row_count[c] += u64::from(accepted);
                 if pass > 0 {
                     sums.refined += u64::from(accepted);
@@ -819,8 +1124,9 @@ fn emit_row(
                 if score > worst.score[c] {
                     worst.score[c] = score;
                     for q in 0..3 {
-                        worst.level[c][q] = (v.mx[q].to_array()[lane] + v.my[q].to_array()[lane]) * 0.5;
-                        worst.diff[c][q] = v.md[q].to_array()[lane];
+                        let w = &v.own[q];
+                        worst.level[c][q] = (w.mx.to_array()[lane] + w.my.to_array()[lane]) * 0.5;
+                        worst.diff[c][q] = w.md.to_array()[lane];
                     }
                 }
             }
