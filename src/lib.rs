@@ -10,6 +10,7 @@ pub use stereotrace_kernels as kernels;
 pub mod camera;
 pub mod commands;
 pub mod cpu;
+pub mod eval;
 pub mod image_io;
 pub mod pipeline;
 pub mod render;

@@ -1,0 +1,201 @@
+//! References and error curves, rendered progressively: one sample per pixel per pass.
+//!
+//! [`Progressive`] keeps a running f32 sum of passes that each trace exactly one sample
+//! (`TraceRequest::first_sample` = the samples so far). Its mean after `m` passes is bit for
+//! bit the image one `m`-spp render gives (the renderer sums the samples of a pixel in the
+//! same order in f32 and multiplies by `1/m`; `tests/eval.rs` checks it). So an error curve
+//! `E(1..=M)` costs `M` samples per pixel, the same as its last point alone, and a
+//! reference can be checkpointed and resumed at any sample count.
+
+use serde::{Deserialize, Serialize};
+
+use super::effective::{ErrorCurve, Grid, Interpolation, Metric};
+use crate::camera::{Eye, StereoRig};
+use crate::kernels::ssim::{SsimParams, SsimVariant, ssim};
+use crate::kernels::{CameraModel, Extent, RgbBuf};
+use crate::render::lights::FrameLights;
+use crate::render::{PixelSelection, Renderer, TraceRequest, TraceStats};
+
+/// What the renderer needs to trace one frame of one eye.
+pub struct FrameView {
+    pub frame: u32,
+    pub eye: Eye,
+    pub camera: CameraModel,
+    pub lights: FrameLights,
+}
+
+impl FrameView {
+    /// The view of `eye` at `frame` on the scene's camera path.
+    pub fn new(renderer: &Renderer, rig: &StereoRig, extent: Extent, frame: u32, eye: Eye) -> Result<Self, String> {
+        let head = renderer.scene().camera.pose_at(frame as f32);
+        let camera = rig.eye_camera(&head, eye, extent).map_err(|e| format!("frame {frame}: {e}"))?;
+        Ok(Self { frame, eye, camera, lights: renderer.frame_lights(frame) })
+    }
+
+    /// A whole `spp`-sample render with `seed` (samples `first_sample..first_sample + spp`).
+    pub fn render(
+        &self,
+        renderer: &Renderer,
+        spp: u32,
+        seed: u64,
+        first_sample: u32,
+        general: bool,
+    ) -> Result<(RgbBuf, TraceStats), String> {
+        let mut img = RgbBuf::new(self.camera.extent, 0.0);
+        let request = TraceRequest { eye: self.eye, frame: self.frame, spp, seed, first_sample };
+        let stats = renderer
+            .trace(&self.lights, &self.camera, &request, PixelSelection::All, &mut img, general)
+            .map_err(|e| e.to_string())?;
+        Ok((img, stats))
+    }
+}
+
+/// A running sum of one-sample passes.
+#[derive(Clone, Debug)]
+pub struct Progressive {
+    samples: u32,
+    sum: RgbBuf,
+    pass: RgbBuf,
+    mean: RgbBuf,
+}
+
+impl Progressive {
+    /// No samples yet.
+    pub fn new(extent: Extent) -> Self {
+        Self::resume(0, RgbBuf::new(extent, 0.0))
+    }
+
+    /// Continues from a checkpoint: `sum` of the first `samples` samples.
+    pub fn resume(samples: u32, sum: RgbBuf) -> Self {
+        let e = sum.extent();
+        Self { samples, sum, pass: RgbBuf::new(e, 0.0), mean: RgbBuf::new(e, 0.0) }
+    }
+
+    pub fn samples(&self) -> u32 {
+        self.samples
+    }
+
+    /// The running sum (for checkpoints).
+    pub fn sum(&self) -> &RgbBuf {
+        &self.sum
+    }
+
+    /// Traces sample number `self.samples()` of every pixel with `seed` and adds it.
+    pub fn add_sample(
+        &mut self,
+        renderer: &Renderer,
+        view: &FrameView,
+        seed: u64,
+        general: bool,
+    ) -> Result<TraceStats, String> {
+        let request = TraceRequest { eye: view.eye, frame: view.frame, spp: 1, seed, first_sample: self.samples };
+        let stats = renderer
+            .trace(&view.lights, &view.camera, &request, PixelSelection::All, &mut self.pass, general)
+            .map_err(|e| e.to_string())?;
+        for (s, p) in
+            [(&mut self.sum.r, &self.pass.r), (&mut self.sum.g, &self.pass.g), (&mut self.sum.b, &self.pass.b)]
+        {
+            for (s, &p) in s.as_mut_slice().iter_mut().zip(p.as_slice()) {
+                *s += p;
+            }
+        }
+        self.samples += 1;
+        Ok(stats)
+    }
+
+    /// The mean of the samples so far: what one `samples()`-spp render gives.
+    pub fn mean(&mut self) -> &RgbBuf {
+        let inv = 1.0 / self.samples.max(1) as f32;
+        for (m, s) in
+            [(&mut self.mean.r, &self.sum.r), (&mut self.mean.g, &self.sum.g), (&mut self.mean.b, &self.sum.b)]
+        {
+            for (m, &s) in m.as_mut_slice().iter_mut().zip(s.as_slice()) {
+                *m = s * inv;
+            }
+        }
+        &self.mean
+    }
+}
+
+/// SSIM and RMSE of an image against a reference.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Measurement {
+    pub ssim: f64,
+    pub rmse: f64,
+}
+
+impl Measurement {
+    /// The error of `metric`: `1 − SSIM` or the RMSE.
+    pub fn error(&self, metric: Metric) -> f64 {
+        match metric {
+            Metric::Ssim => 1.0 - self.ssim,
+            Metric::Rmse => self.rmse,
+        }
+    }
+}
+
+/// Measures `image` against `reference` with the SSIM `variant`.
+pub fn measure(image: &RgbBuf, reference: &RgbBuf, variant: SsimVariant) -> Result<Measurement, String> {
+    let r = ssim(&image.view(), &reference.view(), &SsimParams::with_variant(variant)).map_err(|e| e.to_string())?;
+    Ok(Measurement { ssim: r.ssim, rmse: r.rmse })
+}
+
+/// One measured point of an error curve.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CurvePoint {
+    pub spp: u32,
+    pub ssim: f64,
+    pub rmse: f64,
+}
+
+/// The measured curve of one frame and eye: both metrics at the grid's sample counts.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FrameCurve {
+    pub frame: u32,
+    pub grid: Grid,
+    pub points: Vec<CurvePoint>,
+}
+
+impl FrameCurve {
+    /// The error curve of `metric`.
+    pub fn curve(&self, metric: Metric) -> Result<ErrorCurve, String> {
+        let spp = self.points.iter().map(|p| p.spp).collect();
+        let err = self.points.iter().map(|p| Measurement { ssim: p.ssim, rmse: p.rmse }.error(metric)).collect();
+        let interpolation = if self.grid == Grid::Dense { Interpolation::Linear } else { Interpolation::LogLog };
+        ErrorCurve::new(spp, err, interpolation).map_err(|e| format!("frame {}: {metric:?} curve: {e}", self.frame))
+    }
+
+    /// The SSIM measured at `spp` samples, if it was.
+    pub fn ssim_at(&self, spp: u32) -> Option<f64> {
+        self.points.iter().find(|p| p.spp == spp).map(|p| p.ssim)
+    }
+
+    pub fn max_spp(&self) -> u32 {
+        self.points.last().map_or(0, |p| p.spp)
+    }
+}
+
+/// Builds the curve of `view` measured at `points` (ascending, from 1) against `reference`,
+/// progressively with `seed`, without checkpoints (the evaluation run adds those).
+pub fn build_curve(
+    renderer: &Renderer,
+    view: &FrameView,
+    seed: u64,
+    grid: Grid,
+    points: &[u32],
+    reference: &RgbBuf,
+    variant: SsimVariant,
+) -> Result<FrameCurve, String> {
+    let mut prog = Progressive::new(reference.extent());
+    let mut out = Vec::with_capacity(points.len());
+    let last = points.last().copied().unwrap_or(0);
+    while prog.samples() < last {
+        prog.add_sample(renderer, view, seed, false)?;
+        let m = prog.samples();
+        if points.binary_search(&m).is_ok() {
+            let Measurement { ssim, rmse } = measure(prog.mean(), reference, variant)?;
+            out.push(CurvePoint { spp: m, ssim, rmse });
+        }
+    }
+    Ok(FrameCurve { frame: view.frame, grid, points: out })
+}

@@ -1,0 +1,971 @@
+//! Running an evaluation: planning, the cache, progress and resuming.
+//!
+//! # Work units
+//! Per scene, in order: the references of the frames that need one, the error curves of
+//! those frames, then every (variant, input spp) configuration (the pipeline over all
+//! frames, measured on the frames with a reference), then the figure renders. Each unit is
+//! a cache entry (see [`super::cache`] for the format); a run first loads what exists, so
+//! an interrupted run resumes at the first missing unit. References and curves are also
+//! checkpointed every [`EvalSpec::checkpoint_spp`] samples (a `*-partial` entry holding the
+//! running sum), so at the paper's 4096 spp an interruption loses at most one chunk. A
+//! configuration is one unit: the pipeline's history is not serialisable, so an interrupted
+//! configuration starts again from frame 0.
+//!
+//! # Keys and the code version
+//! Every key holds the scene's fingerprint, the resolution, the eye, the eye separation,
+//! frame, spp and seed as they apply, and a code version: [`CACHE_FORMAT`], the crate
+//! version, and two behavioural probes. The global probe runs the pipeline in every mode
+//! on a tiny Cornell box and measures SSIM between its outputs; the scene probe path traces
+//! a tiny image of the scene at its first and last frame. Their output bits change when the
+//! renderer, the kernels or the pipeline change what they compute, so stale entries are not
+//! reused even if nobody bumps the format. (A change that leaves both probes bit-identical
+//! is not detected: bump [`CACHE_FORMAT`] for those.) A configuration's key also holds the
+//! full pipeline configuration and the keys of the curves it is measured on.
+//!
+//! # Progress
+//! Work is counted in path-traced pixel samples (the estimate for a configuration counts a
+//! left eye filled from the right as a tenth of a frame). Cached units are left out of the
+//! total before the run starts, so the ETA only covers what will be computed.
+
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+
+use super::cache::{
+    CACHE_FORMAT, Cache, CacheKey, Lookup, Reader, checksum, decode_image, decode_mask, encode_image, encode_mask,
+};
+use super::curve::{CurvePoint, FrameCurve, FrameView, Measurement, Progressive, measure};
+use super::effective::{EffectiveSpp, Grid, Metric};
+use super::stats::Summary;
+use super::{EvalSpec, Variant};
+use crate::camera::{Eye, StereoRig};
+use crate::kernels::reproject::REASON_COUNT;
+use crate::kernels::{Extent, PlaneBuf, RgbBuf};
+use crate::pipeline::{Mode, Order, Pipeline, PipelineConfig};
+use crate::render::Renderer;
+
+/// Where a run reports progress and warnings (the CLI shows a progress bar).
+pub trait Reporter: Sync {
+    /// The run starts; `total` units of work (pixel samples) remain to be computed.
+    fn begin(&self, _total: u64) {}
+    /// More work than planned (a corrupt cache entry, figure renders).
+    fn add_work(&self, _extra: u64) {}
+    /// Planned work that turned out not to be needed (resumed from a checkpoint).
+    fn skip_work(&self, _work: u64) {}
+    /// `done` units of work were computed.
+    fn advance(&self, _done: u64) {}
+    /// What is being computed now.
+    fn status(&self, _message: &str) {}
+    /// A non-fatal problem (also collected in [`EvalOutcome::warnings`]).
+    fn warn(&self, message: &str) {
+        eprintln!("warning: {message}");
+    }
+}
+
+/// A reporter that shows nothing.
+pub struct Quiet;
+
+impl Reporter for Quiet {
+    fn warn(&self, _message: &str) {}
+}
+
+/// What a run computed (as opposed to loading it from the cache).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct WorkCounters {
+    /// References rendered (or finished from a checkpoint).
+    pub references: usize,
+    /// Error curves built (or finished from a checkpoint).
+    pub curves: usize,
+    /// Configurations run through the pipeline.
+    pub configs: usize,
+    /// Figure images rendered.
+    pub figure_images: usize,
+    /// Entries loaded from the cache.
+    pub cache_hits: usize,
+    /// Entries that failed verification and were recomputed.
+    pub corrupt_entries: usize,
+    /// Pixel samples path traced.
+    pub samples: u64,
+}
+
+impl WorkCounters {
+    /// References, curves and configurations computed.
+    pub fn computed_units(&self) -> usize {
+        self.references + self.curves + self.configs
+    }
+}
+
+/// Stops a run early (tests; splitting a long run into sessions).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Limits {
+    /// Stop with [`EvalError::Interrupted`] before computing more than this many units
+    /// (references, curves, configurations).
+    pub max_computed_units: Option<usize>,
+    /// Stop with [`EvalError::Interrupted`] once this many pixel samples have been traced,
+    /// even inside a reference or curve (after writing its checkpoint): simulates a run
+    /// killed mid-unit.
+    pub max_samples: Option<u64>,
+}
+
+/// Why a run stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum EvalError {
+    #[error("{0}")]
+    Failed(String),
+    #[error("stopped after computing {computed} units (limit reached); run again to resume")]
+    Interrupted { computed: usize, counters: WorkCounters },
+}
+
+impl From<String> for EvalError {
+    fn from(s: String) -> Self {
+        EvalError::Failed(s)
+    }
+}
+
+/// Pixels of one frame per reason, indexed by the reason code.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct FrameReasons {
+    pub frame: u32,
+    pub counts: [u64; REASON_COUNT],
+}
+
+/// One measured frame of a configuration.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FrameResult {
+    pub frame: u32,
+    /// Whether the frame is after the warm-up (only those are summarised).
+    pub evaluated: bool,
+    pub ssim: f64,
+    pub rmse: f64,
+    /// Effective spp (evaluated frames only).
+    pub effective_ssim: Option<EffectiveSpp>,
+    pub effective_rmse: Option<EffectiveSpp>,
+}
+
+impl FrameResult {
+    pub fn effective(&self, metric: Metric) -> Option<EffectiveSpp> {
+        match metric {
+            Metric::Ssim => self.effective_ssim,
+            Metric::Rmse => self.effective_rmse,
+        }
+    }
+}
+
+/// One (variant, input spp) of one scene.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ConfigResult {
+    pub variant: Variant,
+    pub spp: u32,
+    /// The frames with a reference (the evaluated ones; every frame for Figure 3's scene).
+    pub frames: Vec<FrameResult>,
+    /// Left eye, every frame: stereo reprojection into it (zero where the mode has none).
+    pub stereo_reasons: Vec<FrameReasons>,
+    /// Left eye, every frame: temporal reprojection of its history (zero on frame 0).
+    pub temporal_reasons: Vec<FrameReasons>,
+    /// Effective spp over the evaluated frames.
+    pub ssim: Summary,
+    pub rmse: Summary,
+    /// Left-eye pixels path traced over all frames.
+    pub traced_left_pixels: u64,
+    /// Wall time of the pipeline run that produced this (not part of any key).
+    pub seconds: f64,
+}
+
+impl ConfigResult {
+    pub fn summary(&self, metric: Metric) -> &Summary {
+        match metric {
+            Metric::Ssim => &self.ssim,
+            Metric::Rmse => &self.rmse,
+        }
+    }
+}
+
+/// Everything measured on one scene.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SceneResult {
+    pub name: String,
+    pub display_name: String,
+    pub paper_scene: Option<String>,
+    pub fingerprint: String,
+    /// The error curves of the frames with a reference.
+    pub curves: Vec<FrameCurve>,
+    pub configs: Vec<ConfigResult>,
+}
+
+impl SceneResult {
+    pub fn config(&self, variant: Variant, spp: u32) -> Option<&ConfigResult> {
+        self.configs.iter().find(|c| c.variant == variant && c.spp == spp)
+    }
+}
+
+/// The machine-readable result of a run.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EvalResults {
+    pub spec: EvalSpec,
+    pub code_version: String,
+    pub scenes: Vec<SceneResult>,
+}
+
+/// Figure 6's input: one eye's reason codes at one frame, over its reference.
+#[derive(Clone, Debug)]
+pub struct DiscardMap {
+    pub scene: String,
+    pub frame: u32,
+    /// `stereo` or `temporal`.
+    pub kind: &'static str,
+    pub reasons: PlaneBuf<u8>,
+    pub background: RgbBuf,
+}
+
+/// One row of Figure 7.
+#[derive(Clone, Debug)]
+pub struct ComparisonRow {
+    pub scene: String,
+    pub frame: u32,
+    pub spp: u32,
+    pub path_traced: RgbBuf,
+    pub reprojected: RgbBuf,
+    pub effective: EffectiveSpp,
+    pub comparison_spp: u32,
+    pub comparison: RgbBuf,
+}
+
+/// Images for the figures (kept out of the JSON).
+#[derive(Clone, Debug, Default)]
+pub struct Artifacts {
+    pub discard_maps: Vec<DiscardMap>,
+    pub comparisons: Vec<ComparisonRow>,
+}
+
+/// What [`evaluate`] returns.
+pub struct EvalOutcome {
+    pub results: EvalResults,
+    pub artifacts: Artifacts,
+    pub counters: WorkCounters,
+    pub warnings: Vec<String>,
+    pub seconds: f64,
+}
+
+const PROBE_SEED: u64 = 0x9E0B_E5EE_D000_0001;
+
+/// Hashes the bits of images and numbers.
+#[derive(Default)]
+struct BitHash(Vec<u8>);
+
+impl BitHash {
+    fn image(&mut self, img: &RgbBuf) {
+        for p in [&img.r, &img.g, &img.b] {
+            for v in p.as_slice() {
+                self.0.extend_from_slice(&v.to_bits().to_le_bytes());
+            }
+        }
+    }
+    fn bytes(&mut self, b: &[u8]) {
+        self.0.extend_from_slice(b);
+    }
+    fn f64(&mut self, v: f64) {
+        self.0.extend_from_slice(&v.to_bits().to_le_bytes());
+    }
+    fn finish(&self) -> u64 {
+        checksum(&[&self.0])
+    }
+}
+
+/// The global behavioural probe: every pipeline mode and order on a 32×18 Cornell box for
+/// three frames, and SSIM between the outputs.
+pub fn code_probe() -> Result<u64, String> {
+    let scene = crate::scene::resolve("cornell").map_err(|e| e.to_string())?;
+    let renderer = Renderer::new(scene).map_err(|e| e.to_string())?;
+    let extent = Extent::new(32, 18).map_err(|e| e.to_string())?;
+    let mut h = BitHash::default();
+    let mut outputs = Vec::new();
+    let tol = renderer.scene().tolerances.at_height(extent.height());
+    let mut variants = vec![Variant::new(Mode::PathTraced, Order::Paper)];
+    variants.extend(Variant::ALL);
+    for v in variants {
+        let mut cfg = PipelineConfig::paper(v.mode, 1, tol);
+        cfg.order = v.order;
+        let mut p = Pipeline::new(&renderer, cfg, StereoRig::default(), extent).map_err(|e| e.to_string())?;
+        for f in 0..3 {
+            p.render_frame(f, &renderer.scene().camera.pose_at(f as f32)).map_err(|e| e.to_string())?;
+        }
+        for eye in Eye::BOTH {
+            h.image(p.output(eye));
+            h.bytes(p.stereo_reasons(eye).as_slice());
+            h.bytes(p.temporal_reasons(eye).as_slice());
+        }
+        outputs.push(p.output(Eye::Left).clone());
+    }
+    for w in outputs.windows(2) {
+        for variant in [crate::kernels::ssim::SsimVariant::Volume, crate::kernels::ssim::SsimVariant::PerChannel] {
+            let m = measure(&w[0], &w[1], variant)?;
+            h.f64(m.ssim);
+            h.f64(m.rmse);
+        }
+    }
+    Ok(h.finish())
+}
+
+/// The scene probe: a 24×14, 2-spp left-eye render of the first and last frame.
+pub fn scene_probe(renderer: &Renderer, rig: &StereoRig) -> Result<u64, String> {
+    let extent = Extent::new(24, 14).map_err(|e| e.to_string())?;
+    let mut h = BitHash::default();
+    let last = renderer.scene().frame_count().saturating_sub(1);
+    for frame in [0, last] {
+        let view = FrameView::new(renderer, rig, extent, frame, Eye::Left)?;
+        h.image(&view.render(renderer, 2, PROBE_SEED, 0, false)?.0);
+    }
+    Ok(h.finish())
+}
+
+/// What to do for one configuration.
+struct ConfigPlan {
+    variant: Variant,
+    spp: u32,
+    key: CacheKey,
+    /// Keep the left-eye output at the figure frame (Figure 7).
+    keep_output: bool,
+    /// Keep the reason planes at the figure frame (Figure 6).
+    keep_reasons: bool,
+}
+
+impl ConfigPlan {
+    fn output_key(&self, frame: u32) -> CacheKey {
+        self.key.derive("artifact", &[("what", "left-output".into()), ("frame", frame.to_string())])
+    }
+    fn reasons_key(&self, frame: u32, kind: &str) -> CacheKey {
+        self.key.derive("artifact", &[("what", format!("{kind}-reasons")), ("frame", frame.to_string())])
+    }
+}
+
+/// One scene's units and keys.
+struct ScenePlan {
+    renderer: Renderer,
+    name: String,
+    base: Vec<(&'static str, String)>,
+    fingerprint: u64,
+    /// Frames with a reference, with the curve length each gets and the two keys.
+    frames: Vec<(u32, u32, CacheKey, CacheKey)>,
+    /// Extra sample counts every curve of this scene measures (Figure 3's).
+    extra_points: Vec<u32>,
+    configs: Vec<ConfigPlan>,
+    comparison: bool,
+}
+
+fn grid_points(grid: Grid, max_spp: u32, extra: &[u32]) -> Vec<u32> {
+    let mut pts = grid.points(max_spp);
+    pts.extend(extra.iter().copied().filter(|&m| m >= 1 && m <= max_spp));
+    pts.sort_unstable();
+    pts.dedup();
+    pts
+}
+
+struct Runner<'a> {
+    spec: &'a EvalSpec,
+    cache: &'a Cache,
+    reporter: &'a dyn Reporter,
+    limits: Limits,
+    extent: Extent,
+    rig: StereoRig,
+    counters: WorkCounters,
+    warnings: Vec<String>,
+}
+
+/// The payload of a checkpoint: the samples so far, the curve points so far, the sum.
+fn encode_partial(samples: u32, points: &[CurvePoint], sum: &RgbBuf) -> Vec<u8> {
+    let json = serde_json::to_vec(points).expect("points serialise");
+    let mut out = Vec::with_capacity(16 + json.len() + 12 * sum.extent().pixels());
+    out.extend_from_slice(&samples.to_le_bytes());
+    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    out.extend_from_slice(&json);
+    encode_image(sum, &mut out);
+    out
+}
+
+fn decode_partial(bytes: &[u8]) -> Result<(u32, Vec<CurvePoint>, RgbBuf), String> {
+    let mut r = Reader::new(bytes);
+    let samples = r.u32()?;
+    let len = r.u32()? as usize;
+    let points = serde_json::from_slice(r.take(len)?).map_err(|e| e.to_string())?;
+    let sum = decode_image(&mut r)?;
+    if !r.finished() {
+        return Err("trailing bytes".into());
+    }
+    Ok((samples, points, sum))
+}
+
+impl Runner<'_> {
+    fn warn(&mut self, message: String) {
+        self.reporter.warn(&message);
+        self.warnings.push(message);
+    }
+
+    fn pixels(&self) -> u64 {
+        self.extent.pixels() as u64
+    }
+
+    /// The verified payload of `key`, counting hits and warning about corrupt entries.
+    fn load(&mut self, key: &CacheKey) -> Option<Vec<u8>> {
+        match self.cache.get(key) {
+            Lookup::Hit(b) => {
+                self.counters.cache_hits += 1;
+                Some(b)
+            }
+            Lookup::Miss => None,
+            Lookup::Corrupt(why) => {
+                self.counters.corrupt_entries += 1;
+                self.warn(format!("corrupt cache entry, recomputing: {why}"));
+                None
+            }
+        }
+    }
+
+    /// Decodes a verified payload; a payload that verifies but does not decode (an older
+    /// layout under the same format number) is treated like a corrupt entry.
+    fn load_with<T>(&mut self, key: &CacheKey, decode: impl FnOnce(&[u8]) -> Result<T, String>) -> Option<T> {
+        let bytes = self.load(key)?;
+        match decode(&bytes) {
+            Ok(v) => Some(v),
+            Err(why) => {
+                self.counters.cache_hits -= 1;
+                self.counters.corrupt_entries += 1;
+                self.warn(format!("undecodable cache entry, recomputing: {}: {why}", self.cache.path(key).display()));
+                None
+            }
+        }
+    }
+
+    fn load_image(&mut self, key: &CacheKey) -> Option<RgbBuf> {
+        self.load_with(key, |b| {
+            let mut r = Reader::new(b);
+            let img = decode_image(&mut r)?;
+            if r.finished() { Ok(img) } else { Err("trailing bytes".into()) }
+        })
+    }
+
+    fn load_mask(&mut self, key: &CacheKey) -> Option<PlaneBuf<u8>> {
+        self.load_with(key, |b| {
+            let mut r = Reader::new(b);
+            let m = decode_mask(&mut r)?;
+            if r.finished() { Ok(m) } else { Err("trailing bytes".into()) }
+        })
+    }
+
+    fn put_image(&mut self, key: &CacheKey, img: &RgbBuf) -> Result<(), String> {
+        let mut bytes = Vec::new();
+        encode_image(img, &mut bytes);
+        self.cache.put(key, &bytes)
+    }
+
+    fn put_mask(&mut self, key: &CacheKey, m: &PlaneBuf<u8>) -> Result<(), String> {
+        let mut bytes = Vec::new();
+        encode_mask(m, &mut bytes);
+        self.cache.put(key, &bytes)
+    }
+
+    /// Refuses to start another unit once a limit is reached.
+    fn start_unit(&self) -> Result<(), EvalError> {
+        let computed = self.counters.computed_units();
+        let units = self.limits.max_computed_units.is_some_and(|max| computed >= max);
+        if units || self.samples_exhausted() {
+            return Err(EvalError::Interrupted { computed, counters: self.counters });
+        }
+        Ok(())
+    }
+
+    fn samples_exhausted(&self) -> bool {
+        self.limits.max_samples.is_some_and(|max| self.counters.samples >= max)
+    }
+
+    /// Inside a progressive unit: checkpoints and stops once the sample limit is reached.
+    fn check_samples(&self, partial: &CacheKey, prog: &Progressive, points: &[CurvePoint]) -> Result<(), EvalError> {
+        if self.samples_exhausted() {
+            self.cache.put(partial, &encode_partial(prog.samples(), points, prog.sum()))?;
+            return Err(EvalError::Interrupted { computed: self.counters.computed_units(), counters: self.counters });
+        }
+        Ok(())
+    }
+
+    fn plan_scene(&mut self, name: &str, global_probe: u64) -> Result<ScenePlan, String> {
+        let spec = self.spec;
+        self.reporter.status(&format!("{name}: building the scene and its BVH"));
+        let scene = crate::scene::resolve(name).map_err(|e| e.to_string())?;
+        for w in &scene.warnings {
+            self.warn(format!("{name}: {w}"));
+        }
+        if spec.frames > scene.frame_count() {
+            return Err(format!(
+                "{name}: {} frames asked for, but its camera path has {}",
+                spec.frames,
+                scene.frame_count()
+            ));
+        }
+        let fingerprint = scene.fingerprint();
+        let renderer = Renderer::new(scene).map_err(|e| format!("{name}: {e}"))?;
+        let probe = scene_probe(&renderer, &self.rig)?;
+        let code = format!("{CACHE_FORMAT}/{}/{global_probe:016x}", env!("CARGO_PKG_VERSION"));
+        let base: Vec<(&'static str, String)> = vec![
+            ("code", code),
+            ("fingerprint", format!("{fingerprint:016x}")),
+            ("probe", format!("{probe:016x}")),
+            ("extent", self.extent.to_string()),
+            ("eye", "left".into()),
+            ("separation", format!("{:08x}", spec.eye_separation.to_bits())),
+            ("integrator", "specialised".into()),
+        ];
+        let framewise = spec.figures.framewise_scene.as_deref() == Some(name);
+        let extra_points = if framewise { spec.figures.framewise_spp.clone() } else { Vec::new() };
+        let short = spec.figures.framewise_spp.iter().copied().max().unwrap_or(1).min(spec.curve_spp);
+        let frame_list: Vec<u32> =
+            if framewise { (0..spec.frames).collect() } else { spec.evaluated_frames().collect() };
+        let mut frames = Vec::new();
+        for f in frame_list {
+            let max_spp = if spec.evaluated_frames().contains(&f) { spec.curve_spp } else { short };
+            let mut fields = base.clone();
+            fields.extend([
+                ("frame", f.to_string()),
+                ("spp", spec.reference_spp.to_string()),
+                ("seed", spec.seeds.reference.to_string()),
+            ]);
+            let reference = CacheKey::new("reference", name, &fields);
+            let points = grid_points(spec.grid, max_spp, &extra_points);
+            let curve = reference.derive(
+                "curve",
+                &[
+                    ("max-spp", max_spp.to_string()),
+                    ("grid", spec.grid.describe()),
+                    ("points", format!("{:016x}", checksum(&[format!("{points:?}").as_bytes()]))),
+                    ("seed", spec.seeds.curve.to_string()),
+                    ("ssim", format!("{:?}", spec.ssim)),
+                ],
+            );
+            frames.push((f, max_spp, reference, curve));
+        }
+        let curve_keys: Vec<&str> = frames.iter().map(|(.., c)| c.text()).collect();
+        let curves_hash = checksum(&[curve_keys.join("|").as_bytes()]);
+        let figure_frame = spec.figure_frame();
+        let comparison = spec.figures.comparison_scenes.iter().any(|s| s == name);
+        let discard = spec.figures.discard_scene.as_deref() == Some(name);
+        let tol = renderer.scene().tolerances.at_height(self.extent.height());
+        let first_spp = spec.input_spp.iter().copied().min().unwrap_or(1);
+        let mut configs = Vec::new();
+        for &variant in &spec.variants {
+            for &spp in &spec.input_spp {
+                let keep_output = comparison && variant == Variant::ALL[2];
+                let keep_reasons = discard && spp == first_spp && matches!(variant.mode, Mode::Stereo | Mode::Temporal);
+                let cfg = pipeline_config(spec, variant, spp, tol);
+                let mut fields = base.clone();
+                fields.extend([
+                    ("variant", variant.name()),
+                    ("pipeline", format!("{cfg:?}")),
+                    ("frames", spec.frames.to_string()),
+                    ("warmup", spec.warmup.to_string()),
+                    ("curves", format!("{curves_hash:016x}")),
+                    ("artifacts", format!("{keep_output}/{keep_reasons}/{figure_frame}")),
+                ]);
+                let key = CacheKey::new("config", name, &fields);
+                configs.push(ConfigPlan { variant, spp, key, keep_output, keep_reasons });
+            }
+        }
+        Ok(ScenePlan {
+            renderer,
+            name: name.to_owned(),
+            base,
+            fingerprint,
+            frames,
+            extra_points,
+            configs,
+            comparison: comparison && spec.variants.contains(&Variant::ALL[2]),
+        })
+    }
+
+    /// Work left in a plan (entries that exist count as done; checkpoints are ignored).
+    fn pending_work(&self, plan: &ScenePlan) -> u64 {
+        let p = self.pixels();
+        let mut work = 0;
+        for (_, max_spp, reference, curve) in &plan.frames {
+            if !self.cache.contains(reference) {
+                work += p * u64::from(self.spec.reference_spp);
+            }
+            if !self.cache.contains(curve) {
+                work += p * u64::from(*max_spp);
+            }
+        }
+        for c in &plan.configs {
+            if !self.cache.contains(&c.key) {
+                work += config_work(p, self.spec.frames, c.variant, c.spp);
+            }
+        }
+        work
+    }
+
+    /// Renders (or loads, or resumes) the reference of frame `f`.
+    fn reference(&mut self, plan: &ScenePlan, f: u32, key: &CacheKey) -> Result<RgbBuf, EvalError> {
+        if let Some(img) = self.load_image(key) {
+            return Ok(img);
+        }
+        self.start_unit()?;
+        let r = self.spec.reference_spp;
+        self.reporter.status(&format!("{}: reference of frame {f} ({r} spp)", plan.name));
+        let partial = key.derive("reference-partial", &[]);
+        let (mut prog, _) = self.resume(&partial, r)?;
+        let view = FrameView::new(&plan.renderer, &self.rig, self.extent, f, Eye::Left)?;
+        while prog.samples() < r {
+            let stats = prog.add_sample(&plan.renderer, &view, self.spec.seeds.reference, false)?;
+            self.counters.samples += stats.samples;
+            self.reporter.advance(self.pixels());
+            if prog.samples() % self.spec.checkpoint_spp == 0 && prog.samples() < r {
+                self.cache.put(&partial, &encode_partial(prog.samples(), &[], prog.sum()))?;
+            }
+            if prog.samples() < r {
+                self.check_samples(&partial, &prog, &[])?;
+            }
+        }
+        let img = prog.mean().clone();
+        self.put_image(key, &img)?;
+        self.cache.remove(&partial);
+        self.counters.references += 1;
+        Ok(img)
+    }
+
+    /// A progressive state from a checkpoint, or empty.
+    fn resume(&mut self, partial: &CacheKey, target: u32) -> Result<(Progressive, Vec<CurvePoint>), String> {
+        if let Some((samples, points, sum)) = self.load_with(partial, decode_partial)
+            && sum.extent() == self.extent
+            && samples <= target
+        {
+            self.reporter.skip_work(self.pixels() * u64::from(samples));
+            return Ok((Progressive::resume(samples, sum), points));
+        }
+        Ok((Progressive::new(self.extent), Vec::new()))
+    }
+
+    /// Builds (or loads, or resumes) the error curve of frame `f`.
+    fn curve(
+        &mut self,
+        plan: &ScenePlan,
+        f: u32,
+        max_spp: u32,
+        key: &CacheKey,
+        reference: &RgbBuf,
+    ) -> Result<FrameCurve, EvalError> {
+        let points_wanted = grid_points(self.spec.grid, max_spp, &plan.extra_points);
+        let valid = |c: &FrameCurve| c.frame == f && c.points.iter().map(|p| p.spp).eq(points_wanted.iter().copied());
+        if let Some(c) = self.load_with(key, |b| serde_json::from_slice::<FrameCurve>(b).map_err(|e| e.to_string())) {
+            if valid(&c) {
+                return Ok(c);
+            }
+            self.warn(format!("cache entry {} holds another curve; rebuilding", self.cache.path(key).display()));
+        }
+        self.start_unit()?;
+        self.reporter.status(&format!("{}: error curve of frame {f} (1..{max_spp} spp)", plan.name));
+        let partial = key.derive("curve-partial", &[]);
+        let (mut prog, mut points) = self.resume(&partial, max_spp)?;
+        if points.len() != points_wanted.iter().filter(|&&m| m <= prog.samples()).count() {
+            // A checkpoint whose points do not match its sample count: start over.
+            self.reporter.add_work(self.pixels() * u64::from(prog.samples()));
+            (prog, points) = (Progressive::new(self.extent), Vec::new());
+        }
+        let view = FrameView::new(&plan.renderer, &self.rig, self.extent, f, Eye::Left)?;
+        let variant = self.spec.ssim.kernel();
+        while prog.samples() < max_spp {
+            let stats = prog.add_sample(&plan.renderer, &view, self.spec.seeds.curve, false)?;
+            self.counters.samples += stats.samples;
+            let m = prog.samples();
+            if points_wanted.binary_search(&m).is_ok() {
+                let Measurement { ssim, rmse } = measure(prog.mean(), reference, variant)?;
+                points.push(CurvePoint { spp: m, ssim, rmse });
+            }
+            self.reporter.advance(self.pixels());
+            if m % self.spec.checkpoint_spp == 0 && m < max_spp {
+                self.cache.put(&partial, &encode_partial(m, &points, prog.sum()))?;
+            }
+            if m < max_spp {
+                self.check_samples(&partial, &prog, &points)?;
+            }
+        }
+        let curve = FrameCurve { frame: f, grid: self.spec.grid, points };
+        for metric in Metric::ALL {
+            let rises = curve.curve(metric)?.rises();
+            if !rises.is_empty() {
+                let at: Vec<u32> = rises.iter().map(|&i| curve.points[i + 1].spp).collect();
+                self.warnings.push(format!(
+                    "{}: frame {f}: the {} error curve rises at {} of {} steps (spp {:?}); the first-crossing \
+                     policy applies",
+                    plan.name,
+                    metric.label(),
+                    at.len(),
+                    curve.points.len() - 1,
+                    &at[..at.len().min(8)]
+                ));
+            }
+        }
+        self.cache.put(key, &serde_json::to_vec(&curve).map_err(|e| e.to_string())?)?;
+        self.cache.remove(&partial);
+        self.counters.curves += 1;
+        Ok(curve)
+    }
+
+    /// Runs (or loads) one configuration.
+    fn config(
+        &mut self,
+        plan: &ScenePlan,
+        c: &ConfigPlan,
+        references: &BTreeMap<u32, RgbBuf>,
+        curves: &BTreeMap<u32, FrameCurve>,
+    ) -> Result<ConfigResult, EvalError> {
+        let figure_frame = self.spec.figure_frame();
+        let artifacts_present = (!c.keep_output || self.cache.contains(&c.output_key(figure_frame)))
+            && (!c.keep_reasons || {
+                let kind = if c.variant.mode == Mode::Stereo { "stereo" } else { "temporal" };
+                self.cache.contains(&c.reasons_key(figure_frame, kind))
+            });
+        if artifacts_present
+            && let Some(r) =
+                self.load_with(&c.key, |b| serde_json::from_slice::<ConfigResult>(b).map_err(|e| e.to_string()))
+        {
+            return Ok(r);
+        }
+        self.start_unit()?;
+        self.reporter.status(&format!("{}: {} at {} spp", plan.name, c.variant, c.spp));
+        let start = Instant::now();
+        let spec = self.spec;
+        let tol = plan.renderer.scene().tolerances.at_height(self.extent.height());
+        let cfg = pipeline_config(spec, c.variant, c.spp, tol);
+        let mut p = Pipeline::new(&plan.renderer, cfg, self.rig, self.extent).map_err(|e| e.to_string())?;
+        let mut result = ConfigResult {
+            variant: c.variant,
+            spp: c.spp,
+            frames: Vec::new(),
+            stereo_reasons: Vec::new(),
+            temporal_reasons: Vec::new(),
+            ssim: Summary::of_values(&[]),
+            rmse: Summary::of_values(&[]),
+            traced_left_pixels: 0,
+            seconds: 0.0,
+        };
+        let per_frame = config_work(self.pixels(), 1, c.variant, c.spp);
+        let variant = spec.ssim.kernel();
+        for f in 0..spec.frames {
+            let head = plan.renderer.scene().camera.pose_at(f as f32);
+            let stats = p.render_frame(f, &head).map_err(|e| format!("{}: frame {f}: {e}", plan.name))?;
+            self.counters.samples += stats.trace.samples;
+            result.traced_left_pixels += stats.traced_pixels[Eye::Left as usize];
+            result.stereo_reasons.push(FrameReasons { frame: f, counts: stats.stereo_reasons[Eye::Left as usize].0 });
+            result
+                .temporal_reasons
+                .push(FrameReasons { frame: f, counts: stats.temporal_reasons[Eye::Left as usize].0 });
+            if let Some(reference) = references.get(&f) {
+                let m = measure(p.output(Eye::Left), reference, variant)?;
+                let evaluated = spec.evaluated_frames().contains(&f);
+                let eff = |metric| -> Result<Option<EffectiveSpp>, String> {
+                    if !evaluated {
+                        return Ok(None);
+                    }
+                    let curve = curves.get(&f).ok_or_else(|| format!("no curve for frame {f}"))?;
+                    Ok(Some(curve.curve(metric)?.effective_spp(m.error(metric))))
+                };
+                result.frames.push(FrameResult {
+                    frame: f,
+                    evaluated,
+                    ssim: m.ssim,
+                    rmse: m.rmse,
+                    effective_ssim: eff(Metric::Ssim)?,
+                    effective_rmse: eff(Metric::Rmse)?,
+                });
+            }
+            if f == figure_frame {
+                if c.keep_output {
+                    self.put_image(&c.output_key(f), p.output(Eye::Left))?;
+                }
+                if c.keep_reasons {
+                    let (kind, plane) = if c.variant.mode == Mode::Stereo {
+                        ("stereo", p.stereo_reasons(Eye::Left))
+                    } else {
+                        ("temporal", p.temporal_reasons(Eye::Left))
+                    };
+                    let plane = plane.clone();
+                    self.put_mask(&c.reasons_key(f, kind), &plane)?;
+                }
+            }
+            self.reporter.advance(per_frame);
+        }
+        let evaluated: Vec<&FrameResult> = result.frames.iter().filter(|r| r.evaluated).collect();
+        let of = |metric| Summary::of_frames(&evaluated.iter().filter_map(|r| r.effective(metric)).collect::<Vec<_>>());
+        result.ssim = of(Metric::Ssim);
+        result.rmse = of(Metric::Rmse);
+        result.seconds = start.elapsed().as_secs_f64();
+        self.cache.put(&c.key, &serde_json::to_vec(&result).map_err(|e| e.to_string())?)?;
+        self.counters.configs += 1;
+        Ok(result)
+    }
+
+    /// A path-traced figure image of the figure frame (cached).
+    fn figure_image(&mut self, plan: &ScenePlan, frame: u32, spp: u32) -> Result<RgbBuf, EvalError> {
+        let mut fields = plan.base.clone();
+        fields.extend([
+            ("frame", frame.to_string()),
+            ("spp", spp.to_string()),
+            ("seed", self.spec.seeds.curve.to_string()),
+        ]);
+        let key = CacheKey::new("figure-image", &plan.name, &fields);
+        if let Some(img) = self.load_image(&key) {
+            return Ok(img);
+        }
+        let work = self.pixels() * u64::from(spp);
+        self.reporter.add_work(work);
+        self.reporter.status(&format!("{}: figure frame {frame} at {spp} spp", plan.name));
+        let view = FrameView::new(&plan.renderer, &self.rig, self.extent, frame, Eye::Left)?;
+        let (img, stats) = view.render(&plan.renderer, spp, self.spec.seeds.curve, 0, false)?;
+        self.counters.samples += stats.samples;
+        self.counters.figure_images += 1;
+        self.reporter.advance(work);
+        self.put_image(&key, &img)?;
+        Ok(img)
+    }
+
+    fn run_scene(&mut self, plan: &ScenePlan, artifacts: &mut Artifacts) -> Result<SceneResult, EvalError> {
+        let mut references = BTreeMap::new();
+        for (f, _, key, _) in &plan.frames {
+            let img = self.reference(plan, *f, key)?;
+            references.insert(*f, img);
+        }
+        let mut curves = BTreeMap::new();
+        for (f, max_spp, _, key) in &plan.frames {
+            let c = self.curve(plan, *f, *max_spp, key, &references[f])?;
+            curves.insert(*f, c);
+        }
+        let mut configs = Vec::new();
+        for c in &plan.configs {
+            configs.push(self.config(plan, c, &references, &curves)?);
+        }
+        let scene = plan.renderer.scene();
+        let result = SceneResult {
+            name: plan.name.clone(),
+            display_name: scene.display_name.clone(),
+            paper_scene: scene.paper_scene.clone(),
+            fingerprint: format!("{:016x}", plan.fingerprint),
+            curves: curves.into_values().collect(),
+            configs,
+        };
+        self.figures(plan, &result, &references, artifacts)?;
+        Ok(result)
+    }
+
+    /// Collects the images of Figures 6 and 7 for this scene.
+    fn figures(
+        &mut self,
+        plan: &ScenePlan,
+        result: &SceneResult,
+        references: &BTreeMap<u32, RgbBuf>,
+        artifacts: &mut Artifacts,
+    ) -> Result<(), EvalError> {
+        let frame = self.spec.figure_frame();
+        for c in plan.configs.iter().filter(|c| c.keep_reasons) {
+            let kind = if c.variant.mode == Mode::Stereo { "stereo" } else { "temporal" };
+            if let Some(reasons) = self.load_mask(&c.reasons_key(frame, kind)) {
+                artifacts.discard_maps.push(DiscardMap {
+                    scene: plan.name.clone(),
+                    frame,
+                    kind,
+                    reasons,
+                    background: references[&frame].clone(),
+                });
+            }
+        }
+        if !plan.comparison {
+            return Ok(());
+        }
+        for c in plan.configs.iter().filter(|c| c.keep_output) {
+            let Some(reprojected) = self.load_image(&c.output_key(frame)) else { continue };
+            let Some(effective) = result
+                .config(c.variant, c.spp)
+                .and_then(|r| r.frames.iter().find(|fr| fr.frame == frame))
+                .and_then(|fr| fr.effective_ssim)
+            else {
+                continue;
+            };
+            let comparison_spp = match effective {
+                EffectiveSpp::InRange { spp, .. } => (spp.round() as u32).max(1),
+                EffectiveSpp::AboveRange { max_spp } => max_spp,
+                EffectiveSpp::BelowRange | EffectiveSpp::Undefined => 1,
+            };
+            let path_traced = self.figure_image(plan, frame, c.spp)?;
+            let comparison = self.figure_image(plan, frame, comparison_spp)?;
+            artifacts.comparisons.push(ComparisonRow {
+                scene: plan.name.clone(),
+                frame,
+                spp: c.spp,
+                path_traced,
+                reprojected,
+                effective,
+                comparison_spp,
+                comparison,
+            });
+        }
+        Ok(())
+    }
+}
+
+/// The pipeline configuration of a variant at `spp` (the paper's settings).
+pub fn pipeline_config(
+    spec: &EvalSpec,
+    variant: Variant,
+    spp: u32,
+    tolerances: crate::kernels::reproject::Tolerances,
+) -> PipelineConfig {
+    let mut cfg = PipelineConfig::paper(variant.mode, spp, tolerances);
+    cfg.order = variant.order;
+    cfg.seed = spec.seeds.pipeline;
+    cfg
+}
+
+/// Estimated path-tracing work of a configuration over `frames` frames.
+fn config_work(pixels: u64, frames: u32, variant: Variant, spp: u32) -> u64 {
+    pixels * u64::from(frames) * u64::from(spp) * variant.traced_eyes_x10() / 10
+}
+
+/// Runs the evaluation `spec` with `cache`.
+pub fn evaluate(
+    spec: &EvalSpec,
+    cache: &Cache,
+    reporter: &dyn Reporter,
+    limits: Limits,
+) -> Result<EvalOutcome, EvalError> {
+    let start = Instant::now();
+    let spec_warnings = spec.validate()?;
+    let mut runner = Runner {
+        spec,
+        cache,
+        reporter,
+        limits,
+        extent: spec.extent()?,
+        rig: StereoRig::new(spec.eye_separation)?,
+        counters: WorkCounters::default(),
+        warnings: Vec::new(),
+    };
+    for w in spec_warnings {
+        runner.warn(w);
+    }
+    reporter.status("probing the code version");
+    let global_probe = code_probe()?;
+    let mut plans = Vec::new();
+    for name in &spec.scenes {
+        plans.push(runner.plan_scene(name, global_probe)?);
+    }
+    reporter.begin(plans.iter().map(|p| runner.pending_work(p)).sum());
+    let mut scenes = Vec::new();
+    let mut artifacts = Artifacts::default();
+    for plan in &plans {
+        scenes.push(runner.run_scene(plan, &mut artifacts)?);
+    }
+    let code_version = format!("{CACHE_FORMAT}/{}/{global_probe:016x}", env!("CARGO_PKG_VERSION"));
+    Ok(EvalOutcome {
+        results: EvalResults { spec: spec.clone(), code_version, scenes },
+        artifacts,
+        counters: runner.counters,
+        warnings: runner.warnings,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
