@@ -89,6 +89,62 @@ enum Command {
         /// Scenes to load and describe: built-in names, manifests (*.toml) or scene folders.
         specs: Vec<String>,
     },
+    /// Effective spp of every mode against path tracing (the paper's Tables 1-6, Figures 3-8).
+    Eval {
+        /// Starting point: `quick` (small, for CI) or `paper` (1280x720, days of CPU time).
+        #[arg(long, value_enum, default_value_t = stereotrace::eval::Preset::Quick)]
+        preset: stereotrace::eval::Preset,
+        /// Scenes (comma-separated built-in names, manifests or folders); default: every built-in.
+        #[arg(long, value_delimiter = ',')]
+        scenes: Option<Vec<String>>,
+        /// Modes (comma-separated): stereo, temporal, spatiotemporal, spatiotemporal-stereo-first,
+        /// stereo-blend, spatiotemporal-blend, spatiotemporal-blend-stereo-first; default: all.
+        #[arg(long, value_delimiter = ',')]
+        modes: Option<Vec<String>>,
+        /// Input samples per pixel (comma-separated).
+        #[arg(long, value_delimiter = ',')]
+        spp: Option<Vec<u32>>,
+        /// Resolution per eye, WIDTHxHEIGHT.
+        #[arg(long, value_parser = stereotrace::commands::parse_resolution)]
+        res: Option<stereotrace::kernels::Extent>,
+        /// Frames the pipeline renders (0..FRAMES).
+        #[arg(long)]
+        frames: Option<u32>,
+        /// Warm-up frames left out of the averages.
+        #[arg(long)]
+        warmup: Option<u32>,
+        /// Samples per pixel of the references.
+        #[arg(long)]
+        reference_spp: Option<u32>,
+        /// Last spp of the path-traced error curves.
+        #[arg(long)]
+        curve_spp: Option<u32>,
+        /// How the error curves are sampled.
+        #[arg(long, value_enum)]
+        grid: Option<stereotrace::commands::eval::GridChoice>,
+        /// SSIM flavour (the paper's is the 3-D volume).
+        #[arg(long, value_enum)]
+        ssim: Option<stereotrace::eval::SsimChoice>,
+        /// Output folder (default: out/eval-<preset>).
+        #[arg(long)]
+        out: Option<std::path::PathBuf>,
+        /// Cache folder for references, curves and results (default: out/eval-cache).
+        #[arg(long)]
+        cache: Option<std::path::PathBuf>,
+        /// Skip the figures (and the work only they need).
+        #[arg(long)]
+        no_figures: bool,
+        /// Stop after computing this many units (references, curves, configurations); run again to resume.
+        #[arg(long)]
+        max_units: Option<usize>,
+    },
+    /// SSIM (3-D volume and per-channel) and RMSE of two linear EXR images.
+    Ssim {
+        /// First image (EXR).
+        a: std::path::PathBuf,
+        /// Second image (EXR).
+        b: std::path::PathBuf,
+    },
 }
 
 fn main() -> ExitCode {
@@ -139,6 +195,43 @@ fn main() -> ExitCode {
         Command::Scenes { specs } => {
             stereotrace::scene::command::run(&specs, &mut std::io::stdout().lock()).map_err(|e| e.to_string())
         }
+        Command::Eval {
+            preset,
+            scenes,
+            modes,
+            spp,
+            res,
+            frames,
+            warmup,
+            reference_spp,
+            curve_spp,
+            grid,
+            ssim,
+            out,
+            cache,
+            no_figures,
+            max_units,
+        } => {
+            let opts = stereotrace::commands::eval::EvalOptions {
+                preset,
+                scenes,
+                modes,
+                spp,
+                extent: res,
+                frames,
+                warmup,
+                reference_spp,
+                curve_spp,
+                grid,
+                ssim,
+                out,
+                cache,
+                no_figures,
+                max_units,
+            };
+            stereotrace::commands::eval::run(&opts).map(|report| println!("{report}"))
+        }
+        Command::Ssim { a, b } => stereotrace::commands::ssim::run(&a, &b).map(|report| println!("{report}")),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

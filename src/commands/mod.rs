@@ -1,7 +1,9 @@
 //! The CLI subcommands' logic (the binary in `main.rs` only parses arguments and reports
 //! errors).
 
+pub mod eval;
 pub mod render;
+pub mod ssim;
 pub mod throughput;
 
 use crate::kernels::Extent;

@@ -1,0 +1,247 @@
+//! `stereotrace eval`: the evaluation harness (see [`crate::eval`]) with a progress bar,
+//! writing tables, figures and `results.json` into an output folder.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::eval::cache::Cache;
+use crate::eval::paper::PaperTables;
+use crate::eval::run::{EvalError, Limits};
+use crate::eval::{EvalSpec, Grid, Preset, Reporter, SsimChoice, Variant, evaluate, plots, report};
+use crate::kernels::Extent;
+
+/// How the error curves are sampled (CLI form of [`Grid`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum GridChoice {
+    /// Every spp from 1 to the curve's end, linear interpolation.
+    Dense,
+    /// A geometric grid (16 points per doubling above 8 spp), log–log interpolation.
+    Geometric,
+}
+
+/// Options of the eval command; `None` keeps the preset's value.
+#[derive(Clone, Debug)]
+pub struct EvalOptions {
+    pub preset: Preset,
+    pub scenes: Option<Vec<String>>,
+    pub modes: Option<Vec<String>>,
+    pub spp: Option<Vec<u32>>,
+    pub extent: Option<Extent>,
+    pub frames: Option<u32>,
+    pub warmup: Option<u32>,
+    pub reference_spp: Option<u32>,
+    pub curve_spp: Option<u32>,
+    pub grid: Option<GridChoice>,
+    pub ssim: Option<SsimChoice>,
+    pub out: Option<PathBuf>,
+    pub cache: Option<PathBuf>,
+    pub no_figures: bool,
+    pub max_units: Option<usize>,
+}
+
+impl EvalOptions {
+    /// The preset's options, nothing overridden.
+    pub fn preset(preset: Preset) -> Self {
+        Self {
+            preset,
+            scenes: None,
+            modes: None,
+            spp: None,
+            extent: None,
+            frames: None,
+            warmup: None,
+            reference_spp: None,
+            curve_spp: None,
+            grid: None,
+            ssim: None,
+            out: None,
+            cache: None,
+            no_figures: false,
+            max_units: None,
+        }
+    }
+
+    pub fn out_dir(&self) -> PathBuf {
+        self.out.clone().unwrap_or_else(|| PathBuf::from(format!("out/eval-{}", self.preset.name())))
+    }
+
+    pub fn cache_dir(&self) -> PathBuf {
+        self.cache.clone().unwrap_or_else(|| PathBuf::from("out/eval-cache"))
+    }
+}
+
+/// The spec of the preset with the options' overrides; figure scenes that are not
+/// evaluated fall back to the first evaluated scene.
+pub fn build_spec(opts: &EvalOptions) -> Result<EvalSpec, String> {
+    let mut spec = opts.preset.spec();
+    if let Some(scenes) = &opts.scenes {
+        spec.scenes = scenes.clone();
+    }
+    if let Some(modes) = &opts.modes {
+        spec.variants = modes.iter().map(|m| Variant::parse(m)).collect::<Result<_, _>>()?;
+    }
+    if let Some(spp) = &opts.spp {
+        let mut spp = spp.clone();
+        spp.sort_unstable();
+        spp.dedup();
+        spec.input_spp = spp;
+    }
+    if let Some(e) = opts.extent {
+        (spec.width, spec.height) = (e.width(), e.height());
+    }
+    if let Some(f) = opts.frames {
+        spec.frames = f;
+        if opts.warmup.is_none() && spec.warmup >= f {
+            spec.warmup = f / 2;
+        }
+    }
+    if let Some(w) = opts.warmup {
+        spec.warmup = w;
+    }
+    if let Some(r) = opts.reference_spp {
+        spec.reference_spp = r;
+    }
+    if let Some(m) = opts.curve_spp {
+        spec.curve_spp = m;
+    }
+    if let Some(g) = opts.grid {
+        spec.grid = match g {
+            GridChoice::Dense => Grid::Dense,
+            GridChoice::Geometric => Grid::Geometric { steps_per_octave: 16 },
+        };
+    }
+    if let Some(s) = opts.ssim {
+        spec.ssim = s;
+    }
+    let first = spec.scenes.first().cloned();
+    let has = |s: &Option<String>| s.as_ref().is_some_and(|s| spec.scenes.contains(s));
+    if !has(&spec.figures.framewise_scene) {
+        spec.figures.framewise_scene = first.clone();
+    }
+    if !has(&spec.figures.discard_scene) {
+        spec.figures.discard_scene = first.clone();
+    }
+    spec.figures.comparison_scenes.retain(|s| spec.scenes.contains(s));
+    if spec.figures.comparison_scenes.is_empty() {
+        spec.figures.comparison_scenes.extend(first);
+    }
+    if opts.no_figures {
+        spec.figures.framewise_scene = None;
+        spec.figures.discard_scene = None;
+        spec.figures.comparison_scenes.clear();
+    }
+    spec.validate()?;
+    Ok(spec)
+}
+
+/// The progress bar (with plain status lines when stderr is not a terminal, e.g. in CI).
+struct Bar {
+    bar: ProgressBar,
+    start: Instant,
+}
+
+impl Reporter for Bar {
+    fn begin(&self, total: u64) {
+        self.bar.set_length(total);
+        self.bar.reset_eta();
+        if self.bar.is_hidden() {
+            eprintln!(
+                "[{:>7.1} s] {:.1} G pixel samples to compute",
+                self.start.elapsed().as_secs_f64(),
+                total as f64 / 1e9
+            );
+        }
+    }
+    fn add_work(&self, extra: u64) {
+        self.bar.inc_length(extra);
+    }
+    fn skip_work(&self, work: u64) {
+        self.bar.set_length(self.bar.length().unwrap_or(0).saturating_sub(work));
+    }
+    fn advance(&self, done: u64) {
+        self.bar.inc(done);
+    }
+    fn status(&self, message: &str) {
+        self.bar.set_message(message.to_owned());
+        if self.bar.is_hidden() {
+            eprintln!("[{:>7.1} s] {message}", self.start.elapsed().as_secs_f64());
+        }
+    }
+    fn warn(&self, message: &str) {
+        if self.bar.is_hidden() {
+            eprintln!("warning: {message}");
+        } else {
+            self.bar.println(format!("warning: {message}"));
+        }
+    }
+}
+
+/// Runs the command; returns the report printed on stdout.
+pub fn run(opts: &EvalOptions) -> Result<String, String> {
+    let spec = build_spec(opts)?;
+    let out = opts.out_dir();
+    let cache = Cache::open(&opts.cache_dir())?;
+    let bar = ProgressBar::new(0).with_style(
+        ProgressStyle::with_template(
+            "{spinner} {elapsed_precise} [{bar:30}] {percent:>3}% ETA {eta_precise}  {wide_msg}",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    bar.enable_steady_tick(std::time::Duration::from_millis(250));
+    let reporter = Bar { bar, start: Instant::now() };
+    let outcome =
+        match evaluate(&spec, &cache, &reporter, Limits { max_computed_units: opts.max_units, max_samples: None }) {
+            Ok(o) => o,
+            Err(EvalError::Interrupted { computed, counters }) => {
+                reporter.bar.finish_and_clear();
+                return Ok(format!(
+                    "stopped after computing {computed} units ({} references, {} curves, {} configurations); the cache \
+                 in {} holds them: run the same command again to continue",
+                    counters.references,
+                    counters.curves,
+                    counters.configs,
+                    cache.root().display()
+                ));
+            }
+            Err(e) => {
+                reporter.bar.finish_and_clear();
+                return Err(e.to_string());
+            }
+        };
+    reporter.bar.finish_and_clear();
+    let mut written = report::write_reports(&outcome, &out)?;
+    let (figures, failed) = plots::write_figures(&outcome.results, &outcome.artifacts, &out);
+    written.extend(figures);
+    if !outcome.warnings.is_empty() {
+        let path = out.join("warnings.txt");
+        std::fs::write(&path, outcome.warnings.join("\n") + "\n")
+            .map_err(|e| format!("{}: cannot write: {e}", path.display()))?;
+        written.push(path);
+    }
+    let c = outcome.counters;
+    let mut text = report::summary_table(&outcome.results, &PaperTables::load());
+    text.push_str(&format!(
+        "\n{} files written to {}\ncomputed: {} references, {} curves, {} configurations, {} figure images \
+         ({:.3} G pixel samples); loaded from cache: {} entries; corrupt entries recomputed: {}\nwall time: {:.1} s",
+        written.len(),
+        out.display(),
+        c.references,
+        c.curves,
+        c.configs,
+        c.figure_images,
+        c.samples as f64 / 1e9,
+        c.cache_hits,
+        c.corrupt_entries,
+        outcome.seconds
+    ));
+    if !outcome.warnings.is_empty() {
+        text.push_str(&format!("\n{} warnings (see {})", outcome.warnings.len(), out.join("warnings.txt").display()));
+    }
+    for f in failed {
+        text.push_str(&format!("\nwarning: figure not written: {f}"));
+    }
+    Ok(text)
+}

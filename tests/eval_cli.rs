@@ -1,0 +1,141 @@
+//! The `ssim` and `eval` subcommands: results, and a message plus a non-zero exit for every
+//! bad input.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+use stereotrace::image_io::write_exr;
+use stereotrace::kernels::{Extent, RgbBuf};
+
+fn stereotrace(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_stereotrace")).args(args).output().expect("the binary runs")
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("stereotrace-evalcli-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn assert_refused(out: &Output, needles: &[&str]) {
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "expected failure, got success: {err}");
+    for n in needles {
+        assert!(err.contains(n), "stderr does not mention '{n}': {err}");
+    }
+    assert!(!err.contains("panicked"), "the tool panicked: {err}");
+}
+
+fn gradient(w: usize, h: usize, scale: f32) -> RgbBuf {
+    let mut img = RgbBuf::new(Extent::new(w, h).unwrap(), 0.0);
+    for y in 0..h {
+        for x in 0..w {
+            let v = scale * (x + 2 * y) as f32 / (w + 2 * h) as f32;
+            img.set(x, y, [v, 0.5 * v, 0.25 + v]);
+        }
+    }
+    img
+}
+
+#[test]
+fn ssim_prints_both_variants_and_the_rmse() {
+    let dir = temp_dir("ssim");
+    let (a, b) = (dir.join("a.exr"), dir.join("b.exr"));
+    write_exr(&a, &gradient(40, 24, 1.0)).unwrap();
+    write_exr(&b, &gradient(40, 24, 1.1)).unwrap();
+    let out = stereotrace(&["ssim", a.to_str().unwrap(), b.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for needle in ["SSIM (3-D RGB volume):", "SSIM (per channel):", "RMSE:", "40x24"] {
+        assert!(text.contains(needle), "no '{needle}' in {text}");
+    }
+    // The same image: SSIM 1, RMSE 0.
+    let same = stereotrace(&["ssim", a.to_str().unwrap(), a.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&same.stdout);
+    assert!(text.contains("volume): 1.000000") && text.contains("RMSE:                  0.000000e0"), "{text}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn ssim_names_the_file_at_fault() {
+    let dir = temp_dir("ssim-bad");
+    let a = dir.join("a.exr");
+    write_exr(&a, &gradient(40, 24, 1.0)).unwrap();
+    let missing = dir.join("missing.exr");
+    assert_refused(&stereotrace(&["ssim", a.to_str().unwrap(), missing.to_str().unwrap()]), &["missing.exr"]);
+    assert_refused(&stereotrace(&["ssim", missing.to_str().unwrap(), a.to_str().unwrap()]), &["missing.exr"]);
+    let small = dir.join("small.exr");
+    write_exr(&small, &gradient(20, 24, 1.0)).unwrap();
+    assert_refused(
+        &stereotrace(&["ssim", a.to_str().unwrap(), small.to_str().unwrap()]),
+        &["a.exr is 40x24", "small.exr is 20x24"],
+    );
+    let text = dir.join("not-an-image.exr");
+    std::fs::write(&text, "hello").unwrap();
+    assert_refused(&stereotrace(&["ssim", a.to_str().unwrap(), text.to_str().unwrap()]), &["not-an-image.exr"]);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn eval_runs_a_small_configuration_and_resumes_from_its_cache() {
+    let dir = temp_dir("eval");
+    let (out, cache) = (dir.join("out"), dir.join("cache"));
+    let args = [
+        "eval",
+        "--scenes",
+        "cornell",
+        "--modes",
+        "stereo,spatiotemporal",
+        "--spp",
+        "1",
+        "--res",
+        "32x18",
+        "--frames",
+        "4",
+        "--warmup",
+        "2",
+        "--reference-spp",
+        "8",
+        "--curve-spp",
+        "4",
+        "--out",
+        out.to_str().unwrap(),
+        "--cache",
+        cache.to_str().unwrap(),
+    ];
+    let first = stereotrace(&args);
+    let text = String::from_utf8_lossy(&first.stdout);
+    assert!(first.status.success(), "{}", String::from_utf8_lossy(&first.stderr));
+    assert!(text.contains("| stereo |") && text.contains("computed: 4 references"), "{text}");
+    for f in [
+        "tables.md",
+        "results.json",
+        "table1_stereo_ssim.csv",
+        "table3_spatiotemporal_ssim.csv",
+        "fig3_framewise_ssim.svg",
+    ] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    let second = stereotrace(&args);
+    let text = String::from_utf8_lossy(&second.stdout);
+    assert!(text.contains("computed: 0 references, 0 curves, 0 configurations"), "{text}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn eval_refuses_bad_options_with_a_message() {
+    let dir = temp_dir("eval-bad");
+    let d = dir.to_str().unwrap();
+    let run = |extra: &[&str]| {
+        let mut args = vec!["eval", "--out", d, "--cache", d];
+        args.extend_from_slice(extra);
+        stereotrace(&args)
+    };
+    assert_refused(&run(&["--modes", "spatial"]), &["unknown mode 'spatial'", "stereo-blend"]);
+    assert_refused(&run(&["--scenes", "no-such-scene"]), &["no-such-scene"]);
+    assert_refused(&run(&["--frames", "5", "--warmup", "5"]), &["warm-up"]);
+    assert_refused(&run(&["--spp", "0"]), &["input spp"]);
+    assert_refused(&run(&["--scenes", "cornell", "--frames", "500"]), &["500 frames"]);
+    std::fs::remove_dir_all(&dir).ok();
+}
