@@ -72,7 +72,7 @@ fn hdr() -> (RgbBuf, RgbBuf) {
     let noisy = |r: &mut XorShift, amount: f32| {
         image(|x, y, c| {
             let v = shade(x, y, c);
-            let firefly = r.next() % 20_000 == 0;
+            let firefly = r.next().is_multiple_of(20_000);
             if firefly { 1e3 + 1e6 * r.unit() } else { v * (1.0 + amount * (r.unit() - 0.5)) }
         })
     };

@@ -138,6 +138,43 @@ enum Command {
         #[arg(long)]
         max_units: Option<usize>,
     },
+    /// What accuracy costs in time: sweeps pipeline settings on one scene and measures time
+    /// per stereo frame and effective spp (table, CSV, JSON and a plot with the Pareto front).
+    Tradeoff {
+        /// A built-in scene name, a manifest (*.toml) or a scene folder.
+        #[arg(long, default_value = "atrium")]
+        scene: String,
+        /// Resolution per eye, WIDTHxHEIGHT (time and quality are both measured at it).
+        #[arg(long, default_value = "256x144", value_parser = stereotrace::commands::parse_resolution)]
+        res: stereotrace::kernels::Extent,
+        /// Worker threads.
+        #[arg(long, default_value_t = 2)]
+        threads: usize,
+        /// Frames the pipeline renders (0..FRAMES); frame 0 is not timed.
+        #[arg(long, default_value_t = 14)]
+        frames: u32,
+        /// Warm-up frames left out of the quality measurement.
+        #[arg(long, default_value_t = 10)]
+        warmup: u32,
+        /// Input samples per pixel (comma-separated).
+        #[arg(long, value_delimiter = ',', default_value = "1,2,4")]
+        spp: Vec<u32>,
+        /// Samples per pixel of the references.
+        #[arg(long, default_value_t = 256)]
+        reference_spp: u32,
+        /// Last spp of the path-traced error curves.
+        #[arg(long, default_value_t = 128)]
+        curve_spp: u32,
+        /// Budgets as fractions of the unbudgeted spatiotemporal frame time (comma-separated).
+        #[arg(long, value_delimiter = ',', default_value = "0.75,0.5,0.25")]
+        budgets: Vec<f64>,
+        /// Output folder.
+        #[arg(long, default_value = "out/tradeoff")]
+        out: std::path::PathBuf,
+        /// Cache folder for references and curves (shared with `eval`).
+        #[arg(long, default_value = "out/eval-cache")]
+        cache: std::path::PathBuf,
+    },
     /// SSIM (3-D volume and per-channel) and RMSE of two linear EXR images.
     Ssim {
         /// First image (EXR).
@@ -230,6 +267,34 @@ fn main() -> ExitCode {
                 max_units,
             };
             stereotrace::commands::eval::run(&opts).map(|report| println!("{report}"))
+        }
+        Command::Tradeoff {
+            scene,
+            res,
+            threads,
+            frames,
+            warmup,
+            spp,
+            reference_spp,
+            curve_spp,
+            budgets,
+            out,
+            cache,
+        } => {
+            let opts = stereotrace::commands::tradeoff::TradeoffOptions {
+                scene,
+                extent: res,
+                threads,
+                frames,
+                warmup,
+                input_spp: spp,
+                reference_spp,
+                curve_spp,
+                budget_fractions: budgets,
+                out,
+                cache,
+            };
+            stereotrace::commands::tradeoff::run_command(&opts).map(|report| println!("{report}"))
         }
         Command::Ssim { a, b } => stereotrace::commands::ssim::run(&a, &b).map(|report| println!("{report}")),
     };

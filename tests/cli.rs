@@ -123,3 +123,33 @@ fn scenes_lists_every_built_in() {
         assert!(text.contains(name), "{name} missing from:\n{text}");
     }
 }
+
+#[test]
+fn tradeoff_writes_its_table_and_plot_and_refuses_bad_budgets() {
+    let dir = temp_dir("tradeoff");
+    let (out_dir, cache) = (dir.join("out"), dir.join("cache"));
+    let args = |budgets: &'static str| {
+        vec![
+            "tradeoff".to_owned(),
+            "--scene=cornell".into(),
+            "--res=32x18".into(),
+            "--frames=4".into(),
+            "--warmup=2".into(),
+            "--spp=1".into(),
+            "--reference-spp=8".into(),
+            "--curve-spp=4".into(),
+            format!("--budgets={budgets}"),
+            format!("--out={}", out_dir.display()),
+            format!("--cache={}", cache.display()),
+        ]
+    };
+    let run = |a: Vec<String>| stereotrace(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    let out = run(args("0.5"));
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("Pareto front"));
+    for f in ["tradeoff.md", "tradeoff.csv", "tradeoff.json", "tradeoff.png", "tradeoff.svg"] {
+        assert!(out_dir.join(f).metadata().map(|m| m.len() > 0).unwrap_or(false), "{f} missing");
+    }
+    assert_refused(&run(args("2")), "budget fraction");
+    std::fs::remove_dir_all(&dir).ok();
+}

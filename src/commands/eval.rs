@@ -137,9 +137,24 @@ pub fn build_spec(opts: &EvalOptions) -> Result<EvalSpec, String> {
 }
 
 /// The progress bar (with plain status lines when stderr is not a terminal, e.g. in CI).
-struct Bar {
-    bar: ProgressBar,
+pub(crate) struct Bar {
+    pub(crate) bar: ProgressBar,
     start: Instant,
+}
+
+impl Bar {
+    /// A bar on stderr, ticking while work runs.
+    pub(crate) fn new() -> Self {
+        let bar = ProgressBar::new(0).with_style(
+            ProgressStyle::with_template(
+                "{spinner} {elapsed_precise} [{bar:30}] {percent:>3}% ETA {eta_precise}  {wide_msg}",
+            )
+            .expect("valid template")
+            .progress_chars("=> "),
+        );
+        bar.enable_steady_tick(std::time::Duration::from_millis(250));
+        Self { bar, start: Instant::now() }
+    }
 }
 
 impl Reporter for Bar {
@@ -183,15 +198,7 @@ pub fn run(opts: &EvalOptions) -> Result<String, String> {
     let spec = build_spec(opts)?;
     let out = opts.out_dir();
     let cache = Cache::open(&opts.cache_dir())?;
-    let bar = ProgressBar::new(0).with_style(
-        ProgressStyle::with_template(
-            "{spinner} {elapsed_precise} [{bar:30}] {percent:>3}% ETA {eta_precise}  {wide_msg}",
-        )
-        .expect("valid template")
-        .progress_chars("=> "),
-    );
-    bar.enable_steady_tick(std::time::Duration::from_millis(250));
-    let reporter = Bar { bar, start: Instant::now() };
+    let reporter = Bar::new();
     let outcome =
         match evaluate(&spec, &cache, &reporter, Limits { max_computed_units: opts.max_units, max_samples: None }) {
             Ok(o) => o,

@@ -5,6 +5,7 @@ pub mod eval;
 pub mod render;
 pub mod ssim;
 pub mod throughput;
+pub mod tradeoff;
 
 use crate::kernels::Extent;
 

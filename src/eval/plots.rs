@@ -23,17 +23,17 @@ type DrawResult = Result<(), String>;
 /// (input spp, mean, what the mean is) of one line.
 type Points = Vec<(f64, f64, Bound)>;
 
-fn err<E: std::fmt::Debug>(e: E) -> String {
+pub(crate) fn err<E: std::fmt::Debug>(e: E) -> String {
     format!("{e:?}")
 }
 
 /// A generic drawing function usable with both backends.
-trait Figure {
+pub(crate) trait Figure {
     fn draw<DB: DrawingBackend>(&self, root: DrawingArea<DB, Shift>) -> DrawResult;
 }
 
 /// Renders `fig` to `<stem>.png` and `<stem>.svg`.
-fn both_fig(stem: &Path, size: (u32, u32), fig: &impl Figure, written: &mut Vec<PathBuf>) -> DrawResult {
+pub(crate) fn both_fig(stem: &Path, size: (u32, u32), fig: &impl Figure, written: &mut Vec<PathBuf>) -> DrawResult {
     let png = stem.with_extension("png");
     fig.draw(BitMapBackend::new(&png, size).into_drawing_area())?;
     written.push(png);
@@ -44,7 +44,7 @@ fn both_fig(stem: &Path, size: (u32, u32), fig: &impl Figure, written: &mut Vec<
 }
 
 /// A tick label: whole numbers without decimals, others with up to two.
-fn tick(v: f64) -> String {
+pub(crate) fn tick(v: f64) -> String {
     if (v - v.round()).abs() < 1e-9 * v.abs().max(1.0) {
         format!("{v:.0}")
     } else {

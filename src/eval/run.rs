@@ -969,3 +969,51 @@ pub fn evaluate(
         seconds: start.elapsed().as_secs_f64(),
     })
 }
+
+/// A scene's measuring stick under a spec: the renderer, and the reference and error curve
+/// of every evaluated frame (left eye), from the cache where they exist.
+pub struct SceneBasis {
+    pub renderer: Renderer,
+    pub references: BTreeMap<u32, RgbBuf>,
+    pub curves: BTreeMap<u32, FrameCurve>,
+    pub counters: WorkCounters,
+    pub warnings: Vec<String>,
+}
+
+/// Builds (or loads) the references and error curves of `scene` exactly as [`evaluate`]
+/// does, so other measurements (the trade-off sweep) share the harness's cache entries and
+/// its definition of the effective spp. Figure 3's extra curve points are left out.
+pub fn scene_basis(
+    spec: &EvalSpec,
+    scene: &str,
+    cache: &Cache,
+    reporter: &dyn Reporter,
+) -> Result<SceneBasis, EvalError> {
+    let mut spec = spec.clone();
+    spec.scenes = vec![scene.to_owned()];
+    spec.figures.framewise_scene = None;
+    spec.validate()?;
+    let mut runner = Runner {
+        spec: &spec,
+        cache,
+        reporter,
+        limits: Limits::default(),
+        extent: spec.extent()?,
+        rig: StereoRig::new(spec.eye_separation)?,
+        counters: WorkCounters::default(),
+        warnings: Vec::new(),
+    };
+    let global_probe = code_probe()?;
+    let plan = runner.plan_scene(scene, global_probe)?;
+    reporter.begin(runner.pending_work(&plan));
+    let mut references = BTreeMap::new();
+    for (f, _, key, _) in &plan.frames {
+        references.insert(*f, runner.reference(&plan, *f, key)?);
+    }
+    let mut curves = BTreeMap::new();
+    for (f, max_spp, _, key) in &plan.frames {
+        curves.insert(*f, runner.curve(&plan, *f, *max_spp, key, &references[f])?);
+    }
+    let (counters, warnings) = (runner.counters, runner.warnings);
+    Ok(SceneBasis { renderer: plan.renderer, references, curves, counters, warnings })
+}

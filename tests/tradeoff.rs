@@ -1,0 +1,96 @@
+//! The trade-off sweep measures what the evaluation harness measures: for every mode at the
+//! paper's settings its effective spp equals the harness's, bit for bit (same pipeline
+//! images, same references and curves from the shared cache). Also: every setting is
+//! measured, budgets are derived from the unbudgeted run, the Pareto front is consistent and
+//! the files are written.
+
+use std::path::PathBuf;
+
+use stereotrace::commands::tradeoff::{TradeoffOptions, sweep};
+use stereotrace::eval::cache::Cache;
+use stereotrace::eval::run::{Limits, Quiet};
+use stereotrace::eval::{Variant, evaluate};
+use stereotrace::kernels::Extent;
+
+fn temp(tag: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("stereotrace-tradeoff-{tag}-{}", std::process::id()));
+    std::fs::remove_dir_all(&d).ok();
+    d
+}
+
+#[test]
+fn the_sweep_measures_the_harness_images_and_marks_a_consistent_front() {
+    let dir = temp("harness");
+    let mut opts = TradeoffOptions::new("cornell");
+    opts.extent = Extent::new(32, 18).unwrap();
+    (opts.frames, opts.warmup) = (4, 2);
+    opts.input_spp = vec![1];
+    (opts.reference_spp, opts.curve_spp) = (16, 8);
+    opts.budget_fractions = vec![0.5];
+    opts.cache = dir.join("cache");
+    opts.out = dir.join("out");
+    let report = sweep(&opts, &Quiet).unwrap();
+
+    let mut spec = opts.eval_spec();
+    spec.variants = Variant::ALL.to_vec();
+    spec.figures.framewise_scene = None;
+    spec.figures.discard_scene = None;
+    spec.figures.comparison_scenes.clear();
+    let outcome = evaluate(&spec, &Cache::open(&opts.cache).unwrap(), &Quiet, Limits::default()).unwrap();
+    assert_eq!(outcome.counters.references + outcome.counters.curves, 0, "the sweep left the basis in the cache");
+    let scene = &outcome.results.scenes[0];
+    for v in Variant::ALL {
+        let row = report.rows.iter().find(|r| r.mode == v.name() && r.change == "paper").unwrap();
+        let config = scene.config(v, 1).unwrap();
+        assert_eq!(row.effective_ssim, config.ssim, "{v}");
+        assert_eq!(row.effective_rmse, config.rmse, "{v}");
+    }
+
+    // 1 path-traced + 7 modes + strict, ramp, full layout + 1 budget.
+    assert_eq!(report.rows.len(), 12);
+    let unbudgeted = report.rows.iter().find(|r| r.mode == "spatiotemporal" && r.change == "paper").unwrap();
+    let budgeted = report.rows.iter().find(|r| r.budget_ms.is_some()).unwrap();
+    assert_eq!(budgeted.budget_ms, Some(0.5 * unbudgeted.frame.median_ms));
+    for r in &report.rows {
+        assert!(r.frame.median_ms > 0.0 && r.frame.p95_ms >= r.frame.median_ms, "{} {}", r.mode, r.change);
+        assert!(r.effective_ssim.count == 2 && r.mean_ssim > 0.0 && r.mean_ssim <= 1.0);
+    }
+    let point = |r: &stereotrace::commands::tradeoff::TradeoffRow| (r.frame.median_ms, r.effective_ssim.mean);
+    let front: Vec<_> = report.rows.iter().filter(|r| r.pareto).collect();
+    assert!(!front.is_empty());
+    for f in &front {
+        let (t, q) = point(f);
+        let q = q.unwrap();
+        assert!(!report.rows.iter().any(|r| {
+            let (tr, qr) = point(r);
+            qr.is_some_and(|qr| tr <= t && qr >= q && (tr < t || qr > q))
+        }));
+    }
+    // The fastest measured setting is always on the front.
+    let fastest = report
+        .rows
+        .iter()
+        .filter(|r| r.effective_ssim.mean.is_some())
+        .min_by(|a, b| a.frame.median_ms.total_cmp(&b.frame.median_ms));
+    assert!(fastest.unwrap().pareto);
+
+    let written = report.write(&opts.out).unwrap();
+    assert_eq!(written.len(), 5);
+    for w in &written {
+        assert!(std::fs::metadata(w).unwrap().len() > 0, "{}", w.display());
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn bad_options_are_refused_with_a_message() {
+    let mut opts = TradeoffOptions::new("cornell");
+    opts.budget_fractions = vec![1.5];
+    assert!(sweep(&opts, &Quiet).unwrap_err().contains("budget fraction"));
+    let mut opts = TradeoffOptions::new("cornell");
+    opts.input_spp = vec![0];
+    assert!(sweep(&opts, &Quiet).unwrap_err().contains("--spp"));
+    let mut opts = TradeoffOptions::new("no-such-scene");
+    opts.cache = temp("bad").join("cache");
+    assert!(sweep(&opts, &Quiet).is_err());
+}
