@@ -36,7 +36,7 @@
 
 use crate::bands::{SharedRows, for_each_band};
 use crate::frame::{Extent, FrameError, Plane, PlaneMut, RgbPlanes, RgbPlanesMut, same_extent};
-use crate::simd::{F32s, LANES, TapCoords, clamp_finite, clamp_finite1, load, store};
+use crate::simd::{F32s, LANES, TapCoords, clamp_finite, clamp_finite1, lane_offsets, load, store};
 
 /// Fractional offsets closer than this to a pixel centre snap to it.
 pub const SNAP: f32 = 1.0 / 1024.0;
@@ -163,6 +163,24 @@ impl Footprints {
         self.taps()
             .map(|(x, y)| self.inside & x.simd_ge(F32s::ZERO) & x.simd_lt(w) & y.simd_ge(F32s::ZERO) & y.simd_lt(h))
     }
+}
+
+/// If every lane's footprint starts on the same source row at consecutive columns and all
+/// lanes are `active`, with all four taps of all lanes inside the frame, returns the first
+/// lane's `(x0, y0)`: the taps can then be loaded as contiguous rows (columns
+/// `x0 ..= x0 + LANES`, rows `y0 ..= y0 + 1`).
+#[inline(always)]
+pub(crate) fn coherent_row(fp: &Footprints, active: F32s, extent: Extent) -> Option<(usize, usize)> {
+    if !active.all() {
+        return None;
+    }
+    let x_base = fp.x0 - lane_offsets();
+    let x0 = x_base.to_array()[0];
+    let y0 = fp.y0.to_array()[0];
+    let same = x_base.simd_eq(F32s::splat(x0)) & fp.y0.simd_eq(F32s::splat(y0));
+    let fits =
+        x0 >= 0.0 && y0 >= 0.0 && x0 + (LANES as f32) < extent.width() as f32 && y0 + 1.0 < extent.height() as f32;
+    (same.all() && fits).then_some((x0 as usize, y0 as usize))
 }
 
 #[inline(always)]
@@ -348,19 +366,36 @@ fn resample_lanes(input: &ResampleInput<'_>, x: usize, y: usize) -> ([F32s; 3], 
     let mut sum = [F32s::ZERO; 3];
     let mut total = F32s::ZERO;
     let planes = input.source.channels();
+    // A coherent group (consecutive source columns on one row, all taps inside) loads each
+    // tap as a contiguous vector instead of gathering lane by lane: same values, same bits.
+    let coherent = coherent_row(&fp, fp.inside, extent);
     for (t, &(tx, ty)) in fp.taps().iter().enumerate() {
         let mut accept = in_frame[t] & weights[t].simd_gt(F32s::ZERO);
         if accept.none() {
             continue;
         }
-        let coords = TapCoords::clamped(tx, ty, extent.width(), extent.height());
-        if let Some(valid) = &input.source_valid {
-            let v = coords.gather(valid).map(|b| if b != 0 { f32::from_bits(u32::MAX) } else { 0.0 });
-            accept &= F32s::from(v);
-        }
+        let values: [F32s; 3] = match coherent {
+            Some((x0, y0)) => {
+                let (x, y) = (x0 + t % 2, y0 + t / 2);
+                if let Some(valid) = &input.source_valid {
+                    let v = &valid.row(y)[x..x + LANES];
+                    accept &= F32s::from(core::array::from_fn::<f32, LANES, _>(|i| {
+                        if v[i] != 0 { f32::from_bits(u32::MAX) } else { 0.0 }
+                    }));
+                }
+                [0, 1, 2].map(|c| load(planes[c].row(y), x))
+            }
+            None => {
+                let coords = TapCoords::clamped(tx, ty, extent.width(), extent.height());
+                if let Some(valid) = &input.source_valid {
+                    let v = coords.gather(valid).map(|b| if b != 0 { f32::from_bits(u32::MAX) } else { 0.0 });
+                    accept &= F32s::from(v);
+                }
+                [0, 1, 2].map(|c| coords.gather_f32(&planes[c]))
+            }
+        };
         for c in 0..3 {
-            let value = coords.gather_f32(&planes[c]);
-            sum[c] += accept.select(weights[t] * value, F32s::ZERO);
+            sum[c] += accept.select(weights[t] * values[c], F32s::ZERO);
         }
         total += accept.select(weights[t], F32s::ZERO);
     }

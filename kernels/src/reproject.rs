@@ -39,11 +39,11 @@
 //! is too. Tail: the remaining `width % 8` pixels of a row go through the scalar reference.
 
 use crate::bands::{SharedRows, for_each_band};
-use crate::bilinear::{Footprint, Footprints, renormalise, renormalise_simd};
+use crate::bilinear::{Footprint, Footprints, coherent_row, renormalise, renormalise_simd};
 use crate::camera::CameraModel;
 use crate::frame::{Extent, FrameError, Plane, PlaneMut, RgbPlanes, RgbPlanesMut, same_extent};
 use crate::gbuffer::{SurfaceLayout, Surfel, Surfels};
-use crate::simd::{F32s, LANES, TapCoords, lane_offsets, store};
+use crate::simd::{F32s, LANES, TapCoords, store};
 
 /// Why a pixel was or was not reprojected. Stored as one byte per pixel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -1047,7 +1047,7 @@ impl SourceLanes {
     }
 }
 
-/// The first pass of [`evaluate_taps`] for a coherent group (see [`coherent_row`]), with
+/// The first pass of [`evaluate_taps`] for a coherent group (see [`coherent_row`](crate::bilinear::coherent_row)), with
 /// each source pixel decoded once: tap 0 of row `r` reads pixels `x0 ..`, tap 1 the same
 /// lanes shifted by one with the next vector's first pixel on top; that next vector is kept
 /// for the next group, whose tap 0 usually starts there. Same tests, same order, same bits.
@@ -1131,22 +1131,4 @@ fn tap_test<L: SurfaceLayout, const C: usize>(
         acc.sum[c] += accepted.select(weight * values[c], zero);
     }
     acc.total += accepted.select(weight, zero);
-}
-
-/// If every active lane's footprint starts on the same source row at consecutive columns
-/// and all lanes are active, with all four taps of all lanes inside the frame, returns the
-/// first lane's `(x0, y0)`: the taps can then be loaded as contiguous rows.
-#[inline(always)]
-fn coherent_row(fp: &Footprints, active: F32s, extent: Extent) -> Option<(usize, usize)> {
-    if !active.all() {
-        return None;
-    }
-    let x_base = fp.x0 - lane_offsets();
-    let x0 = x_base.to_array()[0];
-    let y0 = fp.y0.to_array()[0];
-    let same = x_base.simd_eq(F32s::splat(x0)) & fp.y0.simd_eq(F32s::splat(y0));
-    // All four taps of all lanes inside: columns x0 ..= x0 + LANES, rows y0 ..= y0 + 1.
-    let fits =
-        x0 >= 0.0 && y0 >= 0.0 && x0 + (LANES as f32) < extent.width() as f32 && y0 + 1.0 < extent.height() as f32;
-    (same.all() && fits).then_some((x0 as usize, y0 as usize))
 }

@@ -582,6 +582,41 @@ fn bilinear_simd_equals_scalar_on_edge_values_and_random_maps() {
     }
 }
 
+/// Shifted and slightly scaled maps make most 8-pixel groups coherent (consecutive source
+/// columns on one row), the contiguous-load path; groups that straddle a repeated column,
+/// the frame border or a NaN fall back to gathers. Both must equal the scalar reference.
+#[test]
+fn bilinear_simd_equals_scalar_on_coherent_shifted_maps() {
+    let mut rng = Rng::new(11);
+    for case in 0..40 {
+        let se = extent(9 + rng.below(40), 2 + rng.below(6));
+        let te = extent([8, 9, 16, 17, 31, 40][case % 6], 1 + rng.below(5));
+        let mut src = RgbBuf::new(se, 0.0);
+        for p in [&mut src.r, &mut src.g, &mut src.b] {
+            for v in p.as_mut_slice() {
+                *v =
+                    if rng.next_f32() < 0.1 { EDGE_VALUES[rng.below(EDGE_VALUES.len())] } else { rng.range(-2.0, 5.0) };
+            }
+        }
+        let (shift_x, shift_y) = (rng.range(-3.0, 6.0), rng.range(-1.0, 2.0));
+        let scale = [1.0, 0.993, 1.01][case % 3];
+        let mut mx: Vec<f32> = (0..te.pixels()).map(|i| (i % te.width()) as f32 * scale + 0.5 + shift_x).collect();
+        if case % 4 == 0 {
+            mx[rng.below(te.pixels())] = f32::NAN;
+        }
+        let mx = PlaneBuf::from_vec(mx, te).unwrap();
+        let my = PlaneBuf::from_vec((0..te.pixels()).map(|i| (i / te.width()) as f32 + 0.5 + shift_y).collect(), te)
+            .unwrap();
+        let valid = PlaneBuf::from_vec((0..se.pixels()).map(|_| (rng.next_f32() < 0.85) as u8).collect(), se).unwrap();
+        for mask in [None, Some(&valid)] {
+            let [(ca, wa), (cb, wb)] = resample_both(&src, mask, &mx, &my);
+            for (a, b) in [(&ca.r, &cb.r), (&ca.g, &cb.g), (&ca.b, &cb.b), (&wa, &wb)] {
+                assert_same_planes("coherent resample", a, b);
+            }
+        }
+    }
+}
+
 #[test]
 fn bilinear_interpolates_a_linear_ramp_exactly_enough() {
     let se = extent(16, 8);
