@@ -407,14 +407,7 @@ impl Renderer {
         let mesh = &self.scene.mesh;
         let tri = h.prim as usize;
         let material = &self.scene.materials[mesh.material[tri] as usize];
-        let mut ng = mesh.geometric_normal(tri);
-        if ng.dot(dir) > 0.0 {
-            ng = -ng;
-        }
-        let mut ns = mesh.shading_normal(tri, h.u, h.v);
-        if ns.dot(ng) < 0.0 {
-            ns = -ns;
-        }
+        let (ng, ns) = self.normals(h, dir);
         let albedo = if has(E, TEXTURES) && material.albedo_texture.is_some() {
             material.albedo_at(&self.scene.textures, mesh.uv(tri, h.u, h.v))
         } else {
@@ -429,6 +422,23 @@ impl Renderer {
             specular: material.specular,
             alpha: material.alpha(),
         }
+    }
+
+    /// The geometric and shading normals of a hit, both facing the incoming ray `dir` (the
+    /// part of [`Renderer::shade`] the G-buffer needs: no material or texture lookups).
+    #[inline]
+    fn normals(&self, h: &Hit, dir: Vec3) -> (Vec3, Vec3) {
+        let mesh = &self.scene.mesh;
+        let tri = h.prim as usize;
+        let mut ng = mesh.geometric_normal(tri);
+        if ng.dot(dir) > 0.0 {
+            ng = -ng;
+        }
+        let mut ns = mesh.shading_normal(tri, h.u, h.v);
+        if ns.dot(ng) < 0.0 {
+            ns = -ns;
+        }
+        (ng, ns)
     }
 
     /// Emitted radiance of a surface towards `-dir` (one-sided emitters).
@@ -732,8 +742,8 @@ impl Renderer {
                     let p = [0, 1, 2].map(|c| camera.centre[c] + t * ray.dir[c]);
                     let (n, m) = match s {
                         Surface::Mesh(h) => {
-                            let sp = self.shade::<E>(&h, ray.dir);
-                            (sp.shading_normal, self.scene.mesh.material[h.prim as usize])
+                            let (_, shading_normal) = self.normals(&h, ray.dir);
+                            (shading_normal, self.scene.mesh.material[h.prim as usize])
                         }
                         Surface::MovingLight { normal, .. } => {
                             (if normal.dot(ray.dir) > 0.0 { -normal } else { normal }, u32::MAX - 1)
