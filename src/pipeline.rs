@@ -29,9 +29,12 @@
 //! tracing goes over row tiles in priority order: first every pixel that has no valid
 //! reprojected data at all (disocclusions), then the remaining pixels the mode would trace,
 //! tile by tile, until the budget is spent. Pixels that were not traced keep their
-//! reprojected value (or stay holes where there is none). Tracing stops before a tile is
-//! started once the time is up, so the overrun is at most one tile per thread; the frame
-//! statistics report it.
+//! reprojected value (or stay holes where there is none). A tile starts only if the time so
+//! far, the tile's predicted cost and the work that followed the loop in the previous frame
+//! (the other eye, accumulation) fit the budget (`BudgetPlanner`, predictions from measured
+//! times), so the overrun is the misprediction of about one tile; the frame statistics
+//! report it. Work that always runs is never skipped: a budget below the G-buffers,
+//! reprojection, accumulation and the urgent pixels is overrun by that much.
 
 use std::time::{Duration, Instant};
 
@@ -296,6 +299,57 @@ pub struct Pipeline<'r> {
     lights: FrameLights,
     eyes: [EyeState; 2],
     frames_done: u32,
+    planner: BudgetPlanner,
+}
+
+/// Budgeted loops a frame may run (one per traced eye).
+const MAX_LOOPS: usize = 2;
+
+/// Decides, under a budget, whether one more tile still fits: the time so far, plus the
+/// tile's predicted cost, plus the work that followed this loop to the end of the previous
+/// frame (the other eye's urgent pixels, accumulation, stereo reprojection) must stay within
+/// the budget. Predictions come from measured times only, so the first budgeted frame runs
+/// without a reserve, and the overrun left is the misprediction of about one tile.
+#[derive(Clone, Copy, Debug, Default)]
+struct BudgetPlanner {
+    /// Seconds per row of a tile, per eye (a running average; 0 until measured).
+    row_seconds: [f64; 2],
+    /// For each budgeted loop of the previous frame, in order: from its end to the frame's end.
+    tails: [Duration; MAX_LOOPS],
+    /// This frame's loop ends, from the frame's start.
+    loop_ends: [Duration; MAX_LOOPS],
+    loops: usize,
+}
+
+impl BudgetPlanner {
+    fn start_frame(&mut self) {
+        self.loops = 0;
+    }
+
+    fn fits(&self, eye: Eye, elapsed: Duration, rows: usize, budget: Duration) -> bool {
+        let tile = Duration::from_secs_f64(self.row_seconds[eye as usize] * rows as f64);
+        let tail = self.tails.get(self.loops).copied().unwrap_or_default();
+        elapsed + tile + tail <= budget
+    }
+
+    fn tile_done(&mut self, eye: Eye, rows: usize, took: Duration) {
+        let per_row = took.as_secs_f64() / rows.max(1) as f64;
+        let estimate = &mut self.row_seconds[eye as usize];
+        *estimate = if *estimate == 0.0 { per_row } else { 0.5 * (*estimate + per_row) };
+    }
+
+    fn loop_done(&mut self, elapsed: Duration) {
+        if let Some(end) = self.loop_ends.get_mut(self.loops) {
+            *end = elapsed;
+        }
+        self.loops += 1;
+    }
+
+    fn end_frame(&mut self, total: Duration) {
+        for k in 0..self.loops.min(MAX_LOOPS) {
+            self.tails[k] = total.saturating_sub(self.loop_ends[k]);
+        }
+    }
 }
 
 const L: usize = Eye::Left as usize;
@@ -323,6 +377,7 @@ impl<'r> Pipeline<'r> {
             lights: renderer.frame_lights(0),
             eyes: [EyeState::new(camera(Eye::Left)?), EyeState::new(camera(Eye::Right)?)],
             frames_done: 0,
+            planner: BudgetPlanner::default(),
         })
     }
 
@@ -375,6 +430,7 @@ impl<'r> Pipeline<'r> {
         let start = Instant::now();
         let mut stats = FrameStats { frame, budget: self.config.budget, ..FrameStats::default() };
         let has_history = self.frames_done > 0;
+        self.planner.start_frame();
 
         // G-buffers of both eyes (last frame's become the temporal source).
         let t0 = Instant::now();
@@ -473,6 +529,7 @@ impl<'r> Pipeline<'r> {
         }
         self.frames_done += 1;
         stats.times.total = start.elapsed();
+        self.planner.end_frame(stats.times.total);
         stats.budget_met = self.config.budget.is_none_or(|b| stats.times.total <= b);
         Ok(stats)
     }
@@ -685,8 +742,9 @@ impl<'r> Pipeline<'r> {
                 }
                 let tile = config.tile_rows;
                 let mut y0 = 0;
-                while y0 < height && start.elapsed() < budget {
+                while y0 < height && self.planner.fits(eye, start.elapsed(), tile, budget) {
                     let rows = y0..(y0 + tile).min(height);
+                    let tile_start = Instant::now();
                     let trace = self.renderer.trace_rows(
                         &self.lights,
                         &s.camera,
@@ -705,8 +763,10 @@ impl<'r> Pipeline<'r> {
                             stats.traced_pixels[eye as usize] += 1;
                         }
                     }
+                    self.planner.tile_done(eye, rows.len(), tile_start.elapsed());
                     y0 = rows.end;
                 }
+                self.planner.loop_done(start.elapsed());
             }
         }
         stats.times.tracing += t.elapsed();

@@ -20,7 +20,7 @@ use super::throughput::Spread;
 use crate::camera::{Eye, StereoRig};
 use crate::eval::cache::Cache;
 use crate::eval::curve::measure;
-use crate::eval::plots::{Figure, both_fig, err, tick};
+use crate::eval::plots::{Figure, both_fig, draw_legend, err, tick};
 use crate::eval::run::{SceneBasis, scene_basis};
 use crate::eval::stats::Summary;
 use crate::eval::{EvalSpec, Metric, Preset, Reporter, Variant};
@@ -538,14 +538,7 @@ impl Figure for TradeoffPlot<'_> {
                 Text::new(format!("{} {}spp {}", p.0.mode, p.0.spp, p.0.change), (p.1, p.2), ("sans-serif", 10))
             }))
             .map_err(err)?;
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::LowerRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 11))
-            .draw()
-            .map_err(err)?;
+        draw_legend(&mut chart, SeriesLabelPosition::LowerRight)?;
         root.present().map_err(err)
     }
 }

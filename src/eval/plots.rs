@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use plotters::coord::Shift;
+use plotters::coord::{CoordTranslate, Shift};
 use plotters::prelude::*;
 
 use super::Variant;
@@ -41,6 +41,21 @@ pub(crate) fn both_fig(stem: &Path, size: (u32, u32), fig: &impl Figure, written
     fig.draw(SVGBackend::new(&svg, size).into_drawing_area())?;
     written.push(svg);
     Ok(())
+}
+
+/// Draws the series legend at `position` in the figures' common style.
+pub(crate) fn draw_legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    position: SeriesLabelPosition,
+) -> DrawResult {
+    chart
+        .configure_series_labels()
+        .position(position)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 11))
+        .draw()
+        .map_err(err)
 }
 
 /// A tick label: whole numbers without decimals, others with up to two.
@@ -162,14 +177,7 @@ impl Figure for EffectivePlot<'_> {
                 .label("scene average (paper, 1280×720)")
                 .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(2)));
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperLeft)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 11))
-            .draw()
-            .map_err(err)?;
+        draw_legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
         root.present().map_err(err)
     }
 }
@@ -242,14 +250,7 @@ impl Figure for FramewisePlot<'_> {
             .map_err(err)?
             .label("end of warm-up")
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.mix(0.4)));
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::LowerRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 11))
-            .draw()
-            .map_err(err)?;
+        draw_legend(&mut chart, SeriesLabelPosition::LowerRight)?;
         root.present().map_err(err)
     }
 }
