@@ -552,13 +552,7 @@ fn bilinear_simd_equals_scalar_on_edge_values_and_random_maps() {
     for case in 0..80 {
         let se = extent(1 + rng.below(20), 1 + rng.below(6));
         let te = extent([1, 7, 8, 9, 17, 31][case % 6], 1 + rng.below(5));
-        let mut src = RgbBuf::new(se, 0.0);
-        for p in [&mut src.r, &mut src.g, &mut src.b] {
-            for v in p.as_mut_slice() {
-                *v =
-                    if rng.next_f32() < 0.3 { EDGE_VALUES[rng.below(EDGE_VALUES.len())] } else { rng.range(-2.0, 5.0) };
-            }
-        }
+        let src = random_rgb_in(se, &mut rng, 0.3, (-2.0, 5.0));
         let coordinate = |rng: &mut Rng, size: usize| {
             if rng.next_f32() < 0.2 {
                 EDGE_VALUES[rng.below(EDGE_VALUES.len())]
@@ -591,13 +585,7 @@ fn bilinear_simd_equals_scalar_on_coherent_shifted_maps() {
     for case in 0..40 {
         let se = extent(9 + rng.below(40), 2 + rng.below(6));
         let te = extent([8, 9, 16, 17, 31, 40][case % 6], 1 + rng.below(5));
-        let mut src = RgbBuf::new(se, 0.0);
-        for p in [&mut src.r, &mut src.g, &mut src.b] {
-            for v in p.as_mut_slice() {
-                *v =
-                    if rng.next_f32() < 0.1 { EDGE_VALUES[rng.below(EDGE_VALUES.len())] } else { rng.range(-2.0, 5.0) };
-            }
-        }
+        let src = random_rgb_in(se, &mut rng, 0.1, (-2.0, 5.0));
         let (shift_x, shift_y) = (rng.range(-3.0, 6.0), rng.range(-1.0, 2.0));
         let scale = [1.0, 0.993, 1.01][case % 3];
         let mut mx: Vec<f32> = (0..te.pixels()).map(|i| (i % te.width()) as f32 * scale + 0.5 + shift_x).collect();
@@ -638,14 +626,16 @@ fn bilinear_interpolates_a_linear_ramp_exactly_enough() {
 // ---- EMA and blend ---------------------------------------------------------------------
 
 fn random_rgb(e: Extent, rng: &mut Rng, edge_share: f32) -> RgbBuf {
+    random_rgb_in(e, rng, edge_share, (0.0, 4.0))
+}
+
+/// An RGB image of values in `range`, with a share `edge_share` of edge values.
+fn random_rgb_in(e: Extent, rng: &mut Rng, edge_share: f32, (lo, hi): (f32, f32)) -> RgbBuf {
     let mut img = RgbBuf::new(e, 0.0);
     for p in [&mut img.r, &mut img.g, &mut img.b] {
         for v in p.as_mut_slice() {
-            *v = if rng.next_f32() < edge_share {
-                EDGE_VALUES[rng.below(EDGE_VALUES.len())]
-            } else {
-                rng.range(0.0, 4.0)
-            };
+            *v =
+                if rng.next_f32() < edge_share { EDGE_VALUES[rng.below(EDGE_VALUES.len())] } else { rng.range(lo, hi) };
         }
     }
     img
