@@ -573,64 +573,49 @@ impl Renderer {
         let width = camera.extent.width();
         let inv_spp = 1.0 / request.spp as f32;
         let pass = packets::Pass { lights, camera, request };
-        let span = rows.start * width..rows.end * width;
-        let RgbBuf { r, g, b } = out;
-        (
-            r.as_mut_slice()[span.clone()].par_chunks_mut(width),
-            g.as_mut_slice()[span.clone()].par_chunks_mut(width),
-            b.as_mut_slice()[span].par_chunks_mut(width),
-        )
-            .into_par_iter()
-            .enumerate()
-            .map(|(i, (rr, gr, br))| {
-                let y = rows.start + i;
-                let mut stats = TraceStats::default();
-                let mask_row = match selection {
-                    PixelSelection::All => None,
-                    PixelSelection::Mask(m) => Some(m.view().row(y)),
-                };
-                let mut next = 0;
-                loop {
-                    // The next (up to) eight selected pixels of the row; unused lanes repeat
-                    // the last one but stay inactive.
-                    let mut xs = [0usize; LANES];
-                    let mut n = 0;
-                    while next < width && n < LANES {
-                        if mask_row.is_none_or(|m| m[next] != 0) {
-                            xs[n] = next;
-                            n += 1;
-                        }
-                        next += 1;
+        for_each_row(selection, rows, out, |y, mask_row, [rr, gr, br]| {
+            let mut stats = TraceStats::default();
+            let mut next = 0;
+            loop {
+                // The next (up to) eight selected pixels of the row; unused lanes repeat
+                // the last one but stay inactive.
+                let mut xs = [0usize; LANES];
+                let mut n = 0;
+                while next < width && n < LANES {
+                    if mask_row.is_none_or(|m| m[next] != 0) {
+                        xs[n] = next;
+                        n += 1;
                     }
-                    if n == 0 {
-                        break;
-                    }
-                    for k in n..LANES {
-                        xs[k] = xs[n - 1];
-                    }
-                    let active = (1u32 << n) - 1;
-                    let mut sum = [Vec3::ZERO; LANES];
-                    for s in 0..request.spp {
-                        let l = self.sample_group::<E>(&pass, y, &xs, active, s, &mut stats.rays);
-                        for k in 0..n {
-                            if l[k].is_finite() {
-                                sum[k] += l[k];
-                            } else {
-                                stats.non_finite += 1;
-                            }
-                        }
-                    }
-                    stats.samples += u64::from(request.spp) * n as u64;
+                    next += 1;
+                }
+                if n == 0 {
+                    break;
+                }
+                for k in n..LANES {
+                    xs[k] = xs[n - 1];
+                }
+                let active = (1u32 << n) - 1;
+                let mut sum = [Vec3::ZERO; LANES];
+                for s in 0..request.spp {
+                    let l = self.sample_group::<E>(&pass, y, &xs, active, s, &mut stats.rays);
                     for k in 0..n {
-                        let (x, v) = (xs[k], sum[k] * inv_spp);
-                        rr[x] = v.x;
-                        gr[x] = v.y;
-                        br[x] = v.z;
+                        if l[k].is_finite() {
+                            sum[k] += l[k];
+                        } else {
+                            stats.non_finite += 1;
+                        }
                     }
                 }
-                stats
-            })
-            .sum()
+                stats.samples += u64::from(request.spp) * n as u64;
+                for k in 0..n {
+                    let (x, v) = (xs[k], sum[k] * inv_spp);
+                    rr[x] = v.x;
+                    gr[x] = v.y;
+                    br[x] = v.z;
+                }
+            }
+            stats
+        })
     }
 
     /// The single-ray reference loop: one pixel and sample at a time through
@@ -647,54 +632,39 @@ impl Renderer {
         let width = camera.extent.width();
         let origin = Vec3::from(camera.centre);
         let inv_spp = 1.0 / request.spp as f32;
-        let span = rows.start * width..rows.end * width;
-        let RgbBuf { r, g, b } = out;
-        (
-            r.as_mut_slice()[span.clone()].par_chunks_mut(width),
-            g.as_mut_slice()[span.clone()].par_chunks_mut(width),
-            b.as_mut_slice()[span].par_chunks_mut(width),
-        )
-            .into_par_iter()
-            .enumerate()
-            .map(|(i, (rr, gr, br))| {
-                let y = rows.start + i;
-                let mut stats = TraceStats::default();
-                let mask_row = match selection {
-                    PixelSelection::All => None,
-                    PixelSelection::Mask(m) => Some(m.view().row(y)),
-                };
-                for x in 0..width {
-                    if mask_row.is_some_and(|m| m[x] == 0) {
-                        continue;
-                    }
-                    let pixel = (y * width + x) as u32;
-                    let mut sum = Vec3::ZERO;
-                    for s in 0..request.spp {
-                        let rng = SampleStream::new(
-                            request.seed,
-                            request.eye as u32,
-                            request.frame,
-                            pixel,
-                            request.first_sample + s,
-                        );
-                        let j = rng.get2(Dim::PixelJitter);
-                        let dir = Vec3::from(camera.ray(x as f32 + j.x, y as f32 + j.y));
-                        let l = self.radiance::<E>(lights, Ray::new(origin, dir), &rng, &mut stats.rays);
-                        if l.is_finite() {
-                            sum += l;
-                        } else {
-                            stats.non_finite += 1;
-                        }
-                    }
-                    stats.samples += u64::from(request.spp);
-                    let v = sum * inv_spp;
-                    rr[x] = v.x;
-                    gr[x] = v.y;
-                    br[x] = v.z;
+        for_each_row(selection, rows, out, |y, mask_row, [rr, gr, br]| {
+            let mut stats = TraceStats::default();
+            for x in 0..width {
+                if mask_row.is_some_and(|m| m[x] == 0) {
+                    continue;
                 }
-                stats
-            })
-            .sum()
+                let pixel = (y * width + x) as u32;
+                let mut sum = Vec3::ZERO;
+                for s in 0..request.spp {
+                    let rng = SampleStream::new(
+                        request.seed,
+                        request.eye as u32,
+                        request.frame,
+                        pixel,
+                        request.first_sample + s,
+                    );
+                    let j = rng.get2(Dim::PixelJitter);
+                    let dir = Vec3::from(camera.ray(x as f32 + j.x, y as f32 + j.y));
+                    let l = self.radiance::<E>(lights, Ray::new(origin, dir), &rng, &mut stats.rays);
+                    if l.is_finite() {
+                        sum += l;
+                    } else {
+                        stats.non_finite += 1;
+                    }
+                }
+                stats.samples += u64::from(request.spp);
+                let v = sum * inv_spp;
+                rr[x] = v.x;
+                gr[x] = v.y;
+                br[x] = v.z;
+            }
+            stats
+        })
     }
 
     fn gbuffer_pass<const E: u16>(&self, lights: &FrameLights, out: &mut GBufferBuf) {
@@ -767,4 +737,32 @@ pub const MOVING_LIGHT_MATERIAL: u32 = u32::MAX - 1;
 /// Jitter-free ray through a pixel centre (what the G-buffer uses), for tests.
 pub fn pixel_centre_ray(camera: &CameraModel, x: usize, y: usize) -> Ray {
     Ray::new(Vec3::from(camera.centre), Vec3::from(camera.ray(x as f32 + 0.5, y as f32 + 0.5)))
+}
+
+/// Runs `row` on each row of `rows` in parallel, with that row's selection mask (`None`:
+/// every pixel) and its three colour rows of `out`, and sums the rows' statistics: the
+/// schedule the packet loop and the single-ray reference share.
+fn for_each_row<F>(selection: PixelSelection<'_>, rows: std::ops::Range<usize>, out: &mut RgbBuf, row: F) -> TraceStats
+where
+    F: Fn(usize, Option<&[u8]>, [&mut [f32]; 3]) -> TraceStats + Sync + Send,
+{
+    let width = out.extent().width();
+    let span = rows.start * width..rows.end * width;
+    let RgbBuf { r, g, b } = out;
+    (
+        r.as_mut_slice()[span.clone()].par_chunks_mut(width),
+        g.as_mut_slice()[span.clone()].par_chunks_mut(width),
+        b.as_mut_slice()[span].par_chunks_mut(width),
+    )
+        .into_par_iter()
+        .enumerate()
+        .map(|(i, (rr, gr, br))| {
+            let y = rows.start + i;
+            let mask_row = match selection {
+                PixelSelection::All => None,
+                PixelSelection::Mask(m) => Some(m.view().row(y)),
+            };
+            row(y, mask_row, [rr, gr, br])
+        })
+        .sum()
 }
