@@ -1,39 +1,15 @@
 //! A frame through a warmed-up pipeline allocates nothing, in every mode (one test per file:
 //! the counting allocator sees the whole process).
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicU64, Ordering};
-
 use stereotrace::camera::StereoRig;
 use stereotrace::kernels::Extent;
+use stereotrace::kernels::check::CountingAllocator;
 use stereotrace::pipeline::{Mode, Order, Pipeline, PipelineConfig};
 use stereotrace::render::Renderer;
 use stereotrace::scene::resolve;
 
-struct Counting;
-
-static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
-
-// SAFETY: forwards to the system allocator unchanged; only counts.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        // SAFETY: same contract as the caller's.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: CountingAllocator = CountingAllocator::new();
 
 #[test]
 fn frames_after_the_first_allocate_nothing() {
@@ -54,11 +30,11 @@ fn frames_after_the_first_allocate_nothing() {
                     for f in 0..2 {
                         pipeline.render_frame(f, &poses[f as usize]).unwrap();
                     }
-                    let before = ALLOCATIONS.load(Ordering::SeqCst);
+                    let before = GLOBAL.allocations();
                     for f in 2..4 {
                         pipeline.render_frame(f, &poses[f as usize]).unwrap();
                     }
-                    ALLOCATIONS.load(Ordering::SeqCst) - before
+                    GLOBAL.allocations() - before
                 });
                 assert_eq!(allocated, 0, "{mode} {order:?} budget {budget:?}: {allocated} allocations in two frames");
             }

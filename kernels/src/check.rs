@@ -46,3 +46,47 @@ impl BitEq for u16 {
         self == other
     }
 }
+
+/// A global allocator that forwards to the system allocator and counts allocations and
+/// reallocations: the no-allocation-per-frame tests install it with
+/// `#[global_allocator] static GLOBAL: CountingAllocator = CountingAllocator::new();` and
+/// compare [`CountingAllocator::allocations`] around a frame. It sees every thread of the
+/// process, so such a test file holds a single test.
+pub struct CountingAllocator {
+    count: std::sync::atomic::AtomicU64,
+}
+
+impl CountingAllocator {
+    pub const fn new() -> Self {
+        Self { count: std::sync::atomic::AtomicU64::new(0) }
+    }
+
+    /// Allocations and reallocations so far.
+    pub fn allocations(&self) -> u64 {
+        self.count.load(std::sync::atomic::Ordering::SeqCst)
+    }
+}
+
+impl Default for CountingAllocator {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+// SAFETY: forwards to the system allocator unchanged; only counts.
+unsafe impl std::alloc::GlobalAlloc for CountingAllocator {
+    unsafe fn alloc(&self, layout: std::alloc::Layout) -> *mut u8 {
+        self.count.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        // SAFETY: same contract as the caller's.
+        unsafe { std::alloc::System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: std::alloc::Layout) {
+        // SAFETY: same contract as the caller's.
+        unsafe { std::alloc::System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: std::alloc::Layout, new_size: usize) -> *mut u8 {
+        self.count.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        // SAFETY: same contract as the caller's.
+        unsafe { std::alloc::System.realloc(ptr, layout, new_size) }
+    }
+}

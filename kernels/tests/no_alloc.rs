@@ -4,40 +4,16 @@
 //! A counting global allocator sees every allocation in the process, on every thread, so
 //! this file holds a single test (the test harness itself allocates between tests).
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicU64, Ordering};
-
 use glam::Vec3;
 use stereotrace_kernels::accumulate::{self, BlendParams, EmaInput, EmaParams, EmaState};
 use stereotrace_kernels::bilinear::{self, ResampleInput, ResampleOutput};
+use stereotrace_kernels::check::CountingAllocator;
 use stereotrace_kernels::frame::{Extent, PlaneBuf, RgbBuf};
 use stereotrace_kernels::reproject::{self, ReprojectInput, ReprojectOutput, ReprojectParams};
 use stereotrace_kernels::synth::{AnalyticScene, camera_at};
 
-struct Counting;
-
-static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
-
-// SAFETY: forwards to the system allocator unchanged; only counts.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        // SAFETY: same contract as the caller's.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: CountingAllocator = CountingAllocator::new();
 
 #[test]
 fn second_frame_allocates_nothing() {
@@ -118,9 +94,9 @@ fn second_frame_allocates_nothing() {
 
     let (first, second) = pool.install(|| {
         let warm = frame();
-        let before = ALLOCATIONS.load(Ordering::SeqCst);
+        let before = GLOBAL.allocations();
         let again = frame();
-        let after = ALLOCATIONS.load(Ordering::SeqCst);
+        let after = GLOBAL.allocations();
         assert_eq!(warm, again, "buffer capacities must not change");
         (before, after)
     });

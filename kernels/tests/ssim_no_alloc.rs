@@ -4,36 +4,12 @@
 //! A counting global allocator sees every allocation in the process, on every thread, so
 //! this file holds a single test (the test harness itself allocates between tests).
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicU64, Ordering};
-
+use stereotrace_kernels::check::CountingAllocator;
 use stereotrace_kernels::frame::{Extent, RgbBuf};
 use stereotrace_kernels::ssim::{self, SsimParams, SsimVariant};
 
-struct Counting;
-
-static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
-
-// SAFETY: forwards to the system allocator unchanged; only counts.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        // SAFETY: same contract as the caller's.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: CountingAllocator = CountingAllocator::new();
 
 #[test]
 // With `check-scalar`, every call also runs the (allocating) scalar reference.
@@ -71,9 +47,9 @@ fn ssim_allocates_nothing() {
         // show in every call.
         let mut fewest = u64::MAX;
         for _ in 0..8 {
-            let before = ALLOCATIONS.load(Ordering::Relaxed);
+            let before = GLOBAL.allocations();
             let again = pool.install(|| ssim::ssim(&a.view(), &b.view(), &params).unwrap());
-            fewest = fewest.min(ALLOCATIONS.load(Ordering::Relaxed) - before);
+            fewest = fewest.min(GLOBAL.allocations() - before);
             assert_eq!(first, again);
         }
         assert_eq!(fewest, 0, "{variant:?}: every call allocated");
