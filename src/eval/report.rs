@@ -131,13 +131,7 @@ pub fn effective_table(
             let sum = c.map(|c| *c.summary(metric));
             let (a, d) = sum.map_or(("–".into(), "–".into()), |s| (s.mean_text(2), s.std_text(2)));
             row.push_str(&format!(" {a} | {d} |"));
-            let _ = write!(
-                csv,
-                ",{},{},{}",
-                sum.and_then(|s| s.mean).map_or(String::new(), |v| format!("{v:.4}")),
-                sum.and_then(|s| s.std).map_or(String::new(), |v| format!("{v:.4}")),
-                sum.map_or("", |s| bound_name(s.bound))
-            );
+            summary_csv(&mut csv, sum);
             if let Some(s) = sum
                 && (s.above + s.below + s.undefined + s.ambiguous) > 0
             {
@@ -166,13 +160,7 @@ pub fn effective_table(
         let sum = scene_average(results, variant, spp, metric);
         let (a, d) = sum.map_or(("–".into(), "–".into()), |s| (s.mean_text(2), s.std_text(2)));
         row.push_str(&format!(" **{a}** | **{d}** |"));
-        let _ = write!(
-            csv,
-            ",{},{},{}",
-            sum.and_then(|s| s.mean).map_or(String::new(), |v| format!("{v:.4}")),
-            sum.and_then(|s| s.std).map_or(String::new(), |v| format!("{v:.4}")),
-            sum.map_or("", |s| bound_name(s.bound))
-        );
+        summary_csv(&mut csv, sum);
         if with_paper {
             let p = paper_average(paper, variant, spp, &paper_scenes);
             let (pa, ps) = fmt_paper(p);
@@ -198,6 +186,17 @@ pub fn effective_table(
     }
     md.push('\n');
     (md, csv)
+}
+
+/// The CSV cells `,mean,std,bound` of a summary (empty where unknown or absent).
+fn summary_csv(csv: &mut String, sum: Option<Summary>) {
+    let _ = write!(
+        csv,
+        ",{},{},{}",
+        sum.and_then(|s| s.mean).map_or(String::new(), |v| format!("{v:.4}")),
+        sum.and_then(|s| s.std).map_or(String::new(), |v| format!("{v:.4}")),
+        sum.map_or("", |s| bound_name(s.bound))
+    );
 }
 
 fn bound_name(b: super::stats::Bound) -> &'static str {
