@@ -919,16 +919,7 @@ fn evaluate_tap<L: SurfaceLayout, const C: usize, S: TapSource, const CLASSIFY: 
     let tap_in_frame = participates & in_frame[tap];
     let (s, values) = source.load::<L, C>(p, tap, &t.footprints);
     let s_len2 = len2_simd(s.normal);
-    let tp = &t.surface.position;
-    let d = [s.position[0] - tp[0], s.position[1] - tp[1], s.position[2] - tp[2]];
-    let distance2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-    let geometry_ok = distance2.simd_le(p.v.position2) & (s.depth - t.depth_in_source).abs().simd_le(depth_tolerance);
-    let tn = &t.surface.normal;
-    let dot = s.normal[0] * tn[0] + s.normal[1] * tn[1] + s.normal[2] * tn[2];
-    let bound = p.v.normal_cos2 * (s_len2 * t.normal_len2);
-    let facing = dot.simd_ge(zero);
-    let normal_ok =
-        if p.normal_cos_positive { facing & (dot * dot).simd_ge(bound) } else { facing | (dot * dot).simd_le(bound) };
+    let (geometry_ok, normal_ok) = surface_tests(p, t, &s, s_len2, depth_tolerance);
     // Equivalent to the reference's `usable ∧ finite samples ∧ geometry ∧ normal`: with
     // thresholds clamped to f32::MAX, passing the geometry test already implies a finite
     // tap depth and position (and so no background), and `s_len2 ≤ MAX` implies a finite
@@ -953,6 +944,30 @@ fn evaluate_tap<L: SurfaceLayout, const C: usize, S: TapSource, const CLASSIFY: 
         failed.normal |= tap_in_frame & usable_tap & geometry_ok & !normal_ok;
         failed.invalid |= tap_in_frame & !tap_background & !usable_tap;
     }
+}
+
+/// The geometry (world-position distance and relative depth) and normal-angle tests of one
+/// tap's source surfels `s` (with squared normal lengths `s_len2`) against the target
+/// lanes: `(geometry_ok, normal_ok)`. Shared by the general and the coherent tap paths.
+#[inline(always)]
+fn surface_tests<L: SurfaceLayout>(
+    p: &Prepared<'_, L>,
+    t: &TargetLanes,
+    s: &Surfels,
+    s_len2: F32s,
+    depth_tolerance: F32s,
+) -> (F32s, F32s) {
+    let tp = &t.surface.position;
+    let d = [s.position[0] - tp[0], s.position[1] - tp[1], s.position[2] - tp[2]];
+    let distance2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    let geometry_ok = distance2.simd_le(p.v.position2) & (s.depth - t.depth_in_source).abs().simd_le(depth_tolerance);
+    let tn = &t.surface.normal;
+    let dot = s.normal[0] * tn[0] + s.normal[1] * tn[1] + s.normal[2] * tn[2];
+    let bound = p.v.normal_cos2 * (s_len2 * t.normal_len2);
+    let facing = dot.simd_ge(F32s::ZERO);
+    let normal_ok =
+        if p.normal_cos_positive { facing & (dot * dot).simd_ge(bound) } else { facing | (dot * dot).simd_le(bound) };
+    (geometry_ok, normal_ok)
 }
 
 /// What the tap tests need of `LANES` consecutive source pixels of one row, worked out once
@@ -1111,17 +1126,7 @@ fn tap_test<L: SurfaceLayout, const C: usize>(
     acc: &mut TapTotals<C>,
 ) {
     let zero = F32s::ZERO;
-    let s = &src.surface;
-    let tp = &t.surface.position;
-    let d = [s.position[0] - tp[0], s.position[1] - tp[1], s.position[2] - tp[2]];
-    let distance2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-    let geometry_ok = distance2.simd_le(p.v.position2) & (s.depth - t.depth_in_source).abs().simd_le(depth_tolerance);
-    let tn = &t.surface.normal;
-    let dot = s.normal[0] * tn[0] + s.normal[1] * tn[1] + s.normal[2] * tn[2];
-    let bound = p.v.normal_cos2 * (src.len2 * t.normal_len2);
-    let facing = dot.simd_ge(zero);
-    let normal_ok =
-        if p.normal_cos_positive { facing & (dot * dot).simd_ge(bound) } else { facing | (dot * dot).simd_le(bound) };
+    let (geometry_ok, normal_ok) = surface_tests(p, t, &src.surface, src.len2, depth_tolerance);
     // Every tap of a coherent group is in frame, so `participates` stands for
     // `participates ∧ in frame` here (see `evaluate_tap` for why this is the reference's test).
     let accepted = participates & geometry_ok & normal_ok & src.usable;
