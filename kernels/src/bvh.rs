@@ -53,6 +53,10 @@
 //! (hit or miss, `t` bit for bit, `u`, `v`) is the same for single rays, packets and brute
 //! force.
 //!
+//! A hit also needs `t` above the bound on its own rounding error ([`t_rounding_bound`],
+//! pbrt-v4's conservative test), so a ray leaving a surface never finds that surface again
+//! however far the scene sits from the origin.
+//!
 //! # Determinism
 //! Plain `a * b + c` (see [`crate::simd`]); `t = T / det` and the barycentrics are IEEE
 //! divisions, never approximate reciprocals. The SIMD node test and its scalar reference
@@ -371,10 +375,40 @@ pub fn intersect_triangle(r: &PreparedRay, tri: &TriVerts, tmax: f32) -> Option<
     if det == 0.0 {
         return None;
     }
-    let t_scaled = u * (sz * a_z) + v * (sz * b_z) + w * (sz * c_z);
+    let (z0, z1, z2) = (sz * a_z, sz * b_z, sz * c_z);
+    let t_scaled = u * z0 + v * z1 + w * z2;
     let t = t_scaled / det;
     // NaN fails both comparisons.
-    if t >= r.tmin && t < tmax { Some(TriHit { t, e: [u, v, w], det }) } else { None }
+    if !(t >= r.tmin && t < tmax) {
+        return None;
+    }
+    let bound = t_rounding_bound([ax, bx, cx], [ay, by, cy], [z0, z1, z2], [u, v, w], det);
+    if t > bound { Some(TriHit { t, e: [u, v, w], det }) } else { None }
+}
+
+/// `γ(n) = n·u / (1 − n·u)` with the unit roundoff `u = 2⁻²⁴`: the relative error bound of a
+/// result of `n` rounded f32 operations (Higham; pbrt-v4 §6.8.1).
+pub const fn gamma(n: u32) -> f32 {
+    let nu = n as f32 * f32::EPSILON * 0.5;
+    nu / (1.0 - nu)
+}
+
+/// An upper bound on the rounding error of the watertight test's `t` (pbrt-v4 §6.8.4):
+/// a hit with `t` at or below it may really lie behind the origin. Rejecting such hits is
+/// half of self-intersection avoidance; the other half is a spawned ray's origin, offset by
+/// the error bound of the hit point (`src/render/spawn.rs`). The shear arithmetic above
+/// matches pbrt's operation for operation, so its bound applies: `x`, `y` are the sheared
+/// vertex coordinates, `z` the scaled depths, `e` the edge functions. Computed only for hits
+/// that passed the `[tmin, tmax)` test; identical in [`crate::packet`]'s lane version.
+#[inline(always)]
+pub(crate) fn t_rounding_bound(x: [f32; 3], y: [f32; 3], z: [f32; 3], e: [f32; 3], det: f32) -> f32 {
+    let max3 = |v: [f32; 3]| v[0].abs().max(v[1].abs()).max(v[2].abs());
+    let (max_x, max_y, max_z, max_e) = (max3(x), max3(y), max3(z), max3(e));
+    let delta_z = gamma(3) * max_z;
+    let delta_x = gamma(5) * (max_x + max_z);
+    let delta_y = gamma(5) * (max_y + max_z);
+    let delta_e = 2.0 * (gamma(2) * max_x * max_y + delta_y * max_x + delta_x * max_y);
+    3.0 * (gamma(3) * max_e * max_z + delta_e * max_z + delta_z * max_e) / det.abs()
 }
 
 /// Slab constants of one node for one ray: per axis `a = e·inv`, `bn = (p−o)·inv − δ`,

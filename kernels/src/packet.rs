@@ -52,7 +52,7 @@
 
 use crate::bvh::{
     Best, FixedStack, Hit, MAX_DEPTH, MAX_DIR, MAX_ORIGIN, MIN_DIR, NODE_PAD, PreparedRay, RCP_CLAMP, Ray, TriHit,
-    TriVerts, TriangleBvh, bytes_to_f32s, child_planes, edge_f64, inner_child_index, leaf_range, node_extent,
+    TriVerts, TriangleBvh, bytes_to_f32s, child_planes, edge_f64, gamma, inner_child_index, leaf_range, node_extent,
     occupied_slots,
 };
 use crate::simd::{F32s, LANES};
@@ -317,10 +317,29 @@ fn intersect_triangle_lanes(
     if cand == 0 {
         return (0, zero, [zero; 3], zero);
     }
-    let t_scaled = u * (sz * a_z) + v * (sz * b_z) + w * (sz * c_z);
+    let (z0, z1, z2) = (sz * a_z, sz * b_z, sz * c_z);
+    let t_scaled = u * z0 + v * z1 + w * z2;
     let t = t_scaled / det;
-    let hit = (t.simd_ge(l.tmin) & t.simd_lt(tmax)).to_bitmask() & cand;
+    let in_range = (t.simd_ge(l.tmin) & t.simd_lt(tmax)).to_bitmask() & cand;
+    if in_range == 0 {
+        return (0, t, [u, v, w], det);
+    }
+    let bound = t_rounding_bound_lanes([ax, bx, cx], [ay, by, cy], [z0, z1, z2], [u, v, w], det);
+    let hit = t.simd_gt(bound).to_bitmask() & in_range;
     (hit, t, [u, v, w], det)
+}
+
+/// [`crate::bvh::t_rounding_bound`] for every lane, operation for operation.
+#[inline(always)]
+fn t_rounding_bound_lanes(x: [F32s; 3], y: [F32s; 3], z: [F32s; 3], e: [F32s; 3], det: F32s) -> F32s {
+    let max3 = |v: [F32s; 3]| v[0].abs().max(v[1].abs()).max(v[2].abs());
+    let (max_x, max_y, max_z, max_e) = (max3(x), max3(y), max3(z), max3(e));
+    let g = |n| F32s::splat(gamma(n));
+    let delta_z = g(3) * max_z;
+    let delta_x = g(5) * (max_x + max_z);
+    let delta_y = g(5) * (max_y + max_z);
+    let delta_e = F32s::splat(2.0) * (g(2) * max_x * max_y + delta_y * max_x + delta_x * max_y);
+    F32s::splat(3.0) * (g(3) * max_e * max_z + delta_e * max_z + delta_z * max_e) / det.abs()
 }
 
 /// Lanes whose f32 edge functions hit exactly zero get all three recomputed in f64, exactly
