@@ -96,7 +96,7 @@ impl StereoRig {
 /// The kernel camera of a pose at an extent.
 pub fn camera_for(pose: &CameraPose, extent: Extent) -> Result<CameraModel, FrameError> {
     let aspect = extent.width() as f32 / extent.height() as f32;
-    CameraModel::new(pose.view_proj(aspect, NEAR, FAR), extent)
+    CameraModel::from_f64(pose.view_proj(aspect, NEAR, FAR), extent)
 }
 
 #[cfg(test)]

@@ -9,7 +9,7 @@
 //! unit view depth, so a world position can be rebuilt from a depth value
 //! (`X = centre + depth · ray(x, y)`); the compact G-buffer layout relies on that.
 
-use glam::{DMat3, DVec3, Mat4};
+use glam::{DMat3, DMat4, DVec3, Mat4};
 
 use crate::frame::{Extent, FrameError};
 
@@ -37,7 +37,15 @@ impl CameraModel {
     /// and matrices whose x, y and w rows do not define a pinhole (needed to rebuild positions
     /// from depth), such as orthographic projections.
     pub fn new(view_proj: Mat4, extent: Extent) -> Result<Self, FrameError> {
-        let m = view_proj.as_dmat4();
+        Self::from_f64(view_proj.as_dmat4(), extent)
+    }
+
+    /// [`CameraModel::new`] from a double-precision matrix. The centre and the pixel rays are
+    /// derived in f64 and rounded once, so a camera far from the origin keeps its exact
+    /// position: an f32 view matrix stores `−R·eye` rounded, which 10⁵ units away moves the
+    /// recovered centre by millimetres and shifts the image.
+    pub fn from_f64(view_proj: DMat4, extent: Extent) -> Result<Self, FrameError> {
+        let m = view_proj;
         if !m.is_finite() {
             return Err(FrameError::SingularCamera);
         }

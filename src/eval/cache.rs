@@ -28,10 +28,11 @@ use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
+use super::curve::SampleSums;
 use crate::kernels::{Extent, PlaneBuf, RgbBuf};
 
 /// Bumped whenever the meaning or layout of any entry changes.
-pub const CACHE_FORMAT: u32 = 1;
+pub const CACHE_FORMAT: u32 = 2;
 
 const MAGIC: &[u8; 8] = b"STEVCACH";
 
@@ -292,6 +293,11 @@ impl<'a> Reader<'a> {
         Ok(bytes.chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes"))).collect())
     }
 
+    pub fn f64s(&mut self, n: usize) -> Result<Vec<f64>, String> {
+        let bytes = self.take(n.checked_mul(8).ok_or("truncated entry")?)?;
+        Ok(bytes.chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes"))).collect())
+    }
+
     pub fn finished(&self) -> bool {
         self.pos == self.bytes.len()
     }
@@ -316,6 +322,22 @@ pub fn decode_image(r: &mut Reader<'_>) -> Result<RgbBuf, String> {
     let mut plane =
         || -> Result<PlaneBuf, String> { PlaneBuf::from_vec(r.f32s(e.pixels())?, e).map_err(|e| e.to_string()) };
     Ok(RgbBuf { r: plane()?, g: plane()?, b: plane()? })
+}
+
+/// Appends `width`, `height` and the f64 sample sums (little-endian).
+pub fn encode_sums(sums: &SampleSums, out: &mut Vec<u8>) {
+    out.extend_from_slice(&(sums.extent.width() as u32).to_le_bytes());
+    out.extend_from_slice(&(sums.extent.height() as u32).to_le_bytes());
+    for v in &sums.rgb {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+}
+
+/// Reads what [`encode_sums`] wrote.
+pub fn decode_sums(r: &mut Reader<'_>) -> Result<SampleSums, String> {
+    let (w, h) = (r.u32()? as usize, r.u32()? as usize);
+    let extent = Extent::new(w, h).map_err(|e| e.to_string())?;
+    Ok(SampleSums { extent, rgb: r.f64s(3 * extent.pixels())? })
 }
 
 /// Appends `width`, `height` and the bytes of a byte plane.

@@ -50,11 +50,27 @@ impl FrameView {
     }
 }
 
+/// Per-pixel sums of samples in f64 (interleaved RGB): the renderer sums a pixel's samples
+/// in f64 too, so the mean of `n` one-sample passes is bit for bit an `n`-sample render.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SampleSums {
+    pub extent: Extent,
+    /// `3 · pixels` values: R, G, B of pixel 0, then pixel 1, ...
+    pub rgb: Vec<f64>,
+}
+
+impl SampleSums {
+    /// All zero.
+    pub fn zero(extent: Extent) -> Self {
+        Self { extent, rgb: vec![0.0; 3 * extent.pixels()] }
+    }
+}
+
 /// A running sum of one-sample passes.
 #[derive(Clone, Debug)]
 pub struct Progressive {
     samples: u32,
-    sum: RgbBuf,
+    sum: SampleSums,
     pass: RgbBuf,
     mean: RgbBuf,
 }
@@ -62,12 +78,12 @@ pub struct Progressive {
 impl Progressive {
     /// No samples yet.
     pub fn new(extent: Extent) -> Self {
-        Self::resume(0, RgbBuf::new(extent, 0.0))
+        Self::resume(0, SampleSums::zero(extent))
     }
 
     /// Continues from a checkpoint: `sum` of the first `samples` samples.
-    pub fn resume(samples: u32, sum: RgbBuf) -> Self {
-        let e = sum.extent();
+    pub fn resume(samples: u32, sum: SampleSums) -> Self {
+        let e = sum.extent;
         Self { samples, sum, pass: RgbBuf::new(e, 0.0), mean: RgbBuf::new(e, 0.0) }
     }
 
@@ -76,7 +92,7 @@ impl Progressive {
     }
 
     /// The running sum (for checkpoints).
-    pub fn sum(&self) -> &RgbBuf {
+    pub fn sum(&self) -> &SampleSums {
         &self.sum
     }
 
@@ -92,11 +108,9 @@ impl Progressive {
         let stats = renderer
             .trace(&view.lights, &view.camera, &request, PixelSelection::All, &mut self.pass, general)
             .map_err(|e| e.to_string())?;
-        for (s, p) in
-            [(&mut self.sum.r, &self.pass.r), (&mut self.sum.g, &self.pass.g), (&mut self.sum.b, &self.pass.b)]
-        {
-            for (s, &p) in s.as_mut_slice().iter_mut().zip(p.as_slice()) {
-                *s += p;
+        for (c, plane) in [&self.pass.r, &self.pass.g, &self.pass.b].into_iter().enumerate() {
+            for (i, &v) in plane.as_slice().iter().enumerate() {
+                self.sum.rgb[3 * i + c] += f64::from(v);
             }
         }
         self.samples += 1;
@@ -105,12 +119,10 @@ impl Progressive {
 
     /// The mean of the samples so far: what one `samples()`-spp render gives.
     pub fn mean(&mut self) -> &RgbBuf {
-        let inv = 1.0 / self.samples.max(1) as f32;
-        for (m, s) in
-            [(&mut self.mean.r, &self.sum.r), (&mut self.mean.g, &self.sum.g), (&mut self.mean.b, &self.sum.b)]
-        {
-            for (m, &s) in m.as_mut_slice().iter_mut().zip(s.as_slice()) {
-                *m = s * inv;
+        let n = f64::from(self.samples.max(1));
+        for (c, plane) in [&mut self.mean.r, &mut self.mean.g, &mut self.mean.b].into_iter().enumerate() {
+            for (i, m) in plane.as_mut_slice().iter_mut().enumerate() {
+                *m = (self.sum.rgb[3 * i + c] / n) as f32;
             }
         }
         &self.mean

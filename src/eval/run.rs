@@ -33,9 +33,10 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 
 use super::cache::{
-    CACHE_FORMAT, Cache, CacheKey, Lookup, Reader, checksum, decode_image, decode_mask, encode_image, encode_mask,
+    CACHE_FORMAT, Cache, CacheKey, Lookup, Reader, checksum, decode_image, decode_mask, decode_sums, encode_image,
+    encode_mask, encode_sums,
 };
-use super::curve::{CurvePoint, FrameCurve, FrameView, Measurement, Progressive, measure};
+use super::curve::{CurvePoint, FrameCurve, FrameView, Measurement, Progressive, SampleSums, measure};
 use super::effective::{EffectiveSpp, Grid, Metric};
 use super::stats::Summary;
 use super::{EvalSpec, Variant};
@@ -373,22 +374,22 @@ struct Runner<'a> {
 }
 
 /// The payload of a checkpoint: the samples so far, the curve points so far, the sum.
-fn encode_partial(samples: u32, points: &[CurvePoint], sum: &RgbBuf) -> Vec<u8> {
+fn encode_partial(samples: u32, points: &[CurvePoint], sum: &SampleSums) -> Vec<u8> {
     let json = serde_json::to_vec(points).expect("points serialise");
-    let mut out = Vec::with_capacity(16 + json.len() + 12 * sum.extent().pixels());
+    let mut out = Vec::with_capacity(16 + json.len() + 24 * sum.extent.pixels());
     out.extend_from_slice(&samples.to_le_bytes());
     out.extend_from_slice(&(json.len() as u32).to_le_bytes());
     out.extend_from_slice(&json);
-    encode_image(sum, &mut out);
+    encode_sums(sum, &mut out);
     out
 }
 
-fn decode_partial(bytes: &[u8]) -> Result<(u32, Vec<CurvePoint>, RgbBuf), String> {
+fn decode_partial(bytes: &[u8]) -> Result<(u32, Vec<CurvePoint>, SampleSums), String> {
     let mut r = Reader::new(bytes);
     let samples = r.u32()?;
     let len = r.u32()? as usize;
     let points = serde_json::from_slice(r.take(len)?).map_err(|e| e.to_string())?;
-    let sum = decode_image(&mut r)?;
+    let sum = decode_sums(&mut r)?;
     if !r.finished() {
         return Err("trailing bytes".into());
     }
@@ -632,7 +633,7 @@ impl Runner<'_> {
     /// A progressive state from a checkpoint, or empty.
     fn resume(&mut self, partial: &CacheKey, target: u32) -> Result<(Progressive, Vec<CurvePoint>), String> {
         if let Some((samples, points, sum)) = self.load_with(partial, decode_partial)
-            && sum.extent() == self.extent
+            && sum.extent == self.extent
             && samples <= target
         {
             self.reporter.skip_work(self.pixels() * u64::from(samples));

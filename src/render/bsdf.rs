@@ -23,6 +23,8 @@ use crate::scene::MaterialKind;
 #[derive(Clone, Copy, Debug)]
 pub struct ShadingPoint {
     pub position: Vec3,
+    /// Per-axis bound on the rounding error of `position` (see [`super::spawn`]).
+    pub position_error: Vec3,
     /// Unit geometric normal, on the incoming side.
     pub geometric_normal: Vec3,
     /// Unit shading normal (interpolated), on the same side as `geometric_normal`.
@@ -175,6 +177,7 @@ mod tests {
 
     fn point(kind: MaterialKind) -> ShadingPoint {
         ShadingPoint {
+            position_error: Vec3::ZERO,
             position: Vec3::ZERO,
             geometric_normal: Vec3::Z,
             shading_normal: Vec3::Z,

@@ -10,10 +10,10 @@
 //! The table is rebuilt in place each frame: vectors are cleared and refilled, so after the
 //! first frame no allocation happens (the real-time runtime relies on it).
 
-use std::f32::consts::PI;
-
 use glam::{Vec2, Vec3};
 
+use super::spawn::barycentric_point;
+use crate::scene::light::sample_triangle;
 use crate::scene::sampling::luminance;
 use crate::scene::{Environment, MovingShape, Scene, SunLight};
 
@@ -22,9 +22,7 @@ use crate::scene::{Environment, MovingShape, Scene, SunLight};
 pub enum LightRecord {
     /// A one-sided emissive triangle (emits on the side of `(v1 − v0) × (v2 − v0)`).
     Triangle {
-        v0: Vec3,
-        e1: Vec3,
-        e2: Vec3,
+        v: [Vec3; 3],
         normal: Vec3,
         area: f32,
         radiance: Vec3,
@@ -49,6 +47,20 @@ pub struct LightSample {
     /// Solid-angle density of the direction times the selection probability (for point
     /// lights: just the selection probability).
     pub pdf: f32,
+    /// Where the shadow ray has to reach.
+    pub target: ShadowTarget,
+}
+
+/// The end of a shadow ray (see [`super::spawn::shadow_ray`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ShadowTarget {
+    /// The sun or the environment: an infinite ray.
+    Distant,
+    /// A point light's exact position.
+    Point(Vec3),
+    /// A point sampled on an emitting triangle, with its rounding-error bound and the
+    /// triangle's unit normal.
+    Surface { point: Vec3, error: Vec3, normal: Vec3 },
 }
 
 /// A triangle of a moving area light, for ray hits.
@@ -116,36 +128,39 @@ impl FrameLights {
     }
 
     fn push_triangle(&mut self, v: [Vec3; 3], radiance: Vec3) {
-        let (e1, e2) = (v[1] - v[0], v[2] - v[0]);
-        let cross = e1.cross(e2);
+        let cross = (v[1] - v[0]).cross(v[2] - v[0]);
         let area = 0.5 * cross.length();
         if area > 0.0 && area.is_finite() {
-            self.records.push(LightRecord::Triangle { v0: v[0], e1, e2, normal: cross / (2.0 * area), area, radiance });
+            self.records.push(LightRecord::Triangle { v, normal: cross / (2.0 * area), area, radiance });
         }
     }
 
+    /// Selection probabilities proportional to power. Powers are formed and summed in f64:
+    /// in f32, bright lights (an intensity of 3e37, a large emitter with `Ke` 1e36) overflow
+    /// to inf and the probabilities become inf/inf = NaN, which picked no light at all.
     fn build_distribution(&mut self, scene: &Scene) {
-        let radius = 0.5 * scene.bounds().extent().length().max(1e-3);
+        use std::f64::consts::PI;
+        let lum = |v: Vec3| f64::from(luminance(v.max(Vec3::ZERO)));
+        let radius = 0.5 * f64::from(scene.bounds().extent().length()).max(1e-3);
         let disc = PI * radius * radius;
-        let env_power = scene.lights.environment.as_ref().map_or(0.0, |e| luminance(e.mean_radiance()) * PI * disc);
-        self.pmf.clear();
-        self.pmf.extend(self.records.iter().map(|r| match r {
-            LightRecord::Triangle { area, radiance, .. } => PI * area * luminance(*radiance),
-            LightRecord::Point { intensity, .. } => 4.0 * PI * luminance(*intensity),
-            LightRecord::Sun(s) => luminance(s.irradiance) * disc,
+        let env_power = scene.lights.environment.as_ref().map_or(0.0, |e| lum(e.mean_radiance()) * PI * disc);
+        let power = |r: &LightRecord| match r {
+            LightRecord::Triangle { area, radiance, .. } => PI * f64::from(*area) * lum(*radiance),
+            LightRecord::Point { intensity, .. } => 4.0 * PI * lum(*intensity),
+            LightRecord::Sun(s) => lum(s.irradiance) * disc,
             LightRecord::Environment => env_power,
-        }));
-        let total: f32 = self.pmf.iter().sum();
-        let n = self.pmf.len().max(1) as f32;
-        for p in &mut self.pmf {
-            // Every light keeps some probability, so none is starved by a bright neighbour.
-            *p = if total > 0.0 { 0.9 * (*p / total) + 0.1 / n } else { 1.0 / n };
-        }
+        };
+        let total: f64 = self.records.iter().map(power).sum();
+        let n = self.records.len().max(1) as f64;
+        self.pmf.clear();
         self.cdf.clear();
-        let mut acc = 0.0;
-        for p in &self.pmf {
+        let mut acc = 0.0f64;
+        for r in &self.records {
+            // Every light keeps some probability, so none is starved by a bright neighbour.
+            let p = if total > 0.0 && total.is_finite() { 0.9 * (power(r) / total) + 0.1 / n } else { 1.0 / n };
             acc += p;
-            self.cdf.push(acc);
+            self.pmf.push(p as f32);
+            self.cdf.push(acc as f32);
         }
         if let Some(last) = self.cdf.last_mut() {
             *last = 1.0;
@@ -187,10 +202,9 @@ impl FrameLights {
         let i = self.cdf.partition_point(|&c| c <= u_pick).min(self.records.len() - 1);
         let pick = self.pmf[i];
         match self.records[i] {
-            LightRecord::Triangle { v0, e1, e2, normal, area, radiance } => {
-                let s = u.x.sqrt();
-                let (b1, b2) = (s * (1.0 - u.y), s * u.y);
-                let q = v0 + e1 * b1 + e2 * b2;
+            LightRecord::Triangle { v, normal, area, radiance } => {
+                let (b1, b2) = sample_triangle(u);
+                let (q, error) = barycentric_point(&v, b1, b2);
                 let d = q - p;
                 let dist2 = d.length_squared();
                 let dist = dist2.sqrt();
@@ -204,7 +218,8 @@ impl FrameLights {
                     return None;
                 }
                 let pdf = pick * dist2 / (cos_light * area);
-                Some(LightSample { wi, distance: dist, radiance, pdf })
+                let target = ShadowTarget::Surface { point: q, error, normal };
+                Some(LightSample { wi, distance: dist, radiance, pdf, target })
             }
             LightRecord::Point { position, intensity } => {
                 let d = position - p;
@@ -213,15 +228,18 @@ impl FrameLights {
                     return None;
                 }
                 let dist = dist2.sqrt();
-                Some(LightSample { wi: d / dist, distance: dist, radiance: intensity / dist2, pdf: pick })
+                let target = ShadowTarget::Point(position);
+                Some(LightSample { wi: d / dist, distance: dist, radiance: intensity / dist2, pdf: pick, target })
             }
             LightRecord::Sun(sun) => {
                 let (wi, pdf) = sun.sample(u);
-                Some(LightSample { wi, distance: f32::INFINITY, radiance: sun.radiance(), pdf: pick * pdf })
+                let target = ShadowTarget::Distant;
+                Some(LightSample { wi, distance: f32::INFINITY, radiance: sun.radiance(), pdf: pick * pdf, target })
             }
             LightRecord::Environment => {
                 let (wi, pdf, radiance) = environment?.sample(u);
-                (pdf > 0.0).then_some(LightSample { wi, distance: f32::INFINITY, radiance, pdf: pick * pdf })
+                let target = ShadowTarget::Distant;
+                (pdf > 0.0).then_some(LightSample { wi, distance: f32::INFINITY, radiance, pdf: pick * pdf, target })
             }
         }
     }

@@ -37,10 +37,11 @@ pub mod effects;
 pub mod lights;
 mod packets;
 pub mod rng;
+pub mod spawn;
 
 use std::time::Duration;
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::camera::Eye;
@@ -71,6 +72,8 @@ pub struct Renderer {
     bvh: TriangleBvh,
     bvh_stats: BuildStats,
     bits: u16,
+    /// 1: the paper's estimator; 0: direct lighting only (see [`Renderer::set_bounces`]).
+    bounces: u32,
 }
 
 /// What the primary or secondary ray hit.
@@ -194,20 +197,30 @@ pub struct TraceRequest {
     pub first_sample: u32,
 }
 
-/// Offsets a ray origin off a surface, along the geometric normal towards `dir`.
-#[inline]
-fn spawn(p: Vec3, n: Vec3, dir: Vec3) -> Vec3 {
-    let eps = 1e-4 * p.abs().max_element().max(1.0);
-    if n.dot(dir) >= 0.0 { p + n * eps } else { p - n * eps }
-}
-
 impl Renderer {
     /// Builds the BVH for `scene` (validated first).
     pub fn new(scene: Scene) -> Result<Self, RenderError> {
         scene.validate().map_err(|e| RenderError::Invalid(e.to_string()))?;
         let (bvh, bvh_stats) = TriangleBvh::build(&scene.mesh.positions, BuildQuality::default())?;
         let bits = effects::bits_for(scene.effects);
-        Ok(Self { scene, bvh, bvh_stats, bits })
+        Ok(Self { scene, bvh, bvh_stats, bits, bounces: 1 })
+    }
+
+    /// Chooses the estimator: `1` (the default) is the paper's, one primary and one secondary
+    /// bounce; `0` stops after next-event estimation at the primary hit (direct lighting
+    /// only: what a renderer with a maximum path depth of 2 computes). A `0` estimate is the
+    /// first part of the `1` estimate with the same random numbers.
+    pub fn set_bounces(&mut self, bounces: u32) -> Result<(), RenderError> {
+        if bounces > 1 {
+            return Err(RenderError::Invalid(format!("bounces {bounces}: the estimator supports 0 or 1")));
+        }
+        self.bounces = bounces;
+        Ok(())
+    }
+
+    /// The estimator's bounces (see [`Renderer::set_bounces`]).
+    pub fn bounces(&self) -> u32 {
+        self.bounces
     }
 
     pub fn scene(&self) -> &Scene {
@@ -413,8 +426,10 @@ impl Renderer {
         } else {
             material.albedo
         };
+        let (position, position_error) = spawn::barycentric_point(&mesh.positions[tri], h.u, h.v);
         ShadingPoint {
-            position: mesh.point(tri, h.u, h.v),
+            position,
+            position_error,
             geometric_normal: ng,
             shading_normal: ns,
             kind: material.kind,
@@ -494,9 +509,8 @@ impl Renderer {
         if f == Vec3::ZERO || cos <= 0.0 || !(ls.pdf > 0.0) {
             return None;
         }
-        let origin = spawn(sp.position, sp.geometric_normal, ls.wi);
-        let tmax = if ls.distance.is_finite() { ls.distance * (1.0 - 1e-4) } else { f32::INFINITY };
-        Some((Ray::segment(origin, ls.wi, 0.0, tmax), ls.radiance * f * (cos / ls.pdf)))
+        let ray = spawn::shadow_ray(sp.position, sp.position_error, sp.geometric_normal, ls.wi, &ls.target);
+        Some((ray, ls.radiance * f * (cos / ls.pdf)))
     }
 
     /// Next-event estimate at `sp` for outgoing direction `wo`, with one shadow ray.
@@ -534,11 +548,14 @@ impl Renderer {
         if !(sp.kind == MaterialKind::Mirror && has(E, effects::MIRROR)) {
             radiance += self.next_event::<E>(lights, &sp, wo, rng, (Dim::LightPick1, Dim::LightPoint1), rays);
         }
+        if self.bounces == 0 {
+            return radiance;
+        }
         let Some(bounce) = bsdf::sample::<E>(&sp, wo, rng.get(Dim::Lobe), rng.get2(Dim::Bounce)) else {
             return radiance;
         };
         *rays += 1;
-        let origin = spawn(sp.position, sp.geometric_normal, bounce.wi);
+        let origin = spawn::offset_origin(sp.position, sp.position_error, sp.geometric_normal, bounce.wi);
         let Some(second) = self.closest::<E>(lights, Ray::new(origin, bounce.wi)) else {
             if bounce.delta {
                 radiance += bounce.weight * self.escaped(bounce.wi);
@@ -571,7 +588,6 @@ impl Renderer {
         out: &mut RgbBuf,
     ) -> TraceStats {
         let width = camera.extent.width();
-        let inv_spp = 1.0 / request.spp as f32;
         let pass = packets::Pass { lights, camera, request };
         for_each_row(selection, rows, out, |y, mask_row, [rr, gr, br]| {
             let mut stats = TraceStats::default();
@@ -595,23 +611,16 @@ impl Renderer {
                     xs[k] = xs[n - 1];
                 }
                 let active = (1u32 << n) - 1;
-                let mut sum = [Vec3::ZERO; LANES];
+                let mut sums = [PixelSum::default(); LANES];
                 for s in 0..request.spp {
                     let l = self.sample_group::<E>(&pass, y, &xs, active, s, &mut stats.rays);
                     for k in 0..n {
-                        if l[k].is_finite() {
-                            sum[k] += l[k];
-                        } else {
-                            stats.non_finite += 1;
-                        }
+                        sums[k].add(l[k], &mut stats);
                     }
                 }
-                stats.samples += u64::from(request.spp) * n as u64;
                 for k in 0..n {
-                    let (x, v) = (xs[k], sum[k] * inv_spp);
-                    rr[x] = v.x;
-                    gr[x] = v.y;
-                    br[x] = v.z;
+                    let x = xs[k];
+                    [rr[x], gr[x], br[x]] = sums[k].mean(request.spp);
                 }
             }
             stats
@@ -631,7 +640,6 @@ impl Renderer {
     ) -> TraceStats {
         let width = camera.extent.width();
         let origin = Vec3::from(camera.centre);
-        let inv_spp = 1.0 / request.spp as f32;
         for_each_row(selection, rows, out, |y, mask_row, [rr, gr, br]| {
             let mut stats = TraceStats::default();
             for x in 0..width {
@@ -639,7 +647,7 @@ impl Renderer {
                     continue;
                 }
                 let pixel = (y * width + x) as u32;
-                let mut sum = Vec3::ZERO;
+                let mut sum = PixelSum::default();
                 for s in 0..request.spp {
                     let rng = SampleStream::new(
                         request.seed,
@@ -651,17 +659,9 @@ impl Renderer {
                     let j = rng.get2(Dim::PixelJitter);
                     let dir = Vec3::from(camera.ray(x as f32 + j.x, y as f32 + j.y));
                     let l = self.radiance::<E>(lights, Ray::new(origin, dir), &rng, &mut stats.rays);
-                    if l.is_finite() {
-                        sum += l;
-                    } else {
-                        stats.non_finite += 1;
-                    }
+                    sum.add(l, &mut stats);
                 }
-                stats.samples += u64::from(request.spp);
-                let v = sum * inv_spp;
-                rr[x] = v.x;
-                gr[x] = v.y;
-                br[x] = v.z;
+                [rr[x], gr[x], br[x]] = sum.mean(request.spp);
             }
             stats
         })
@@ -728,6 +728,30 @@ impl Renderer {
                 x0 += LANES;
             }
         });
+    }
+}
+
+/// The running sum of one pixel's samples, in f64: a mean of finite f32 samples is finite,
+/// but their f32 sum is not (16 samples of 5e37 overflow), which wrote inf pixels.
+#[derive(Clone, Copy, Default)]
+struct PixelSum(DVec3);
+
+impl PixelSum {
+    /// Adds a sample; a non-finite one counts as zero and is counted in `stats`.
+    #[inline]
+    fn add(&mut self, sample: Vec3, stats: &mut TraceStats) {
+        stats.samples += 1;
+        if sample.is_finite() {
+            self.0 += sample.as_dvec3();
+        } else {
+            stats.non_finite += 1;
+        }
+    }
+
+    /// The mean over `spp` samples.
+    #[inline]
+    fn mean(&self, spp: u32) -> [f32; 3] {
+        (self.0 / f64::from(spp)).as_vec3().to_array()
     }
 }
 

@@ -251,9 +251,13 @@ impl Renderer {
                     traced |= 1 << i;
                 }
             }
+            if self.bounces == 0 {
+                continue;
+            }
             if let Some(b) = bsdf::sample::<E>(&sp, wo, rng[i].get(Dim::Lobe), rng[i].get2(Dim::Bounce)) {
                 bounce[i] = b;
-                secondary[i] = Ray::new(spawn(sp.position, sp.geometric_normal, b.wi), b.wi);
+                let origin = spawn::offset_origin(sp.position, sp.position_error, sp.geometric_normal, b.wi);
+                secondary[i] = Ray::new(origin, b.wi);
                 bounced |= 1 << i;
             }
         }

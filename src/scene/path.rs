@@ -10,7 +10,7 @@
 //! vector, up and right) plus the vertical field of view. The stereo rig offsets both eyes
 //! along `right`; it does not need anything else from the scene.
 
-use glam::{Affine3A, Mat4, Quat, Vec3};
+use glam::{Affine3A, DMat4, DVec4, Mat4, Quat, Vec3};
 use serde::{Deserialize, Serialize};
 
 /// Default number of frames of a scene's camera path (the paper renders 60).
@@ -126,10 +126,26 @@ impl CameraPose {
         glam::camera::rh::view::look_to_mat4(self.eye, self.forward, self.up)
     }
 
-    /// Right-handed OpenGL-style perspective × view (clip `w` = view depth), the form
-    /// `stereotrace_kernels::CameraModel::new` takes.
-    pub fn view_proj(&self, aspect: f32, near: f32, far: f32) -> Mat4 {
-        glam::camera::rh::proj::opengl::perspective(self.vfov_deg.to_radians(), aspect, near, far) * self.view()
+    /// Right-handed OpenGL-style perspective × view (clip `w` = view depth), in f64 (see
+    /// `stereotrace_kernels::CameraModel::from_f64`): the view's rows are this pose's
+    /// `right`, `up` and `−forward` with the translation `−R·eye` formed in f64.
+    pub fn view_proj(&self, aspect: f32, near: f32, far: f32) -> DMat4 {
+        let (r, u, f, e) = (self.right.as_dvec3(), self.up.as_dvec3(), self.forward.as_dvec3(), self.eye.as_dvec3());
+        let view = DMat4::from_cols(
+            DVec4::new(r.x, u.x, -f.x, 0.0),
+            DVec4::new(r.y, u.y, -f.y, 0.0),
+            DVec4::new(r.z, u.z, -f.z, 0.0),
+            DVec4::new(-r.dot(e), -u.dot(e), f.dot(e), 1.0),
+        );
+        let focal = 1.0 / (0.5 * f64::from(self.vfov_deg).to_radians()).tan();
+        let (near, far) = (f64::from(near), f64::from(far));
+        let proj = DMat4::from_cols(
+            DVec4::new(focal / f64::from(aspect), 0.0, 0.0, 0.0),
+            DVec4::new(0.0, focal, 0.0, 0.0),
+            DVec4::new(0.0, 0.0, (far + near) / (near - far), -1.0),
+            DVec4::new(0.0, 0.0, 2.0 * far * near / (near - far), 0.0),
+        );
+        proj * view
     }
 
     /// The same pose moved by `offset` along `right` (a stereo eye: ±half the separation).
