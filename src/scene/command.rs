@@ -49,9 +49,33 @@ pub fn run(specs: &[String], out: &mut dyn Write) -> Result<(), CommandError> {
     for spec in specs {
         let scene = resolve(spec)?;
         writeln!(out, "{}", scene.summary())?;
+        writeln!(out, "  units: {}", scene.units)?;
+        if let Some(line) = disparity_line(&scene) {
+            writeln!(out, "  {line}")?;
+        }
         for w in &scene.warnings {
             writeln!(out, "  warning: {w}")?;
         }
     }
     Ok(())
+}
+
+/// What the default eye separation means in this scene: the stereo disparity in pixels, at
+/// 1280×720, of the surface at the centre of frame 0's view (where the viewer looks). The
+/// parallel rig shifts a point at view depth `z` by `separation · f / z` pixels,
+/// `f = (720 / 2) / tan(vfov / 2)`.
+fn disparity_line(scene: &super::Scene) -> Option<String> {
+    use crate::kernels::bvh::{BuildQuality, Ray, TriangleBvh};
+    let pose = scene.camera.pose_at(0.0);
+    let (bvh, _) = TriangleBvh::build(&scene.mesh.positions, BuildQuality::Fast).ok()?;
+    let depth = bvh.intersect(&Ray::new(pose.eye, pose.forward))?.t;
+    let separation = crate::camera::DEFAULT_EYE_SEPARATION;
+    let focal = 360.0 / (0.5 * pose.vfov_deg.to_radians()).tan();
+    Some(format!(
+        "stereo: {:.1} px disparity at the depth seen at the centre of frame 0, {depth:.3} m ({} cm eyes, 1280x720, \
+         vfov {:.1} deg)",
+        separation * focal / depth,
+        separation * 100.0,
+        pose.vfov_deg
+    ))
 }

@@ -4,9 +4,11 @@
 //! ## Units
 //!
 //! Scene units are metres. The scale comes from [`FolderOptions::scale`] when given, else from
-//! the `Units:` line of `SOURCE.md` (`Millimetres` → 0.001, `Centimetres` → 0.01, anything
-//! else → 1), so `cornell-box` (mm) loads as a 0.556 m box. Camera and light positions are
-//! scaled with the geometry; radiance is scale-free.
+//! `meters_per_unit` in `camera.json`, else from the `Units:` line of `SOURCE.md` (millimetres,
+//! centimetres, metres, kilometres, inches and feet are recognised), else metres with a
+//! warning; `camera.json` and `SOURCE.md` disagreeing is a warning too. So `cornell-box` (mm)
+//! loads as a 0.556 m box. Camera and light positions are scaled with the geometry; radiance
+//! is scale-free. [`Scene::units`] records the unit and where it came from.
 //!
 //! ## Camera
 //!
@@ -46,7 +48,7 @@ use super::error::{Location, SceneError};
 use super::light::{Environment, Lights, PointLight, SkyGradient, SunLight};
 use super::obj::{GlassMode, ObjData, ObjOptions, load_obj};
 use super::path::{CameraKey, CameraPath, DEFAULT_FRAMES};
-use super::{EffectSet, Scene, SceneSource, SceneTolerances};
+use super::{EffectSet, Scene, SceneSource, SceneTolerances, Units, UnitsFrom};
 
 /// Mitsuba's apparent sun radius in degrees (half its 0.5358° diameter).
 pub const SUN_RADIUS_DEG: f32 = 0.5358 / 2.0;
@@ -84,6 +86,40 @@ pub struct CameraJson {
     pub width: Option<u32>,
     /// Film height the source was framed for.
     pub height: Option<u32>,
+    /// The file's length unit in metres (0.001 for millimetres).
+    pub meters_per_unit: Option<f32>,
+}
+
+impl CameraJson {
+    /// Checks the fields a camera needs, naming the one at fault.
+    pub fn validate(&self) -> Result<(), String> {
+        let finite = |v: [f32; 3]| v.iter().all(|c| c.is_finite());
+        for (name, v) in [("eye", self.eye), ("target", self.target), ("up", self.up)] {
+            if !finite(v) {
+                return Err(format!("{name} {v:?} is not finite"));
+            }
+        }
+        let view = Vec3::from(self.target) - Vec3::from(self.eye);
+        if !(view.length() > 0.0) {
+            return Err("eye == target: the view direction is undefined".into());
+        }
+        let up = Vec3::from(self.up);
+        if !(up.length() > 0.0) {
+            return Err(format!("up {:?} has zero length", self.up));
+        }
+        if view.normalize().cross(up.normalize()).length() < 1e-4 {
+            return Err(format!("up {:?} is parallel to the view direction", self.up));
+        }
+        if !(self.vfov_deg > 1e-3 && self.vfov_deg < 179.0) {
+            return Err(format!("vfov_deg {} must be in (0.001, 179) degrees", self.vfov_deg));
+        }
+        if let Some(m) = self.meters_per_unit
+            && !(m.is_finite() && m > 0.0)
+        {
+            return Err(format!("meters_per_unit {m} must be finite and > 0"));
+        }
+        Ok(())
+    }
 }
 
 fn up_y() -> [f32; 3] {
@@ -280,17 +316,57 @@ pub(crate) fn apply_light_json(
     Ok(())
 }
 
-/// The `Units:` scale stated in a `SOURCE.md`, if any.
+/// The `Units:` scale stated in a `SOURCE.md`, if its words name a unit this recognises.
 pub fn scale_from_source_md(text: &str) -> Option<f32> {
     let line = text.lines().find(|l| l.contains("Units:"))?;
     let after = line.split_once("Units:")?.1.trim_start().to_ascii_lowercase();
-    Some(if after.starts_with("millimet") || after.starts_with("mm") {
-        0.001
-    } else if after.starts_with("centimet") || after.starts_with("cm") {
-        0.01
+    let after = after.strip_prefix("about ").unwrap_or(&after);
+    let word = |w: &str| after.starts_with(w);
+    if word("millimet") || word("mm") {
+        Some(0.001)
+    } else if word("centimet") || word("cm") {
+        Some(0.01)
+    } else if word("kilomet") || word("km") {
+        Some(1000.0)
+    } else if word("metre") || word("meter") || word("m ") || word("m.") || after.contains("1 unit = 1 m") {
+        Some(1.0)
+    } else if word("inch") {
+        Some(0.0254)
+    } else if word("feet") || word("foot") || word("ft") {
+        Some(0.3048)
     } else {
-        1.0
-    })
+        None
+    }
+}
+
+/// The unit of a folder's files: `explicit` (an option or a manifest key) first, then
+/// `camera.json`'s `meters_per_unit`, then `SOURCE.md`'s `Units:` line, else metres with a
+/// warning.
+fn folder_units(explicit: Option<f32>, camera: Option<&CameraJson>, dir: &Path, warnings: &mut Vec<String>) -> Units {
+    let source_md = std::fs::read_to_string(dir.join("SOURCE.md")).ok();
+    let stated = source_md.as_deref().and_then(scale_from_source_md);
+    let from_camera = camera.and_then(|c| c.meters_per_unit);
+    if let (Some(c), Some(s)) = (from_camera, stated)
+        && (c / s - 1.0).abs() > 1e-3
+    {
+        warnings.push(format!(
+            "{}: camera.json says meters_per_unit = {c} but SOURCE.md's Units line says {s}; camera.json is used",
+            dir.display()
+        ));
+    }
+    match (explicit, from_camera, stated) {
+        (Some(m), ..) => Units { meters_per_unit: m, from: UnitsFrom::Manifest },
+        (None, Some(m), _) => Units { meters_per_unit: m, from: UnitsFrom::CameraJson },
+        (None, None, Some(m)) => Units { meters_per_unit: m, from: UnitsFrom::SourceMd },
+        (None, None, None) => {
+            warnings.push(format!(
+                "{}: the scene's unit is unknown (no meters_per_unit in camera.json, no recognised Units: line in \
+                 SOURCE.md): loaded as metres",
+                dir.display()
+            ));
+            Units { meters_per_unit: 1.0, from: UnitsFrom::Assumed }
+        }
+    }
 }
 
 /// Typical size of the geometry: the largest per-axis extent between the 2nd and 98th
@@ -360,6 +436,7 @@ fn paper_scene(folder: &str) -> Option<&'static str> {
 pub(crate) struct FolderParts {
     pub obj: ObjData,
     pub scale: f32,
+    pub units: Units,
     pub camera: Option<(PathBuf, CameraJson)>,
     pub lights: Lights,
     pub warnings: Vec<String>,
@@ -374,28 +451,27 @@ pub(crate) fn load_parts(
     with_lights: bool,
 ) -> Result<FolderParts, SceneError> {
     let dir = obj_path.parent().map(Path::to_path_buf).unwrap_or_default();
-    let scale = match scale {
-        Some(s) => s,
-        None => {
-            std::fs::read_to_string(dir.join("SOURCE.md")).ok().and_then(|t| scale_from_source_md(&t)).unwrap_or(1.0)
-        }
-    };
-    let obj = load_obj(obj_path, &ObjOptions { scale, glass })?;
-    let mut warnings = obj.warnings.clone();
     let camera_path = dir.join("camera.json");
     let camera = if camera_path.is_file() {
         let c: CameraJson = read_json(&camera_path)?;
+        c.validate().map_err(|m| SceneError::invalid(&camera_path, m))?;
         Some((camera_path, c))
     } else {
         None
     };
+    let mut unit_warnings = Vec::new();
+    let units = folder_units(scale, camera.as_ref().map(|c| &c.1), &dir, &mut unit_warnings);
+    let scale = units.meters_per_unit;
+    let obj = load_obj(obj_path, &ObjOptions { scale, glass })?;
+    let mut warnings = unit_warnings;
+    warnings.extend(obj.warnings.iter().cloned());
     let mut lights = Lights::default();
     let lights_path = dir.join("lights.json");
     if with_lights && lights_path.is_file() {
         let entries: Vec<LightJson> = read_json(&lights_path)?;
         apply_light_json(&entries, &lights_path, &dir, scale, &obj, &mut lights, &mut warnings)?;
     }
-    Ok(FolderParts { obj, scale, camera, lights, warnings })
+    Ok(FolderParts { obj, scale, units, camera, lights, warnings })
 }
 
 /// Loads a scene folder (see the module notes).
@@ -445,6 +521,7 @@ pub fn load_folder(dir: &Path, options: &FolderOptions) -> Result<Scene, SceneEr
         tolerances: SceneTolerances::for_size(size),
         effects: EffectSet::EMPTY,
         forced_effects: EffectSet::EMPTY,
+        units: parts.units,
         warnings: parts.warnings,
     };
     scene.update()?;
@@ -461,6 +538,9 @@ mod tests {
         assert_eq!(scale_from_source_md("- Units: 1 unit = 1 m."), Some(1.0));
         assert_eq!(scale_from_source_md("- Units: About 1 unit = 1 m."), Some(1.0));
         assert_eq!(scale_from_source_md("no units here"), None);
+        assert_eq!(scale_from_source_md("- Units: Centimetres (the source's)"), Some(0.01));
+        assert_eq!(scale_from_source_md("- Units: feet"), Some(0.3048));
+        assert_eq!(scale_from_source_md("- Units: unknown, maybe cubits"), None);
     }
 
     #[test]
@@ -470,6 +550,7 @@ mod tests {
             target: [4.14, 0.8, -2.05],
             up: [0.07, 0.997, -0.02],
             vfov_deg: 58.7,
+            meters_per_unit: None,
             width: None,
             height: None,
         };

@@ -6,7 +6,8 @@
 //! paper_scene = "Sponza (Moving Light)"
 //! mesh = "../../shared/scenes/sponza"   # an .obj, or a scene folder (its scene.obj);
 //!                                       # RELATIVE TO THIS MANIFEST FILE
-//! scale = 1.0                           # to metres (default: SOURCE.md's Units line, else 1)
+//! meters_per_unit = 1.0                 # the mesh's unit in metres (alias: scale; default:
+//!                                       # camera.json's meters_per_unit, SOURCE.md's Units line)
 //! frames = 60
 //! glass = "transparent"                 # or "skip"
 //! folder_lights = true                  # use lights.json beside the mesh (default true)
@@ -40,8 +41,8 @@
 //! normal_degrees = 25
 //! ```
 //!
-//! Coordinates in a manifest (camera keys, light positions) are in final scene units, after
-//! `scale`. Unknown keys are errors (typos do not pass silently); syntax errors give the
+//! Coordinates in a manifest (camera keys, light positions) are in final scene units (metres,
+//! after `meters_per_unit`). Unknown keys are errors (typos do not pass silently); syntax errors give the
 //! manifest's line and column; semantic errors (a material pattern matching nothing, an
 //! unknown effect) name the manifest and the key.
 //!
@@ -77,6 +78,7 @@ struct ManifestToml {
     paper_scene: Option<String>,
     mesh: String,
     scale: Option<f32>,
+    meters_per_unit: Option<f32>,
     frames: Option<u32>,
     glass: Option<GlassToml>,
     folder_lights: Option<bool>,
@@ -293,12 +295,20 @@ pub fn load_manifest(path: &Path) -> Result<Scene, SceneError> {
         Some(GlassToml::Skip) => GlassMode::Skip,
         _ => GlassMode::Transparent,
     };
-    if let Some(s) = m.scale
+    let unit = match (m.scale, m.meters_per_unit) {
+        (Some(_), Some(_)) => {
+            return Err(bad("meters_per_unit", "give meters_per_unit or its older name scale, not both".into()));
+        }
+        (Some(s), None) => Some(("scale", s)),
+        (None, Some(s)) => Some(("meters_per_unit", s)),
+        (None, None) => None,
+    };
+    if let Some((key, s)) = unit
         && !(s.is_finite() && s > 0.0)
     {
-        return Err(bad("scale", format!("{s} must be finite and > 0")));
+        return Err(bad(key, format!("{s} must be finite and > 0")));
     }
-    let parts = load_parts(&mesh_path, m.scale, glass, m.folder_lights.unwrap_or(true))?;
+    let parts = load_parts(&mesh_path, unit.map(|u| u.1), glass, m.folder_lights.unwrap_or(true))?;
     let mut warnings = parts.warnings;
     let mut mesh = parts.obj.mesh;
     let mut materials = parts.obj.materials;
@@ -448,6 +458,7 @@ pub fn load_manifest(path: &Path) -> Result<Scene, SceneError> {
         tolerances: m.tolerances.unwrap_or_else(|| SceneTolerances::for_size(size)),
         effects: EffectSet::EMPTY,
         forced_effects: forced,
+        units: parts.units,
         warnings,
     };
     scene.update()?;

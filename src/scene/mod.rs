@@ -39,6 +39,7 @@ pub mod command;
 pub mod effects;
 pub mod envmap;
 pub mod error;
+pub mod export;
 pub mod folder;
 pub mod light;
 pub mod manifest;
@@ -130,6 +131,48 @@ impl SceneTolerances {
     }
 }
 
+/// The length unit of a scene's source files. Geometry is already scaled to metres; this
+/// says what the files' numbers meant and who said so.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Units {
+    /// One unit of the source files, in metres.
+    pub meters_per_unit: f32,
+    pub from: UnitsFrom,
+}
+
+/// Who stated a scene's unit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum UnitsFrom {
+    /// A built-in (generated in metres).
+    Builtin,
+    /// `meters_per_unit` in `camera.json`.
+    CameraJson,
+    /// A manifest's `meters_per_unit` (or `scale`), or a loader option.
+    Manifest,
+    /// The `Units:` line of `SOURCE.md`.
+    SourceMd,
+    /// Nothing conclusive: metres assumed (with a warning).
+    Assumed,
+}
+
+impl Units {
+    /// Metres, for scenes made in code.
+    pub const METRES: Units = Units { meters_per_unit: 1.0, from: UnitsFrom::Builtin };
+}
+
+impl std::fmt::Display for Units {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let from = match self.from {
+            UnitsFrom::Builtin => "built-in",
+            UnitsFrom::CameraJson => "camera.json meters_per_unit",
+            UnitsFrom::Manifest => "manifest",
+            UnitsFrom::SourceMd => "SOURCE.md Units line",
+            UnitsFrom::Assumed => "assumed: nothing stated it",
+        };
+        write!(f, "1 unit = {} m ({from})", self.meters_per_unit)
+    }
+}
+
 /// Where a scene came from.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum SceneSource {
@@ -178,6 +221,8 @@ pub struct Scene {
     pub effects: EffectSet,
     /// Effects forced on by a manifest (kept across [`Scene::update`]).
     pub forced_effects: EffectSet,
+    /// The unit of the source files (geometry is in metres already).
+    pub units: Units,
     /// Non-fatal problems met while loading (missing textures, clamped values, ...).
     pub warnings: Vec<String>,
 }
@@ -204,6 +249,45 @@ impl Scene {
         self.lights.area = AreaLights::build(&self.mesh, &self.materials);
         self.effects = EffectSet::derive(&self.mesh, &self.materials, &self.lights).union(self.forced_effects);
         self.validate()
+    }
+
+    /// Moves the whole scene to `scale · p + offset` (geometry, camera, lights, tolerances), so
+    /// that it renders the same image: radiance and distant lights are scale-free, and point
+    /// intensities grow by `scale²` so that their irradiance `I / r²` is kept. What the
+    /// renderer's robustness is tested with: an image must not depend on where a scene sits
+    /// or on its units. `scale` must be finite and positive.
+    pub fn place(&mut self, scale: f32, offset: Vec3) -> Result<(), SceneError> {
+        if !(scale.is_finite() && scale > 0.0 && offset.is_finite()) {
+            return Err(SceneError::invalid(
+                &self.source.path(),
+                format!("placement scale {scale} and offset {offset} must be finite, with scale > 0"),
+            ));
+        }
+        let at = |p: Vec3| p * scale + offset;
+        for t in &mut self.mesh.positions {
+            *t = t.map(at);
+        }
+        for p in &mut self.lights.points {
+            p.position = at(p.position);
+            p.intensity *= scale * scale;
+        }
+        for m in &mut self.lights.moving {
+            for k in &mut m.path.keys {
+                k.translation = at(Vec3::from(k.translation)).to_array();
+            }
+            match &mut m.shape {
+                MovingShape::Point { intensity } => *intensity *= scale * scale,
+                MovingShape::Area { triangles, .. } => {
+                    triangles.iter_mut().for_each(|t| *t = t.map(|p| p * scale));
+                }
+            }
+        }
+        for k in &mut self.camera.keys {
+            k.eye = at(Vec3::from(k.eye)).to_array();
+            k.target = at(Vec3::from(k.target)).to_array();
+        }
+        self.tolerances.position *= scale;
+        self.update()
     }
 
     /// Checks every invariant the renderer relies on: a non-empty finite mesh, material and

@@ -190,6 +190,7 @@ fn build_spec(spec: &BuiltinSpec) -> Result<Scene, SceneError> {
         tolerances: parts.tolerances,
         effects: EffectSet::EMPTY,
         forced_effects: EffectSet::EMPTY,
+        units: super::Units::METRES,
         warnings: Vec::new(),
     };
     scene.update()?;
