@@ -77,12 +77,25 @@ enum Command {
         /// Seed of the random numbers.
         #[arg(long, default_value_t = 1)]
         seed: u64,
-        /// Exposure multiplier for the PNG previews.
-        #[arg(long, default_value_t = 1.0)]
+        /// Exposure multiplier for the PNG previews (finite, > 0).
+        #[arg(long, default_value_t = 1.0, value_parser = stereotrace::commands::parse_exposure)]
         exposure: f32,
         /// Use the general integrator instead of the one specialised for the scene's effects.
         #[arg(long)]
         general: bool,
+        /// Bounces of the estimator: 1 is the paper's (direct light at the primary and the
+        /// secondary hit), 0 direct lighting only.
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(0..=1))]
+        bounces: u32,
+    },
+    /// Write a scene at frame 0 as a folder in the shared format (scene.obj, scene.mtl,
+    /// camera.json, lights.json, textures), e.g. for another renderer.
+    ExportScene {
+        /// A built-in scene name, a manifest (*.toml) or a scene folder.
+        scene: String,
+        /// Output folder.
+        #[arg(long)]
+        out: std::path::PathBuf,
     },
     /// List the built-in scenes (triangle counts, effects), or describe the given scenes.
     Scenes {
@@ -213,7 +226,20 @@ fn main() -> ExitCode {
                 Ok(())
             })
         }
-        Command::Render { scene, frames, first_frame, spp, res, eye, out, eye_separation, seed, exposure, general } => {
+        Command::Render {
+            scene,
+            frames,
+            first_frame,
+            spp,
+            res,
+            eye,
+            out,
+            eye_separation,
+            seed,
+            exposure,
+            general,
+            bounces,
+        } => {
             let opts = stereotrace::commands::render::RenderOptions {
                 scene,
                 frames,
@@ -226,8 +252,12 @@ fn main() -> ExitCode {
                 seed,
                 exposure,
                 general,
+                bounces,
             };
             stereotrace::commands::render::run(&opts).map(|summary| println!("{summary}"))
+        }
+        Command::ExportScene { scene, out } => {
+            stereotrace::commands::export_scene(&scene, &out).map(|s| println!("{s}"))
         }
         Command::Scenes { specs } => {
             stereotrace::scene::command::run(&specs, &mut std::io::stdout().lock()).map_err(|e| e.to_string())

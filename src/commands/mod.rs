@@ -19,6 +19,35 @@ pub fn parse_resolution(s: &str) -> Result<Extent, String> {
     Extent::new(w, h).map_err(|e| format!("resolution '{s}': {e}"))
 }
 
+/// Parses an exposure multiplier: finite and positive (NaN, inf, 0 or a negative value would
+/// write black or meaningless previews).
+pub fn parse_exposure(s: &str) -> Result<f32, String> {
+    let v: f32 = s.trim().parse().map_err(|_| format!("exposure '{s}' is not a number"))?;
+    if v.is_finite() && v > 0.0 { Ok(v) } else { Err(format!("exposure {s} must be finite and > 0")) }
+}
+
+/// `stereotrace export-scene`: writes `spec` at frame 0 into `out` in the shared folder format.
+pub fn export_scene(spec: &str, out: &std::path::Path) -> Result<String, String> {
+    let scene = crate::scene::resolve(spec).map_err(|e| e.to_string())?;
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
+    let s = crate::scene::export::export_folder(&scene, out).map_err(|e| e.to_string())?;
+    let frozen = if s.frozen_lights > 0 {
+        format!(", {} moving light(s) frozen at frame 0", s.frozen_lights)
+    } else {
+        String::new()
+    };
+    Ok(format!(
+        "exported {}: {} triangles, {} materials, {} images{frozen} to {}",
+        scene.name,
+        s.triangles,
+        s.materials,
+        s.images,
+        out.display()
+    ))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -30,5 +59,13 @@ mod tests {
         assert!(parse_resolution("0x10").unwrap_err().contains("zero"));
         assert!(parse_resolution("axb").unwrap_err().contains("whole number"));
         assert!(parse_resolution("100000x10").unwrap_err().contains("too large"));
+    }
+
+    #[test]
+    fn exposures_must_be_finite_and_positive() {
+        assert_eq!(parse_exposure("2.5").unwrap(), 2.5);
+        for bad in ["NaN", "inf", "-1", "0", "x"] {
+            assert!(parse_exposure(bad).is_err(), "{bad}");
+        }
     }
 }

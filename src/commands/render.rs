@@ -44,6 +44,8 @@ pub struct RenderOptions {
     pub exposure: f32,
     /// Use the general integrator instead of the one specialised for the scene's effects.
     pub general: bool,
+    /// Bounces of the estimator (see [`Renderer::set_bounces`]).
+    pub bounces: u32,
 }
 
 /// Runs the command; returns a one-line summary.
@@ -51,6 +53,12 @@ pub fn run(opts: &RenderOptions) -> Result<String, String> {
     let rig = StereoRig::new(opts.separation)?;
     if opts.spp == 0 {
         return Err("--spp must be at least 1".into());
+    }
+    if opts.frames == 0 {
+        return Err("--frames must be at least 1 (0 would write nothing)".into());
+    }
+    if !(opts.exposure.is_finite() && opts.exposure > 0.0) {
+        return Err(format!("--exposure {} must be finite and > 0", opts.exposure));
     }
     let load = Instant::now();
     let scene = crate::scene::resolve(&opts.scene).map_err(|e| e.to_string())?;
@@ -66,7 +74,8 @@ pub fn run(opts: &RenderOptions) -> Result<String, String> {
         )
     })?;
     let name = scene.name.clone();
-    let renderer = Renderer::new(scene).map_err(|e| e.to_string())?;
+    let mut renderer = Renderer::new(scene).map_err(|e| e.to_string())?;
+    renderer.set_bounces(opts.bounces).map_err(|e| e.to_string())?;
     eprintln!(
         "{name}: {} triangles, BVH built in {:.2?}, integrator: {}, loaded in {:.2?}",
         renderer.scene().triangle_count(),
