@@ -19,10 +19,23 @@ impl ImageError {
     }
 }
 
-/// Writes `img` as a 32-bit float RGB EXR (linear radiance, nothing clamped).
+/// Writes `img` as a 32-bit float RGB EXR (linear radiance, nothing clamped). An image with a
+/// NaN or infinite value is refused (naming the first such pixel): the renderer and the
+/// pipeline make finite images from finite inputs, so one that is not is a fault to report,
+/// not data to pass on.
 pub fn write_exr(path: &Path, img: &RgbBuf) -> Result<(), ImageError> {
     let e = img.extent();
     let view = img.view();
+    let bad = (0..e.height()).flat_map(|y| (0..e.width()).map(move |x| (x, y))).find(|&(x, y)| {
+        let [r, g, b] = view.get(x, y);
+        !(r.is_finite() && g.is_finite() && b.is_finite())
+    });
+    if let Some((x, y)) = bad {
+        return Err(ImageError::new(
+            path,
+            format!("pixel ({x}, {y}) is {:?}: not writing a non-finite image", view.get(x, y)),
+        ));
+    }
     exr::prelude::write_rgb_file(path, e.width(), e.height(), |x, y| {
         let [r, g, b] = view.get(x, y);
         (r, g, b)

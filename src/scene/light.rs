@@ -20,6 +20,23 @@ use super::mesh::Mesh;
 use super::path::TransformPath;
 use super::sampling::{Distribution1D, cone_solid_angle, luminance, uniform_cone, uniform_sphere};
 
+/// The largest emitted radiance a scene may contain, and likewise the largest point-light
+/// intensity and sun radiance. Far above anything physical (the sun's radiance is ~2e7
+/// W m⁻² sr⁻¹), and low enough that nothing downstream overflows f32: the estimator multiplies
+/// it by BSDF values and inverse densities (up to ~1e8 for a light almost touching a surface),
+/// and SSIM squares pixel values (f32 holds squares only up to ~1.8e19). Brighter lights are
+/// refused with a message naming the light, instead of rendering black or writing inf.
+pub const MAX_EMISSION: f32 = 1e15;
+
+/// `Err` naming `what` when `v` exceeds [`MAX_EMISSION`] in some channel.
+pub fn check_emission(what: &str, v: Vec3) -> Result<(), String> {
+    if v.max_element() > MAX_EMISSION {
+        Err(format!("{what} {v} exceeds the largest supported value {MAX_EMISSION:e}"))
+    } else {
+        Ok(())
+    }
+}
+
 /// An isotropic point light.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PointLight {
@@ -188,10 +205,11 @@ impl AreaLights {
             if !mat.is_emissive() {
                 continue;
             }
-            let p = PI * mesh.area(i) * luminance(mat.emission);
+            // In f64: a large emitter of a bright material overflows f32.
+            let p = std::f64::consts::PI * f64::from(mesh.area(i)) * f64::from(luminance(mat.emission));
             if p > 0.0 && p.is_finite() {
                 triangles.push(i as u32);
-                power.push(p);
+                power.push(p as f32);
             }
         }
         let distribution = (!power.is_empty()).then(|| Distribution1D::new(&power));
@@ -358,6 +376,7 @@ impl Lights {
             if !(p.position.is_finite() && ok(p.intensity)) {
                 return Err(format!("point light at {} has intensity {}", p.position, p.intensity));
             }
+            check_emission(&format!("point light at {}: intensity", p.position), p.intensity)?;
         }
         if let Some(s) = &self.sun {
             if !(ok(s.irradiance) && (s.direction.length() - 1.0).abs() < 1e-3) {
@@ -366,18 +385,30 @@ impl Lights {
             if !(s.angular_radius_deg > 0.0 && s.angular_radius_deg < 90.0) {
                 return Err(format!("sun angular radius {} deg is outside (0, 90)", s.angular_radius_deg));
             }
+            check_emission("sun: radiance (irradiance / disc solid angle)", s.radiance())?;
         }
         match &self.environment {
             Some(Environment::Constant(c)) if !ok(*c) => return Err(format!("constant environment {c} emits nothing")),
             Some(Environment::Sky(s)) if !ok(s.mean_radiance()) => return Err(format!("sky {s:?} emits nothing")),
             Some(Environment::Map(m)) if !ok(m.mean_radiance) => return Err("environment map is black".into()),
-            _ => {}
+            Some(Environment::Constant(c)) => check_emission("constant environment: radiance", *c)?,
+            Some(Environment::Sky(s)) => check_emission("sky: radiance", s.zenith.max(s.horizon).max(s.ground))?,
+            Some(Environment::Map(m)) => {
+                let brightest = m.texture.data.iter().copied().fold(0.0f32, f32::max);
+                check_emission("environment map: scale x brightest texel", Vec3::splat(brightest * m.scale))?
+            }
+            None => {}
         }
         for m in &self.moving {
             m.path.validate().map_err(|e| format!("moving light {:?}: {e}", m.name))?;
             if !ok(m.power()) {
                 return Err(format!("moving light {:?} emits nothing", m.name));
             }
+            let value = match &m.shape {
+                MovingShape::Point { intensity } => *intensity,
+                MovingShape::Area { radiance, .. } => *radiance,
+            };
+            check_emission(&format!("moving light {:?}", m.name), value)?;
             if let MovingShape::Area { triangles, .. } = &m.shape
                 && !triangles.iter().flatten().all(|p| p.is_finite())
             {

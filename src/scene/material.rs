@@ -191,6 +191,7 @@ impl Material {
         if !(self.emission.is_finite() && self.emission.min_element() >= 0.0) {
             return Err(format!("material {:?}: emission {} is negative or not finite", self.name, self.emission));
         }
+        super::light::check_emission(&format!("material {:?}: emission (Ke)", self.name), self.emission)?;
         if !(0.0..=1.0).contains(&self.roughness)
             || !(0.0..=1.0).contains(&self.opacity)
             || !(0.0..=1.0).contains(&self.texture_scale)
