@@ -324,14 +324,14 @@ fn intersect_triangle_lanes(
     if in_range == 0 {
         return (0, t, [u, v, w], det);
     }
-    let bound = t_rounding_bound_lanes([ax, bx, cx], [ay, by, cy], [z0, z1, z2], [u, v, w], det);
-    let hit = t.simd_gt(bound).to_bitmask() & in_range;
+    let bound = t_rounding_bound_lanes([ax, bx, cx], [ay, by, cy], [z0, z1, z2], [u, v, w]);
+    let hit = (t * det.abs()).simd_gt(bound).to_bitmask() & in_range;
     (hit, t, [u, v, w], det)
 }
 
 /// [`crate::bvh::t_rounding_bound`] for every lane, operation for operation.
 #[inline(always)]
-fn t_rounding_bound_lanes(x: [F32s; 3], y: [F32s; 3], z: [F32s; 3], e: [F32s; 3], det: F32s) -> F32s {
+fn t_rounding_bound_lanes(x: [F32s; 3], y: [F32s; 3], z: [F32s; 3], e: [F32s; 3]) -> F32s {
     let max3 = |v: [F32s; 3]| v[0].abs().max(v[1].abs()).max(v[2].abs());
     let (max_x, max_y, max_z, max_e) = (max3(x), max3(y), max3(z), max3(e));
     let g = |n| F32s::splat(gamma(n));
@@ -339,7 +339,7 @@ fn t_rounding_bound_lanes(x: [F32s; 3], y: [F32s; 3], z: [F32s; 3], e: [F32s; 3]
     let delta_x = g(5) * (max_x + max_z);
     let delta_y = g(5) * (max_y + max_z);
     let delta_e = F32s::splat(2.0) * (g(2) * max_x * max_y + delta_y * max_x + delta_x * max_y);
-    F32s::splat(3.0) * (g(3) * max_e * max_z + delta_e * max_z + delta_z * max_e) / det.abs()
+    F32s::splat(3.0) * (g(3) * max_e * max_z + delta_e * max_z + delta_z * max_e)
 }
 
 /// Lanes whose f32 edge functions hit exactly zero get all three recomputed in f64, exactly

@@ -45,22 +45,15 @@ pub fn barycentric_point(v: &[Vec3; 3], b1: f32, b2: f32) -> (Vec3, Vec3) {
 
 /// `p` moved off its surface (geometric normal `n`) to the side `dir` points to, far enough
 /// that the exact point `p` stands for lies strictly behind it: by the error bound projected
-/// on the normal, then each moved coordinate one ulp further, since the sum itself rounds.
-#[inline]
+/// on the normal, plus `2u·|p|` per axis for the rounding of the sum `p + offset` itself (each
+/// coordinate of the sum rounds by at most `u·|p + offset|`). pbrt-v4 instead moves each
+/// coordinate one ulp further with `next_up`/`next_down`; the margin does the same without
+/// branches (measured: that version was 21 M of a 2.6 G-instruction atrium render).
+#[inline(always)]
 pub fn offset_origin(p: Vec3, error: Vec3, n: Vec3, dir: Vec3) -> Vec3 {
-    let d = n.abs().dot(error);
-    let offset = if n.dot(dir) < 0.0 { -n * d } else { n * d };
-    let moved = p + offset;
-    let away = |x: f32, o: f32| {
-        if o > 0.0 {
-            x.next_up()
-        } else if o < 0.0 {
-            x.next_down()
-        } else {
-            x
-        }
-    };
-    Vec3::new(away(moved.x, offset.x), away(moved.y, offset.y), away(moved.z, offset.z))
+    let d = n.abs().dot(error + p.abs() * f32::EPSILON);
+    let towards = if n.dot(dir) < 0.0 { -d } else { d };
+    p + n * towards
 }
 
 /// The shadow ray from the surface point `p` (error bound `error`, geometric normal `n`) along
@@ -109,6 +102,10 @@ mod tests {
         let down = offset_origin(p, err, n, Vec3::new(0.2, -1.0, 0.0));
         assert!(up.y > 2.0 && down.y < 2.0, "{up} {down}");
         assert_eq!((up.x, up.z), (p.x, p.z), "only the normal's axis moves");
+        // Even with no error bound at all, the sum's own rounding is covered.
+        for y in [1.0f32, 3.0, 1e4, 1e6] {
+            assert!(offset_origin(Vec3::new(0.0, y, 0.0), Vec3::ZERO, n, Vec3::Y).y > y);
+        }
         // The bound follows the coordinates along the normal: far along x it stays put, far
         // along y (the normal) it grows with them.
         let sideways = [Vec3::new(1e4 - 1.0, 2.0, -1.0), Vec3::new(1e4 + 1.0, 2.0, -1.0), Vec3::new(1e4, 2.0, 1.0)];
