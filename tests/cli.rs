@@ -153,3 +153,72 @@ fn tradeoff_writes_its_table_and_plot_and_refuses_bad_budgets() {
     assert_refused(&run(args("2")), "budget fraction");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn exposures_and_frame_counts_that_would_write_nothing_useful_are_refused() {
+    for bad in ["NaN", "inf", "-1", "0"] {
+        let out = stereotrace(&["render", "--res", "8x8", &format!("--exposure={bad}"), "--out", "/tmp"]);
+        assert_refused(&out, "exposure");
+    }
+    assert_refused(&stereotrace(&["render", "--res", "8x8", "--frames", "0", "--out", "/tmp"]), "frames");
+    assert_refused(&stereotrace(&["render", "--res", "8x8", "--bounces", "2", "--out", "/tmp"]), "bounces");
+}
+
+#[test]
+fn export_scene_round_trips_a_builtin_through_the_shared_folder_format() {
+    let dir = temp_dir("export");
+    let folder = dir.join("cornell");
+    let out = stereotrace(&["export-scene", "cornell", "--out", folder.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for file in ["scene.obj", "scene.mtl", "camera.json", "lights.json", "SOURCE.md"] {
+        assert!(folder.join(file).is_file(), "{file} missing");
+    }
+    let original = stereotrace::scene::resolve("cornell").unwrap();
+    let loaded = stereotrace::scene::resolve(folder.to_str().unwrap()).unwrap();
+    // The export groups triangles by material; within a material they keep their order.
+    let by_material = |s: &stereotrace::scene::Scene, m: usize| -> Vec<_> {
+        (0..s.mesh.len()).filter(|&t| s.mesh.material[t] as usize == m).map(|t| s.mesh.positions[t]).collect()
+    };
+    assert_eq!(loaded.materials.len(), original.materials.len());
+    for m in 0..original.materials.len() {
+        assert_eq!(by_material(&loaded, m), by_material(&original, m), "material {m}: geometry bit for bit");
+    }
+    for (a, b) in loaded.materials.iter().zip(&original.materials) {
+        assert_eq!((a.kind, a.albedo, a.emission), (b.kind, b.albedo, b.emission), "{}", b.name);
+    }
+    assert_eq!(loaded.units.meters_per_unit, 1.0);
+    let (p, q) = (loaded.camera.pose_at(0.0), original.camera.pose_at(0.0));
+    assert!((p.eye - q.eye).length() < 1e-5 && (p.forward - q.forward).length() < 1e-5);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn direct_lighting_only_is_the_first_part_of_the_paper_estimate() {
+    let dir = temp_dir("bounces");
+    let mean = |bounces: &str| {
+        let out_dir = dir.join(bounces);
+        let out = stereotrace(&[
+            "render",
+            "--scene",
+            "cornell",
+            "--res",
+            "24x16",
+            "--spp",
+            "8",
+            "--eye",
+            "left",
+            "--bounces",
+            bounces,
+            "--out",
+            out_dir.to_str().unwrap(),
+        ]);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let img = stereotrace::image_io::read_exr(&out_dir.join("cornell/left_000.exr")).unwrap();
+        let v: Vec<f32> = [&img.r, &img.g, &img.b].iter().flat_map(|p| p.as_slice().to_vec()).collect();
+        (v.iter().all(|x| x.is_finite()), v.iter().map(|&x| f64::from(x)).sum::<f64>())
+    };
+    let ((finite0, direct), (finite1, paper)) = (mean("0"), mean("1"));
+    assert!(finite0 && finite1);
+    assert!(direct > 0.0 && paper > direct * 1.05, "the secondary bounce adds light: {direct} vs {paper}");
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -1061,3 +1061,93 @@ fn sky_19_pdf_integrates_to_one_and_samples_are_consistent() {
         assert!(smp.radiance.max_element() > 0.0, "sampled a black texel");
     }
 }
+
+/// A scene folder holding the room: scene.obj + room.mtl + camera.json (+ `source_md`).
+fn room_folder(dir: &TempDir, camera: &str, source_md: Option<&str>) {
+    room(dir);
+    std::fs::copy(dir.0.join("room.obj"), dir.0.join("scene.obj")).unwrap();
+    dir.write("camera.json", camera);
+    if let Some(text) = source_md {
+        dir.write("SOURCE.md", text);
+    }
+}
+
+const ROOM_CAMERA: &str = r#"{"eye": [0, 1, 1.5], "target": [0, 1, -1], "vfov_deg": 50"#;
+
+#[test]
+fn scene_units_come_from_camera_json_then_source_md_then_a_warning() {
+    let bounds = |s: &Scene| s.bounds().extent();
+    let reference = {
+        let dir = TempDir::new("units-m");
+        room_folder(&dir, &format!("{ROOM_CAMERA}, \"meters_per_unit\": 1.0}}"), None);
+        load_folder(&dir.0, &FolderOptions::default()).unwrap()
+    };
+    assert_eq!(reference.units, Units { meters_per_unit: 1.0, from: UnitsFrom::CameraJson });
+    assert!(reference.warnings.iter().all(|w| !w.contains("unit")), "{:?}", reference.warnings);
+
+    // camera.json wins over SOURCE.md (and their disagreement is reported).
+    let dir = TempDir::new("units-mm");
+    room_folder(&dir, &format!("{ROOM_CAMERA}, \"meters_per_unit\": 0.001}}"), Some("- Units: Centimetres\n"));
+    let mm = load_folder(&dir.0, &FolderOptions::default()).unwrap();
+    assert_eq!(mm.units.from, UnitsFrom::CameraJson);
+    assert!((bounds(&mm) - bounds(&reference) * 0.001).abs().max_element() < 1e-6);
+    assert!(mm.warnings.iter().any(|w| w.contains("SOURCE.md") && w.contains("0.01")), "{:?}", mm.warnings);
+
+    // Without meters_per_unit: SOURCE.md's Units line, feet included (they used to load as metres).
+    let dir = TempDir::new("units-ft");
+    room_folder(&dir, &format!("{ROOM_CAMERA}}}"), Some("- Units: feet (the source's)\n"));
+    let ft = load_folder(&dir.0, &FolderOptions::default()).unwrap();
+    assert_eq!(ft.units, Units { meters_per_unit: 0.3048, from: UnitsFrom::SourceMd });
+
+    // Neither: metres, with a warning that says so.
+    let dir = TempDir::new("units-none");
+    room_folder(&dir, &format!("{ROOM_CAMERA}}}"), Some("- Units: cubits, probably\n"));
+    let unknown = load_folder(&dir.0, &FolderOptions::default()).unwrap();
+    assert_eq!(unknown.units.from, UnitsFrom::Assumed);
+    assert!(unknown.warnings.iter().any(|w| w.contains("unit is unknown")), "{:?}", unknown.warnings);
+
+    // A manifest's meters_per_unit (or its older name scale, not both).
+    let m = dir.write("m.toml", "mesh = \"scene.obj\"\nmeters_per_unit = 0.01\n");
+    let cm = load_manifest(&m).unwrap();
+    assert_eq!(cm.units, Units { meters_per_unit: 0.01, from: UnitsFrom::Manifest });
+    let both = dir.write("both.toml", "mesh = \"scene.obj\"\nmeters_per_unit = 0.01\nscale = 0.01\n");
+    assert!(load_manifest(&both).unwrap_err().to_string().contains("meters_per_unit"));
+}
+
+#[test]
+fn camera_json_fields_are_validated_by_name() {
+    for (camera, needle) in [
+        (r#"{"eye": [0, 1, 1.5], "target": [0, 1, -1], "up": [0, 0, 0], "vfov_deg": 50}"#, "up"),
+        (r#"{"eye": [0, 1, 1.5], "target": [0, 1, -1], "up": [0, 0, 2], "vfov_deg": 50}"#, "parallel"),
+        (r#"{"eye": [0, 1, 1.5], "target": [0, 1, -1], "vfov_deg": 1e-30}"#, "vfov_deg"),
+        (r#"{"eye": [0, 1, 1.5], "target": [0, 1, -1], "vfov_deg": 50, "meters_per_unit": -1}"#, "meters_per_unit"),
+    ] {
+        let dir = TempDir::new("camera-fields");
+        room_folder(&dir, camera, None);
+        let e = load_folder(&dir.0, &FolderOptions::default()).unwrap_err().to_string();
+        assert!(e.contains("camera.json") && e.contains(needle), "{camera}: {e}");
+    }
+}
+
+#[test]
+fn lights_too_bright_for_f32_are_refused_naming_the_light() {
+    // Ke 3e38 used to be dropped (its power overflowed) and the scene refused as having no
+    // lights; 5e37 rendered inf pixels at 16 spp.
+    for ke in ["3e38 3e38 3e38", "5e37 5e37 5e37", "2e15 0 0"] {
+        let dir = TempDir::new("bright");
+        room_folder(&dir, &format!("{ROOM_CAMERA}}}"), None);
+        dir.write("room.mtl", ROOM_MTL.replace("Ke 10 10 10", &format!("Ke {ke}")));
+        let e = load_folder(&dir.0, &FolderOptions::default()).unwrap_err().to_string();
+        assert!(e.contains("\"lamp\"") && e.contains("Ke") && e.contains("exceeds"), "Ke {ke}: {e}");
+    }
+    // A point light of 2.7e37 used to give inf/inf selection probabilities and a black image.
+    let dir = TempDir::new("bright-point");
+    room_folder(&dir, &format!("{ROOM_CAMERA}}}"), None);
+    dir.write("lights.json", r#"[{"type": "point", "position": [0, 1.5, 0], "intensity": [2.7e37, 2.7e37, 2.7e37]}]"#);
+    let e = load_folder(&dir.0, &FolderOptions::default()).unwrap_err().to_string();
+    assert!(e.contains("point light") && e.contains("intensity") && e.contains("exceeds"), "{e}");
+    // Just below the ceiling works and renders finite values (tests/correct_images.rs and
+    // tests/render.rs check the images themselves).
+    dir.write("lights.json", r#"[{"type": "point", "position": [0, 1.5, 0], "intensity": [1e15, 1e15, 1e15]}]"#);
+    assert!(load_folder(&dir.0, &FolderOptions::default()).is_ok());
+}
