@@ -13,6 +13,7 @@ compares the result with a stereotrace render of the same view.
     mitsuba_ref.py compare OURS.exr REF.exr            # mean per channel, 8x8-block rel. RMSE
     mitsuba_ref.py check SCENE --stereotrace BIN ...   # both renders + comparison; exit 1 if
                                                        # outside the tolerances
+    mitsuba_ref.py table --stereotrace BIN             # RESULTS.md's table (every case below)
 
 SCENE for `check` is a scene folder or a built-in name (exported with
 `stereotrace export-scene`). The overrides mean what a stereotrace manifest's `[effects]`
@@ -358,6 +359,45 @@ def check(args):
     return 0 if result["pass"] else 1
 
 
+# The comparison recorded in RESULTS.md: (label, scene, resolution, spp, bounces, overrides).
+TABLE = [
+    ("cornell-box", "cornell-box", "256x256", 1024, 1, []),
+    ("cornell-box (direct only)", "cornell-box", "256x256", 1024, 0, []),
+    ("sponza (diffuse)", "sponza", "320x180", 512, 1, ["diffuse", "opaque", "skip_glass"]),
+    ("living-room (diffuse)", "living-room", "320x180", 512, 1, ["diffuse", "opaque", "skip_glass"]),
+    ("cornell (built-in)", "@cornell", "256x256", 1024, 1, []),
+    ("atrium (built-in)", "@atrium", "320x180", 512, 1, []),
+]
+
+
+def table(args):
+    """Runs every case of TABLE, each `check` in its own process (Mitsuba's scalar thread pool
+    hung on the second render of one process here), and prints one Markdown row per case."""
+    rows, failed = [], 0
+    for label, scene, res, spp, bounces, flags in TABLE:
+        spec = scene[1:] if scene.startswith("@") else os.path.join(args.shared, scene)
+        cmd = [sys.executable, os.path.abspath(__file__), "check", spec, "--stereotrace", args.stereotrace]
+        cmd += ["--res", res, "--spp", str(spp), "--bounces", str(bounces), "--label", label]
+        cmd += ["--work", os.path.join(args.work, label.split()[0] + ("-direct" if bounces == 0 else ""))]
+        cmd += ["--" + f.replace("_", "-") for f in flags]
+        print(f"{label} ...", file=sys.stderr)
+        done = subprocess.run(cmd, capture_output=True, text=True)
+        if done.returncode not in (0, 1):
+            sys.exit(f"{label}: check failed\n{done.stdout}\n{done.stderr}")
+        failed += done.returncode
+        rows.append(json.loads(done.stdout.strip().splitlines()[-1]))
+    print("| scene | image | spp | bounces | mean R / G / B (ours vs Mitsuba) | 8x8-block rel. RMSE | ours Msamples/s | Mitsuba Msamples/s | ratio |")
+    print("|---|---|---:|---:|---|---:|---:|---:|---:|")
+    for r in rows:
+        diffs = " / ".join(f"{d * 100:+.2f} %" for d in r["mean_rel_diff"])
+        ratio = r["ours_msamples_per_s"] / r["mitsuba_msamples_per_s"]
+        print(
+            f"| {r['scene']} | {r['res']} | {r['spp']} | {r['bounces']} | {diffs} | {r['block_rel_rmse'] * 100:.2f} % "
+            f"| {r['ours_msamples_per_s']:.2f} | {r['mitsuba_msamples_per_s']:.2f} | {ratio:.2f} |"
+        )
+    return 1 if failed else 0
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -378,6 +418,10 @@ def main():
             p.add_argument("--label", help="scene name in the output row")
             p.add_argument("--mean-tol", type=float, default=0.02)
             p.add_argument("--block-tol", type=float, default=0.05)
+    p = sub.add_parser("table", help="the RESULTS.md comparison: every case of TABLE, one Markdown row each")
+    p.add_argument("--stereotrace", required=True)
+    p.add_argument("--shared", default=os.path.join(os.path.dirname(__file__), "../../../shared/scenes"))
+    p.add_argument("--work", default=tempfile.mkdtemp(prefix="mitsuba-table-"))
     p = sub.add_parser("compare")
     p.add_argument("ours")
     p.add_argument("ref")
@@ -387,6 +431,8 @@ def main():
             width, height = (int(x) for x in args.res.lower().split("x"))
             render(args.folder, width, height, args.spp, args.bounces, args, args.out)
             return 0
+        if args.command == "table":
+            return table(args)
         if args.command == "compare":
             print(json.dumps(compare(read_exr(args.ours), read_exr(args.ref))))
             return 0
