@@ -382,8 +382,8 @@ pub fn intersect_triangle(r: &PreparedRay, tri: &TriVerts, tmax: f32) -> Option<
     if !(t >= r.tmin && t < tmax) {
         return None;
     }
-    let bound = t_rounding_bound([ax, bx, cx], [ay, by, cy], [z0, z1, z2], [u, v, w]);
-    if t * det.abs() > bound { Some(TriHit { t, e: [u, v, w], det }) } else { None }
+    let bound = t_rounding_bound([ax, bx, cx], [ay, by, cy], [z0, z1, z2], det);
+    if t_scaled.abs() > bound { Some(TriHit { t, e: [u, v, w], det }) } else { None }
 }
 
 /// `γ(n) = n·u / (1 − n·u)` with the unit roundoff `u = 2⁻²⁴`: the relative error bound of a
@@ -394,18 +394,18 @@ pub const fn gamma(n: u32) -> f32 {
 }
 
 /// An upper bound on the rounding error of the watertight test's `t`, times `|det|`
-/// (pbrt-v4 §6.8.4; the caller compares `t·|det|` with it rather than dividing, which the
-/// bound's factor-3 slack absorbs): a hit with `t` at or below it may really lie behind the
-/// origin. Rejecting such hits is
-/// half of self-intersection avoidance; the other half is a spawned ray's origin, offset by
-/// the error bound of the hit point (`src/render/spawn.rs`). The shear arithmetic above
-/// matches pbrt's operation for operation, so its bound applies: `x`, `y` are the sheared
-/// vertex coordinates, `z` the scaled depths, `e` the edge functions. Computed only for hits
-/// that passed the `[tmin, tmax)` test; identical in [`crate::packet`]'s lane version.
+/// (pbrt-v4 §6.8.4): a hit whose `|t·det| = |Σ eᵢ zᵢ|` is at or below it may really lie
+/// at or behind the origin. The shear arithmetic above matches pbrt's operation for
+/// operation, so its bound applies: `x`, `y` are the sheared vertex coordinates, `z` the
+/// scaled depths. Two simplifications, both absorbed by the bound's factor-3 slack: the
+/// largest edge function is replaced by `|det|` (for a hit all three have one sign, so each
+/// is at most their sum), and `t·|det|` is compared as `|t_scaled|` (equal up to one
+/// rounding), which saves the maximum of three and a product per candidate. Identical in
+/// [`crate::packet`]'s lane version.
 #[inline(always)]
-pub(crate) fn t_rounding_bound(x: [f32; 3], y: [f32; 3], z: [f32; 3], e: [f32; 3]) -> f32 {
+pub(crate) fn t_rounding_bound(x: [f32; 3], y: [f32; 3], z: [f32; 3], det: f32) -> f32 {
     let max3 = |v: [f32; 3]| v[0].abs().max(v[1].abs()).max(v[2].abs());
-    let (max_x, max_y, max_z, max_e) = (max3(x), max3(y), max3(z), max3(e));
+    let (max_x, max_y, max_z, max_e) = (max3(x), max3(y), max3(z), det.abs());
     let delta_z = gamma(3) * max_z;
     let delta_x = gamma(5) * (max_x + max_z);
     let delta_y = gamma(5) * (max_y + max_z);

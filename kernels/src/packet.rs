@@ -324,16 +324,16 @@ fn intersect_triangle_lanes(
     if in_range == 0 {
         return (0, t, [u, v, w], det);
     }
-    let bound = t_rounding_bound_lanes([ax, bx, cx], [ay, by, cy], [z0, z1, z2], [u, v, w]);
-    let hit = (t * det.abs()).simd_gt(bound).to_bitmask() & in_range;
+    let bound = t_rounding_bound_lanes([ax, bx, cx], [ay, by, cy], [z0, z1, z2], det);
+    let hit = t_scaled.abs().simd_gt(bound).to_bitmask() & in_range;
     (hit, t, [u, v, w], det)
 }
 
 /// [`crate::bvh::t_rounding_bound`] for every lane, operation for operation.
 #[inline(always)]
-fn t_rounding_bound_lanes(x: [F32s; 3], y: [F32s; 3], z: [F32s; 3], e: [F32s; 3]) -> F32s {
+fn t_rounding_bound_lanes(x: [F32s; 3], y: [F32s; 3], z: [F32s; 3], det: F32s) -> F32s {
     let max3 = |v: [F32s; 3]| v[0].abs().max(v[1].abs()).max(v[2].abs());
-    let (max_x, max_y, max_z, max_e) = (max3(x), max3(y), max3(z), max3(e));
+    let (max_x, max_y, max_z, max_e) = (max3(x), max3(y), max3(z), det.abs());
     let g = |n| F32s::splat(gamma(n));
     let delta_z = g(3) * max_z;
     let delta_x = g(5) * (max_x + max_z);

@@ -415,7 +415,7 @@ impl Renderer {
     }
 
     /// Shading information at a mesh hit seen along `dir`.
-    #[inline]
+    #[inline(always)]
     fn shade<const E: u16>(&self, h: &Hit, dir: Vec3) -> ShadingPoint {
         let mesh = &self.scene.mesh;
         let tri = h.prim as usize;
