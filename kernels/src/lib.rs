@@ -21,6 +21,7 @@ pub mod frame;
 pub mod fuzzing;
 pub mod gbuffer;
 pub mod packet;
+pub mod raster;
 pub mod reproject;
 pub mod simd;
 pub mod ssim;

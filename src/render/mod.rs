@@ -36,6 +36,7 @@ pub mod bsdf;
 pub mod effects;
 pub mod lights;
 mod packets;
+pub mod raster;
 pub mod rng;
 pub mod spawn;
 
@@ -74,6 +75,9 @@ pub struct Renderer {
     bits: u16,
     /// 1: the paper's estimator; 0: direct lighting only (see [`Renderer::set_bounces`]).
     bounces: u32,
+    /// The rasterised G-buffer's near plane: a millionth of the scene's size (the traced
+    /// pass sees from depth 0; geometry nearer than this to the eye is not rasterised).
+    raster_near: f32,
 }
 
 /// What the primary or secondary ray hit.
@@ -82,7 +86,7 @@ enum Surface {
     /// A triangle of the static mesh.
     Mesh(Hit),
     /// A triangle of a moving area light (emits `radiance` on the side of `normal`).
-    MovingLight { t: f32, normal: Vec3, radiance: Vec3 },
+    MovingLight { t: f32, normal: Vec3, radiance: Vec3, index: u32 },
 }
 
 impl Surface {
@@ -203,7 +207,8 @@ impl Renderer {
         scene.validate().map_err(|e| RenderError::Invalid(e.to_string()))?;
         let (bvh, bvh_stats) = TriangleBvh::build(&scene.mesh.positions, BuildQuality::default())?;
         let bits = effects::bits_for(scene.effects);
-        Ok(Self { scene, bvh, bvh_stats, bits, bounces: 1 })
+        let raster_near = (scene.bounds().extent().length() * 1e-6).max(1e-9);
+        Ok(Self { scene, bvh, bvh_stats, bits, bounces: 1, raster_near })
     }
 
     /// Chooses the estimator: `1` (the default) is the paper's, one primary and one secondary
@@ -382,13 +387,13 @@ impl Renderer {
         let prepared = PreparedRay::new(&Ray { tmax, ..*ray })?;
         let mut best: Option<Surface> = None;
         let mut limit = tmax;
-        for tri in lights.moving_triangles() {
+        for (index, tri) in lights.moving_triangles().iter().enumerate() {
             let v = tri.v;
             let verts = [v[0].x, v[0].y, v[0].z, v[1].x, v[1].y, v[1].z, v[2].x, v[2].y, v[2].z];
             if let Some(h) = intersect_triangle(&prepared, &verts, limit) {
                 limit = h.t;
                 let normal = (v[1] - v[0]).cross(v[2] - v[0]).normalize_or_zero();
-                best = Some(Surface::MovingLight { t: h.t, normal, radiance: tri.radiance });
+                best = Some(Surface::MovingLight { t: h.t, normal, radiance: tri.radiance, index: index as u32 });
             }
         }
         best
@@ -671,19 +676,7 @@ impl Renderer {
         let camera = out.camera;
         let width = camera.extent.width();
         let origin = Vec3::from(camera.centre);
-        let GBufferBuf { depth, position: [px, py, pz], normal: [nx, ny, nz], normal_oct, material, .. } = out;
-        let rows = (
-            depth.as_mut_slice().par_chunks_mut(width),
-            px.as_mut_slice().par_chunks_mut(width),
-            py.as_mut_slice().par_chunks_mut(width),
-            pz.as_mut_slice().par_chunks_mut(width),
-            nx.as_mut_slice().par_chunks_mut(width),
-            ny.as_mut_slice().par_chunks_mut(width),
-            nz.as_mut_slice().par_chunks_mut(width),
-            normal_oct.as_mut_slice().par_chunks_mut(width),
-            material.as_mut_slice().par_chunks_mut(width),
-        );
-        rows.into_par_iter().enumerate().for_each(|(y, (d, px, py, pz, nx, ny, nz, oct, mat))| {
+        for_each_gbuffer_row(out, |y, mut row| {
             let mut x0 = 0;
             while x0 < width {
                 let lanes = (width - x0).min(LANES);
@@ -694,41 +687,142 @@ impl Renderer {
                 let active = (1u32 << lanes) - 1;
                 let surfaces = self.closest_packet::<E>(lights, &rays, active, packets::PRIMARY);
                 for i in 0..lanes {
-                    let x = x0 + i;
-                    let ray = rays[i];
-                    let surface = surfaces[i];
-                    let Some(s) = surface else {
-                        d[x] = f32::INFINITY;
-                        for v in [&mut px[x], &mut py[x], &mut pz[x], &mut nx[x], &mut ny[x], &mut nz[x]] {
-                            *v = f32::NAN;
-                        }
-                        oct[x] = NO_NORMAL;
-                        mat[x] = u32::MAX;
-                        continue;
-                    };
-                    // The ray has unit view depth, so t is the depth; the position is formed
-                    // exactly as the compact layout rebuilds it.
-                    let t = s.t();
-                    let p = [0, 1, 2].map(|c| camera.centre[c] + t * ray.dir[c]);
-                    let (n, m) = match s {
-                        Surface::Mesh(h) => {
-                            let (_, shading_normal) = self.normals(&h, ray.dir);
-                            (shading_normal, self.scene.mesh.material[h.prim as usize])
-                        }
-                        Surface::MovingLight { normal, .. } => {
-                            (if normal.dot(ray.dir) > 0.0 { -normal } else { normal }, u32::MAX - 1)
-                        }
-                    };
-                    d[x] = t;
-                    (px[x], py[x], pz[x]) = (p[0], p[1], p[2]);
-                    (nx[x], ny[x], nz[x]) = (n.x, n.y, n.z);
-                    oct[x] = encode_normal(n.to_array());
-                    mat[x] = m;
+                    row.set(x0 + i, &self.gbuffer_texel(surfaces[i], rays[i].dir, &camera));
                 }
                 x0 += LANES;
             }
         });
     }
+
+    /// The traced visibility of `camera`: per pixel, the id of the triangle its centre ray
+    /// hits (a mesh triangle's index, or the mesh's length plus a moving-light triangle's
+    /// index; `u32::MAX` for none), by the same packets as the traced G-buffer pass. The
+    /// reference the rasterised visibility is tested against.
+    pub fn trace_visibility(
+        &self,
+        lights: &FrameLights,
+        camera: &CameraModel,
+        out: &mut PlaneBuf<u32>,
+    ) -> Result<(), RenderError> {
+        crate::kernels::frame::same_extent("visibility plane", camera.extent, out.extent())?;
+        macro_rules! call {
+            ($e:literal) => {
+                self.visibility_pass::<$e>(lights, camera, out)
+            };
+        }
+        crate::dispatch_effects!(self.bits, call);
+        Ok(())
+    }
+
+    fn visibility_pass<const E: u16>(&self, lights: &FrameLights, camera: &CameraModel, out: &mut PlaneBuf<u32>) {
+        let width = camera.extent.width();
+        let origin = Vec3::from(camera.centre);
+        let mesh_len = self.scene.mesh.len() as u32;
+        out.as_mut_slice().par_chunks_mut(width).enumerate().for_each(|(y, row)| {
+            for x0 in (0..width).step_by(LANES) {
+                let lanes = (width - x0).min(LANES);
+                let rays: [Ray; LANES] = core::array::from_fn(|i| {
+                    let x = (x0 + i.min(lanes - 1)) as f32 + 0.5;
+                    Ray::new(origin, Vec3::from(camera.ray(x, y as f32 + 0.5)))
+                });
+                let surfaces = self.closest_packet::<E>(lights, &rays, (1u32 << lanes) - 1, packets::PRIMARY);
+                for i in 0..lanes {
+                    row[x0 + i] = match surfaces[i] {
+                        None => u32::MAX,
+                        Some(Surface::Mesh(h)) => h.prim,
+                        Some(Surface::MovingLight { index, .. }) => mesh_len + index,
+                    };
+                }
+            }
+        });
+    }
+
+    /// What the G-buffer stores for a pixel whose centre ray (direction `dir`, unit view
+    /// depth) sees `surface`: the one definition both the traced and the rasterised pass use.
+    #[inline]
+    fn gbuffer_texel(&self, surface: Option<Surface>, dir: Vec3, camera: &CameraModel) -> GTexel {
+        let Some(s) = surface else { return GTexel::BACKGROUND };
+        // The ray has unit view depth, so t is the depth; the position is formed exactly as
+        // the compact layout rebuilds it.
+        let t = s.t();
+        let position = [0, 1, 2].map(|c| camera.centre[c] + t * dir[c]);
+        let (n, material) = match s {
+            Surface::Mesh(h) => {
+                let (_, shading_normal) = self.normals(&h, dir);
+                (shading_normal, self.scene.mesh.material[h.prim as usize])
+            }
+            Surface::MovingLight { normal, .. } => {
+                (if normal.dot(dir) > 0.0 { -normal } else { normal }, MOVING_LIGHT_MATERIAL)
+            }
+        };
+        GTexel { depth: t, position, normal: n.to_array(), oct: encode_normal(n.to_array()), material }
+    }
+}
+
+/// One pixel of a [`GBufferBuf`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct GTexel {
+    pub depth: f32,
+    pub position: [f32; 3],
+    pub normal: [f32; 3],
+    pub oct: u32,
+    pub material: u32,
+}
+
+impl GTexel {
+    /// No surface: infinite depth, NaN position and normal, no material.
+    pub const BACKGROUND: GTexel = GTexel {
+        depth: f32::INFINITY,
+        position: [f32::NAN; 3],
+        normal: [f32::NAN; 3],
+        oct: NO_NORMAL,
+        material: u32::MAX,
+    };
+}
+
+/// One row of every plane of a [`GBufferBuf`].
+pub(crate) struct GRow<'a> {
+    depth: &'a mut [f32],
+    position: [&'a mut [f32]; 3],
+    normal: [&'a mut [f32]; 3],
+    oct: &'a mut [u32],
+    material: &'a mut [u32],
+}
+
+impl GRow<'_> {
+    #[inline(always)]
+    pub(crate) fn set(&mut self, x: usize, t: &GTexel) {
+        self.depth[x] = t.depth;
+        for c in 0..3 {
+            self.position[c][x] = t.position[c];
+            self.normal[c][x] = t.normal[c];
+        }
+        self.oct[x] = t.oct;
+        self.material[x] = t.material;
+    }
+}
+
+/// Runs `row` on every row of `out` in parallel, with that row of each plane.
+pub(crate) fn for_each_gbuffer_row<F>(out: &mut GBufferBuf, row: F)
+where
+    F: Fn(usize, GRow<'_>) + Sync + Send,
+{
+    let width = out.extent().width();
+    let GBufferBuf { depth, position: [px, py, pz], normal: [nx, ny, nz], normal_oct, material, .. } = out;
+    let rows = (
+        depth.as_mut_slice().par_chunks_mut(width),
+        px.as_mut_slice().par_chunks_mut(width),
+        py.as_mut_slice().par_chunks_mut(width),
+        pz.as_mut_slice().par_chunks_mut(width),
+        nx.as_mut_slice().par_chunks_mut(width),
+        ny.as_mut_slice().par_chunks_mut(width),
+        nz.as_mut_slice().par_chunks_mut(width),
+        normal_oct.as_mut_slice().par_chunks_mut(width),
+        material.as_mut_slice().par_chunks_mut(width),
+    );
+    rows.into_par_iter().enumerate().for_each(|(y, (d, px, py, pz, nx, ny, nz, oct, mat))| {
+        row(y, GRow { depth: d, position: [px, py, pz], normal: [nx, ny, nz], oct, material: mat })
+    });
 }
 
 /// The running sum of one pixel's samples, in f64: a mean of finite f32 samples is finite,

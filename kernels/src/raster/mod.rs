@@ -1,0 +1,771 @@
+//! Stereo visibility buffer by rasterisation: which triangle each pixel centre of both eyes
+//! sees, the same answer the ray tracer's G-buffer pass gives, at a fraction of its cost.
+//!
+//! # Pipeline of one call ([`Rasterizer::rasterize`])
+//! 1. **Setup** (parallel over fixed chunks of triangles): each triangle's vertices are moved
+//!    into the left eye's camera frame once (camera-relative, so f32 keeps its precision far
+//!    from the origin), projected, clipped against a near plane `w > near` (a triangle
+//!    crossing it becomes a quad), and turned into one [`Record`] that holds both eyes:
+//!    the parallel rig's eyes differ only by a constant offset of clip-space `x`, so the
+//!    right eye's screen `x` is the left eye's plus `Δ/w`. Triangles whose pixel-centre
+//!    bounding box is empty in both eyes (behind the camera, off screen, sub-pixel between
+//!    centres) cost only this.
+//! 2. **Binning**: records are counted per (eye, band of [`BAND_ROWS`] rows) per chunk, and
+//!    a prefix sum lays out one index list per band in triangle order. Fixed chunks keep
+//!    the order independent of the thread count.
+//! 3. **Fragments** (parallel over bands of both eyes): each record of a band is walked in
+//!    blocks of 8 pixel columns ([`simd`], the scalar reference in [`scalar`]); edge
+//!    functions and `q = 1/w` are evaluated at pixel centres `(x + 0.5, y + 0.5)` and
+//!    depth-tested (larger `q` is nearer).
+//!
+//! # Agreeing with the tracer instead of a fill convention
+//! A screen-space raster decides a pixel whose centre lies within ~1e-3 px of an edge by
+//! rounding, while the tracer decides it with its own f32 ray, which itself deviates from
+//! the exact pixel centre by up to a few 1e-4 px. No fill rule (top-left or otherwise) can
+//! make those decisions agree. So every test here has an **error band**, computed per
+//! triangle from the magnitudes involved ([`Record::band`], [`Record::q_err`]):
+//!
+//! * a pixel is *inside* when every edge function exceeds its band, *outside* when one is
+//!   below minus its band, and *uncertain* otherwise;
+//! * a depth test is decided by `q` when the two values differ by more than their error
+//!   bounds, and is a *near tie* otherwise;
+//! * fragments of alpha-masked triangles ([`AlphaTest`]) need their barycentrics.
+//!
+//! Uncertain pixels, near ties and masked fragments (rare: a ~1e-3 px band along edges,
+//! coplanar surfaces, foliage) take the **exact path**: the tracer's own watertight test
+//! ([`crate::bvh::intersect_triangle`]) on the tracer's own pixel ray, and, for a tie, the
+//! smaller `t` with the smaller primitive id on equal `t` (the tracer's closest hit; which of
+//! two triangles at exactly equal `t` a BVH returns depends on its traversal order, so those
+//! pixels are the one place the two may differ). The fast path never decides a case it
+//! could get wrong, so raster and traced visibility agree on every pixel that is not an
+//! exact depth tie; `tests/raster.rs` checks this on every scene.
+//!
+//! # Determinism and the scalar reference
+//! Both bodies evaluate the same f32 expressions in the same order (`a * b + c`, two
+//! roundings, see [`crate::simd`]) and send the same pixels down the same exact path, so
+//! their buffers are equal bit for bit; a band is processed by one thread in bin order, and
+//! near ties are decided by `t` and id, so results do not depend on the thread count.
+//!
+//! # Buffers
+//! The [`Rasterizer`] keeps its records and bins between calls and grows them only when a
+//! frame needs more than any before (a second frame of the same size allocates nothing).
+
+mod scalar;
+mod simd;
+
+use core::ops::Range;
+
+use rayon::prelude::*;
+
+use crate::bvh::{PreparedRay, Ray, TriHit, TriVerts, intersect_triangle};
+use crate::camera::CameraModel;
+use crate::frame::{Extent, FrameError, PlaneBuf, same_extent};
+
+/// Rows per band: the unit of binning and of parallel work.
+pub const BAND_ROWS: usize = 8;
+/// Triangles per setup chunk (fixed, so that bin order does not depend on the thread count).
+const CHUNK: usize = 4096;
+/// The id stored for pixels that see no triangle.
+pub const NO_PRIM: u32 = u32::MAX;
+/// Unit roundoff of f32.
+const U: f32 = f32::EPSILON * 0.5;
+
+/// Which triangles have cut-out masks, and whether a hit on one is opaque. Masked triangles
+/// are tested per fragment with the hit's barycentrics, as the tracer tests its hits.
+pub trait AlphaTest: Sync {
+    /// Whether triangle `prim` has a mask (only those pay for the per-fragment test).
+    fn has_mask(&self, prim: u32) -> bool;
+    /// Whether the hit at barycentrics `(u, v)` (the weights of vertices 1 and 2) is kept.
+    fn opaque(&self, prim: u32, u: f32, v: f32) -> bool;
+}
+
+/// No cut-outs: every triangle is opaque.
+pub struct NoMasks;
+
+impl AlphaTest for NoMasks {
+    #[inline(always)]
+    fn has_mask(&self, _prim: u32) -> bool {
+        false
+    }
+    #[inline(always)]
+    fn opaque(&self, _prim: u32, _u: f32, _v: f32) -> bool {
+        true
+    }
+}
+
+/// One eye's visibility: the triangle seen at each pixel centre ([`NO_PRIM`] for none) and
+/// the depth key used to find it (`q = 1/view depth`, and its error bound).
+#[derive(Clone, Debug, PartialEq)]
+pub struct VisibilityBuffer {
+    pub prim: PlaneBuf<u32>,
+    pub q: PlaneBuf<f32>,
+    pub q_err: PlaneBuf<f32>,
+}
+
+impl VisibilityBuffer {
+    pub fn new(extent: Extent) -> Self {
+        Self { prim: PlaneBuf::new(extent, NO_PRIM), q: PlaneBuf::new(extent, 0.0), q_err: PlaneBuf::new(extent, 0.0) }
+    }
+
+    pub fn extent(&self) -> Extent {
+        self.prim.extent()
+    }
+}
+
+/// Which fragment loop runs (the SIMD body or its scalar reference).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Body {
+    #[default]
+    Simd,
+    Scalar,
+}
+
+/// What one call did (summed over both eyes).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RasterStats {
+    /// Triangles given.
+    pub triangles: u64,
+    /// Records with a non-empty pixel range in at least one eye.
+    pub visible: u64,
+    /// Triangles that crossed the near plane and were clipped.
+    pub clipped: u64,
+    /// (record, band) pairs walked.
+    pub band_records: u64,
+    /// Fragments decided on the exact path (uncertain coverage, near ties, masks).
+    pub exact: u64,
+}
+
+impl core::ops::Add for RasterStats {
+    type Output = Self;
+    fn add(self, o: Self) -> Self {
+        Self {
+            triangles: self.triangles + o.triangles,
+            visible: self.visible + o.visible,
+            clipped: self.clipped + o.clipped,
+            band_records: self.band_records + o.band_records,
+            exact: self.exact + o.exact,
+        }
+    }
+}
+
+/// The triangles a call rasterises: `main` (ids `0..main.len()`) and `extra` (ids following
+/// them), so a caller can add a few per-frame triangles (moving lights) without copying.
+#[derive(Clone, Copy, Debug)]
+pub struct Triangles<'a> {
+    pub main: &'a [TriVerts],
+    pub extra: &'a [TriVerts],
+}
+
+impl Triangles<'_> {
+    pub fn len(&self) -> usize {
+        self.main.len() + self.extra.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    #[inline(always)]
+    pub fn get(&self, prim: u32) -> &TriVerts {
+        let i = prim as usize;
+        if i < self.main.len() { &self.main[i] } else { &self.extra[i - self.main.len()] }
+    }
+}
+
+/// One eye's view of a record: edge `k` as a line equation in pixel coordinates,
+/// `E_k(x, y) = a[k]·x + b[k]·y + c[k]`, normalised so that `E_k` is the signed distance in
+/// pixels and positive inside; the depth plane `q(x, y) = qa·x + qb·y + qc` with an error
+/// bound `q_err` over the screen; and the pixel columns to visit.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct EyeEdges {
+    pub a: [f32; 4],
+    pub b: [f32; 4],
+    pub c: [f32; 4],
+    pub qa: f32,
+    pub qb: f32,
+    pub qc: f32,
+    pub q_err: f32,
+    /// Columns `cols.0..=cols.1` (empty when the first exceeds the second).
+    pub cols: (i32, i32),
+}
+
+/// A triangle (or the quad left of it after near clipping) projected for both eyes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Record {
+    pub eyes: [EyeEdges; 2],
+    /// Pixel rows `rows.0..=rows.1` (shared: the eyes differ only in x).
+    pub rows: (i32, i32),
+    /// 3 for a triangle, 4 for a clipped quad (a triangle's 4th edge always passes).
+    pub n: u32,
+    pub prim: u32,
+    /// Half-width of every edge's uncertainty band, in pixels.
+    pub band: f32,
+    pub masked: bool,
+    /// The orientation is not certain (a sliver thinner than its vertices' error): no pixel
+    /// is certainly inside, and a pixel is certainly outside only when it is so for both
+    /// orientations (one edge below minus the band and another above it).
+    pub flat: bool,
+}
+
+impl Record {
+    pub(crate) const CULLED: Record = Record {
+        eyes: [EyeEdges { a: [0.0; 4], b: [0.0; 4], c: [0.0; 4], qa: 0.0, qb: 0.0, qc: 0.0, q_err: 0.0, cols: (1, 0) };
+            2],
+        rows: (1, 0),
+        n: 0,
+        prim: NO_PRIM,
+        band: 0.0,
+        masked: false,
+        flat: false,
+    };
+
+    #[inline(always)]
+    pub(crate) fn visible_in(&self, eye: usize) -> bool {
+        self.rows.0 <= self.rows.1 && self.eyes[eye].cols.0 <= self.eyes[eye].cols.1
+    }
+}
+
+/// What the exact path needs to know about one eye.
+pub(crate) struct EyeView<'a, M: AlphaTest> {
+    pub camera: &'a CameraModel,
+    pub tris: Triangles<'a>,
+    pub mask: &'a M,
+}
+
+impl<M: AlphaTest> EyeView<'_, M> {
+    /// The tracer's hit of its pixel-centre ray `(x, y)` on `prim`, if any (and opaque).
+    #[inline(never)]
+    pub(crate) fn exact_hit(&self, prim: u32, x: usize, y: usize) -> Option<TriHit> {
+        let cam = self.camera;
+        let d = cam.ray(x as f32 + 0.5, y as f32 + 0.5);
+        let ray = Ray::new(cam.centre.into(), d.into());
+        let r = PreparedRay::new(&ray)?;
+        let hit = intersect_triangle(&r, self.tris.get(prim), f32::INFINITY)?;
+        if self.mask.has_mask(prim) {
+            let (u, v) = hit.uv();
+            if !self.mask.opaque(prim, u, v) {
+                return None;
+            }
+        }
+        Some(hit)
+    }
+
+    /// The exact path for one fragment of `prim` at `(x, y)` against the stored
+    /// `(prim, q, q_err)`: the tracer's closest hit wins (equal `t`: the smaller id).
+    /// Returns whether the pixel changed.
+    #[inline(never)]
+    pub(crate) fn resolve_exact(&self, prim: u32, x: usize, y: usize, stored: (&mut u32, &mut f32, &mut f32)) -> bool {
+        let (sp, sq, se) = stored;
+        let Some(new) = self.exact_hit(prim, x, y) else { return false };
+        let keep_old = if *sp == NO_PRIM {
+            false
+        } else {
+            match self.exact_hit(*sp, x, y) {
+                None => false,
+                Some(old) => old.t < new.t || (old.t == new.t && *sp < prim),
+            }
+        };
+        if keep_old {
+            return false;
+        }
+        *sp = prim;
+        *sq = 1.0 / new.t;
+        *se = 4.0 * U * *sq;
+        true
+    }
+}
+
+/// Rasterises triangles into the visibility buffers of both eyes; keeps its records and bins
+/// between calls (see the module notes).
+#[derive(Clone, Debug, Default)]
+pub struct Rasterizer {
+    records: Vec<Record>,
+    /// `counts[(chunk · 2 + eye) · bands + band]`, then (after the prefix sum) the write
+    /// cursor of that chunk in that band.
+    counts: Vec<u32>,
+    /// `bin_start[eye · (bands + 1) + band]`: where each band's list starts in `bins`.
+    bin_start: Vec<u32>,
+    bins: Vec<u32>,
+}
+
+/// The per-camera numbers setup needs, in f32 (camera-relative transform).
+#[derive(Clone, Copy, Debug)]
+struct Projection {
+    centre: [f32; 3],
+    /// Rows x, y, w of the view-projection, without translation.
+    rx: [f32; 3],
+    ry: [f32; 3],
+    rw: [f32; 3],
+    /// The right eye's clip `(x, y, w)` minus the left eye's, for any point: `R·(c_L − c_R)`.
+    right_offset: [f64; 3],
+    hw: f32,
+    hh: f32,
+    /// Largest magnitude in the rows (scales the transform's rounding error).
+    row_max: f32,
+    /// How far (pixels) the tracer's f32 pixel rays may stray from exact pixel centres.
+    ray_slack: f32,
+    /// The inverse of the 3×3 matrix with rows `rx`, `ry`, `rw` (clip = M·d), for the depth
+    /// planes, and the left centre minus the right one.
+    m_inv: [[f64; 3]; 3],
+    centre_offset: [f64; 3],
+    width: i32,
+    height: i32,
+}
+
+impl Projection {
+    /// Refuses cameras that are not a parallel rig: equal rotation and projection (the 3×3
+    /// parts of the x, y and w rows bit for bit), centres offset along the camera's x axis
+    /// (what `StereoRig` makes; the y and w offsets of its f32 centres are rounding noise).
+    fn new(left: &CameraModel, right: &CameraModel) -> Result<Self, FrameError> {
+        let (l, r) = (&left.rows, &right.rows);
+        let same = |i: usize| l[i][..3] == r[i][..3];
+        let not_a_rig = FrameError::InvalidParameter(
+            "the two cameras are not a parallel stereo pair (same rotation and projection, offset along x)",
+        );
+        if !(same(0) && same(1) && same(3)) {
+            return Err(not_a_rig);
+        }
+        let c = left.centre;
+        // Clip coordinates are R·(X − centre): the right eye's x is the left eye's plus
+        // R_x·(c_L − c_R), the same for every point; its y and w must not move.
+        let offset = |row: &[f32; 4]| {
+            (0..3).map(|k| f64::from(row[k]) * (f64::from(c[k]) - f64::from(right.centre[k]))).sum::<f64>()
+        };
+        // In a rig made in f64 and rounded to f32 centres, the y and w offsets are rounding
+        // noise (~1e-6 m), but they are applied, not assumed zero: near the eye they matter.
+        let (dx, dy, dw) = (offset(&l[0]), offset(&l[1]), offset(&l[3]));
+        if !(dy.abs() <= 1e-3 * dx.abs() && dw.abs() <= 1e-3 * dx.abs()) {
+            return Err(not_a_rig);
+        }
+        let right_offset = [dx, dy, dw];
+        let slack = |cam: &CameraModel| {
+            let n = |v: [f32; 3]| v.iter().map(|x| x.abs()).sum::<f32>();
+            let (w, h) = (cam.extent.width() as f32, cam.extent.height() as f32);
+            let pixel = n(cam.ray_dx).min(n(cam.ray_dy)).max(f32::MIN_POSITIVE);
+            4.0 * U * (n(cam.ray_origin_corner) + w * n(cam.ray_dx) + h * n(cam.ray_dy)) / pixel
+        };
+        let row_max = [0usize, 1, 3].iter().flat_map(|&i| l[i][..3].iter()).fold(0.0f32, |m, v| m.max(v.abs()));
+        let m = glam::DMat3::from_cols_array(
+            &[0usize, 1, 3]
+                .map(|i| l[i][..3].iter().map(|&v| f64::from(v)).collect::<Vec<_>>())
+                .concat()
+                .try_into()
+                .expect("9"),
+        )
+        .transpose();
+        let inv = m.inverse();
+        if !inv.is_finite() {
+            return Err(FrameError::SingularCamera);
+        }
+        let m_inv = [inv.row(0).to_array(), inv.row(1).to_array(), inv.row(2).to_array()];
+        let centre_offset = [0, 1, 2].map(|k| f64::from(c[k]) - f64::from(right.centre[k]));
+        let (hw, hh) = left.half_extent();
+        Ok(Self {
+            centre: c,
+            rx: [l[0][0], l[0][1], l[0][2]],
+            ry: [l[1][0], l[1][1], l[1][2]],
+            rw: [l[3][0], l[3][1], l[3][2]],
+            right_offset,
+            hw,
+            hh,
+            row_max,
+            ray_slack: slack(left).max(slack(right)),
+            m_inv,
+            centre_offset,
+            width: left.extent.width() as i32,
+            height: left.extent.height() as i32,
+        })
+    }
+}
+
+impl Rasterizer {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Fills `out[0]` (left eye, `cameras[0]`) and `out[1]` (right eye) with the triangle seen
+    /// at each pixel centre. `near` is the smallest view depth rasterised (the tracer sees
+    /// from depth 0; keep it far below the scene's scale). The cameras must be a parallel
+    /// stereo pair of one extent, and each buffer of that extent.
+    pub fn rasterize<M: AlphaTest>(
+        &mut self,
+        tris: Triangles<'_>,
+        cameras: [&CameraModel; 2],
+        mask: &M,
+        near: f32,
+        out: [&mut VisibilityBuffer; 2],
+        body: Body,
+    ) -> Result<RasterStats, FrameError> {
+        let extent = cameras[0].extent;
+        same_extent("right camera", extent, cameras[1].extent)?;
+        for buf in &out {
+            same_extent("visibility buffer", extent, buf.extent())?;
+        }
+        if !(near > 0.0 && near.is_finite()) {
+            return Err(FrameError::InvalidParameter("near plane must be finite and > 0"));
+        }
+        if tris.len() >= NO_PRIM as usize {
+            return Err(FrameError::InvalidParameter("too many triangles for 32-bit ids"));
+        }
+        let proj = Projection::new(cameras[0], cameras[1])?;
+        let mut stats = self.setup(tris, &proj, mask, near);
+        self.bin(extent);
+        stats = stats + self.fragments(tris, cameras, mask, out, body);
+        stats.triangles = tris.len() as u64;
+        Ok(stats)
+    }
+
+    fn bands(extent: Extent) -> usize {
+        extent.height().div_ceil(BAND_ROWS)
+    }
+
+    /// Step 1: one record per triangle, and per-chunk band counts.
+    fn setup<M: AlphaTest>(&mut self, tris: Triangles<'_>, proj: &Projection, mask: &M, near: f32) -> RasterStats {
+        let n = tris.len();
+        self.records.resize(n, Record::CULLED);
+        let bands = (proj.height as usize).div_ceil(BAND_ROWS);
+        let chunks = n.div_ceil(CHUNK);
+        self.counts.clear();
+        self.counts.resize(chunks * 2 * bands, 0);
+        self.records
+            .par_chunks_mut(CHUNK)
+            .zip(self.counts.par_chunks_mut(2 * bands))
+            .enumerate()
+            .map(|(chunk, (records, counts))| {
+                let mut stats = RasterStats::default();
+                for (i, rec) in records.iter_mut().enumerate() {
+                    let prim = (chunk * CHUNK + i) as u32;
+                    let (record, clipped) = setup_triangle(tris.get(prim), prim, proj, near);
+                    *rec = record;
+                    rec.masked = rec.n != 0 && mask.has_mask(prim);
+                    stats.clipped += u64::from(clipped);
+                    if rec.visible_in(0) || rec.visible_in(1) {
+                        stats.visible += 1;
+                    }
+                    for eye in 0..2 {
+                        if rec.visible_in(eye) {
+                            for band in band_range(rec.rows) {
+                                counts[eye * bands + band] += 1;
+                            }
+                        }
+                    }
+                }
+                stats
+            })
+            .reduce(RasterStats::default, |a, b| a + b)
+    }
+
+    /// Step 2: prefix sums over (eye, band, chunk) and the index lists.
+    fn bin(&mut self, extent: Extent) {
+        let bands = Self::bands(extent);
+        let chunks = self.records.len().div_ceil(CHUNK);
+        self.bin_start.clear();
+        self.bin_start.resize(2 * (bands + 1), 0);
+        let mut total = 0u32;
+        for eye in 0..2 {
+            for band in 0..bands {
+                self.bin_start[eye * (bands + 1) + band] = total;
+                for chunk in 0..chunks {
+                    let c = &mut self.counts[(chunk * 2 + eye) * bands + band];
+                    let count = *c;
+                    *c = total;
+                    total += count;
+                }
+            }
+            self.bin_start[eye * (bands + 1) + bands] = total;
+        }
+        self.bins.resize(total as usize, 0);
+        // Each chunk writes its records at its own cursors: disjoint ranges of `bins`.
+        let bins = SharedSlice::new(&mut self.bins);
+        self.records.par_chunks(CHUNK).zip(self.counts.par_chunks_mut(2 * bands)).enumerate().for_each(
+            |(chunk, (records, cursors))| {
+                for (i, rec) in records.iter().enumerate() {
+                    for eye in 0..2 {
+                        if rec.visible_in(eye) {
+                            for band in band_range(rec.rows) {
+                                let at = &mut cursors[eye * bands + band];
+                                // SAFETY: the prefix sum gave this (chunk, eye, band) its own
+                                // range of `bins`; the cursor stays inside it.
+                                unsafe { bins.write(*at as usize, (chunk * CHUNK + i) as u32) };
+                                *at += 1;
+                            }
+                        }
+                    }
+                }
+            },
+        );
+    }
+
+    /// Step 3: every band of both eyes.
+    fn fragments<M: AlphaTest>(
+        &self,
+        tris: Triangles<'_>,
+        cameras: [&CameraModel; 2],
+        mask: &M,
+        out: [&mut VisibilityBuffer; 2],
+        body: Body,
+    ) -> RasterStats {
+        let extent = cameras[0].extent;
+        let (w, bands) = (extent.width(), Self::bands(extent));
+        let [left, right] = out;
+        let views = [0, 1].map(|eye| EyeView { camera: cameras[eye], tris, mask });
+        let run = |eye: usize, band: usize, ((prim, q), q_err): ((&mut [u32], &mut [f32]), &mut [f32])| {
+            prim.fill(NO_PRIM);
+            q.fill(0.0);
+            q_err.fill(0.0);
+            let list = &self.bins[self.bin_start[eye * (bands + 1) + band] as usize
+                ..self.bin_start[eye * (bands + 1) + band + 1] as usize];
+            let rows = band * BAND_ROWS..(band * BAND_ROWS + BAND_ROWS).min(extent.height());
+            let mut band_out = BandOut { prim, q, q_err, width: w, rows };
+            let mut stats = RasterStats { band_records: list.len() as u64, ..RasterStats::default() };
+            for &r in list {
+                let rec = &self.records[r as usize];
+                stats.exact += match body {
+                    Body::Simd => simd::record(rec, eye, &views[eye], &mut band_out),
+                    Body::Scalar => scalar::record(rec, eye, &views[eye], &mut band_out),
+                };
+            }
+            stats
+        };
+        let l = band_rows(left, w).enumerate().map(|(band, bufs)| run(0, band, bufs));
+        let r = band_rows(right, w).enumerate().map(|(band, bufs)| run(1, band, bufs));
+        l.chain(r).reduce(RasterStats::default, |a, b| a + b)
+    }
+}
+
+/// The three planes of `v` cut into bands of [`BAND_ROWS`] rows of `width` pixels.
+fn band_rows(
+    v: &mut VisibilityBuffer,
+    width: usize,
+) -> impl IndexedParallelIterator<Item = ((&mut [u32], &mut [f32]), &mut [f32])> {
+    let VisibilityBuffer { prim, q, q_err } = v;
+    let n = BAND_ROWS * width;
+    prim.as_mut_slice()
+        .par_chunks_mut(n)
+        .zip(q.as_mut_slice().par_chunks_mut(n))
+        .zip(q_err.as_mut_slice().par_chunks_mut(n))
+}
+
+/// One band's rows of the three output planes (row `y` starts at `(y − rows.start)·width`).
+pub(crate) struct BandOut<'a> {
+    pub prim: &'a mut [u32],
+    pub q: &'a mut [f32],
+    pub q_err: &'a mut [f32],
+    pub width: usize,
+    pub rows: Range<usize>,
+}
+
+fn band_range(rows: (i32, i32)) -> Range<usize> {
+    rows.0 as usize / BAND_ROWS..rows.1 as usize / BAND_ROWS + 1
+}
+
+/// Projects one triangle for both eyes (see the module notes). Returns the record (culled
+/// when invisible) and whether the near plane clipped it.
+///
+/// The common case runs in f32: camera-relative clip coordinates, whose rounding error is
+/// estimated per vertex (a few ulps of the coordinates' sizes, through the division by `w`
+/// and the viewport scale). Triangles for which that estimate exceeds [`F32_VERTEX_ERROR`]
+/// px, and every triangle the near plane clips (its new vertices can land far off screen),
+/// are projected again in f64, where the vertex error is negligible. Either way the edges
+/// are stored as normalised line equations, so huge off-screen coordinates never enter the
+/// per-pixel arithmetic.
+fn setup_triangle(t: &TriVerts, prim: u32, p: &Projection, near: f32) -> (Record, bool) {
+    let d: [[f32; 3]; 3] =
+        core::array::from_fn(|k| [t[3 * k] - p.centre[0], t[3 * k + 1] - p.centre[1], t[3 * k + 2] - p.centre[2]]);
+    let dot = |r: &[f32; 3], v: &[f32; 3]| r[0] * v[0] + r[1] * v[1] + r[2] * v[2];
+    let w = d.map(|v| dot(&p.rw, &v));
+    if w.iter().all(|&w| !(w > near)) {
+        return (Record::CULLED, false);
+    }
+    let clipped = !w.iter().all(|&w| w > near);
+    if !clipped {
+        let off = p.right_offset.map(|o| o as f32);
+        let mut verts = [ScreenVertex::default(); 4];
+        let mut vertex_err = 0.0f32;
+        let scale = p.hw.max(p.hh);
+        for k in 0..3 {
+            let clip_l = [dot(&p.rx, &d[k]), dot(&p.ry, &d[k]), w[k]];
+            let clip_r = [clip_l[0] + off[0], clip_l[1] + off[1], clip_l[2] + off[2]];
+            let mut largest = 0.0f32;
+            for (eye, c) in [clip_l, clip_r].iter().enumerate() {
+                let inv_w = 1.0 / c[2];
+                let (nx, ny) = (c[0] * inv_w, c[1] * inv_w);
+                verts[k].x[eye] = f64::from(nx * p.hw + p.hw);
+                verts[k].y[eye] = f64::from(-ny * p.hh + p.hh);
+                verts[k].q[eye] = f64::from(inv_w);
+                largest = largest.max(nx.abs().max(ny.abs()) * inv_w.max(1.0 / w[k]));
+            }
+            // Rounding of the camera-relative transform (a few ulps of the coordinates'
+            // sizes), through the division by w and the viewport scale.
+            let size = d[k][0].abs() + d[k][1].abs() + d[k][2].abs();
+            let rel = 4.0 * U * p.row_max * size / w[k];
+            vertex_err = vertex_err.max(scale * (rel * (1.0 + largest * w[k]) + 4.0 * U));
+        }
+        if vertex_err <= F32_VERTEX_ERROR {
+            return (finish_record(&verts[..3], t, prim, p, vertex_err), false);
+        }
+    }
+    // f64: the same transform, and near clipping (Sutherland–Hodgman against w = near).
+    let dd = d.map(|v| v.map(f64::from));
+    let dot64 = |r: &[f32; 3], v: &[f64; 3]| f64::from(r[0]) * v[0] + f64::from(r[1]) * v[1] + f64::from(r[2]) * v[2];
+    let clip: [[f64; 3]; 3] = dd.map(|v| [dot64(&p.rx, &v), dot64(&p.ry, &v), dot64(&p.rw, &v)]);
+    let near = f64::from(near);
+    let inside = clip.map(|c| c[2] > near);
+    let mut poly = [[0.0f64; 3]; 4];
+    let mut n = 0;
+    for k in 0..3 {
+        let (a, b) = (clip[k], clip[(k + 1) % 3]);
+        if inside[k] {
+            poly[n] = a;
+            n += 1;
+        }
+        if inside[k] != inside[(k + 1) % 3] {
+            let s = (near - a[2]) / (b[2] - a[2]);
+            poly[n] = [a[0] + (b[0] - a[0]) * s, a[1] + (b[1] - a[1]) * s, near];
+            n += 1;
+        }
+    }
+    let mut verts = [ScreenVertex::default(); 4];
+    let (hw, hh) = (f64::from(p.hw), f64::from(p.hh));
+    for (v, c) in verts.iter_mut().zip(&poly[..n]) {
+        for eye in 0..2 {
+            let o = if eye == 0 { [0.0; 3] } else { p.right_offset };
+            let inv_w = 1.0 / (c[2] + o[2]);
+            v.x[eye] = (c[0] + o[0]) * inv_w * hw + hw;
+            v.y[eye] = -(c[1] + o[1]) * inv_w * hh + hh;
+            v.q[eye] = inv_w;
+        }
+    }
+    (finish_record(&verts[..n], t, prim, p, 0.0), clipped)
+}
+
+/// Largest per-vertex projection error (pixels) the f32 setup may have; beyond it the
+/// triangle is set up again in f64 (a few hundred of atrium's 171k triangles at 1280×720).
+const F32_VERTEX_ERROR: f32 = 1e-3;
+
+/// A projected vertex: screen x, y and `q = 1/w` per eye.
+#[derive(Clone, Copy, Debug, Default)]
+struct ScreenVertex {
+    x: [f64; 2],
+    y: [f64; 2],
+    q: [f64; 2],
+}
+
+/// The record of a projected polygon (3 or 4 vertices) whose vertices are exact to
+/// `vertex_err` pixels (0 for the f64 setup): line equations, depth planes, bands and pixel
+/// ranges (f64, stored as f32; see [`EyeEdges`]).
+fn finish_record(v: &[ScreenVertex], t: &TriVerts, prim: u32, p: &Projection, vertex_err: f32) -> Record {
+    let n = v.len();
+    let mut rec = Record { n: n as u32, prim, ..Record::CULLED };
+    // The band: both vertices of an edge, the tracer's ray slack, the f32 evaluation of a
+    // line equation over the screen (a few ulps of the screen size), with a factor 2 margin.
+    let screen = f64::from(p.width.max(p.height));
+    let band = 2.0 * (2.0 * f64::from(vertex_err) + f64::from(p.ray_slack) + 16.0 * f64::from(U) * screen) + 1e-5;
+    rec.band = band as f32;
+    let fold = |f: &dyn Fn(&ScreenVertex) -> f64| {
+        v.iter().map(f).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(x), b.max(x)))
+    };
+    let range = |(lo, hi): (f64, f64), size: i32| -> (i32, i32) {
+        let a = (lo - 0.5 - band).ceil().max(0.0);
+        let b = (hi - 0.5 + band).floor().min(f64::from(size - 1));
+        if !(a <= b) { (1, 0) } else { (a as i32, b as i32) }
+    };
+    let rows = [0, 1].map(|eye| range(fold(&|v| v.y[eye]), p.height));
+    rec.rows = (rows[0].0.min(rows[1].0), rows[0].1.max(rows[1].1));
+    for eye in 0..2 {
+        let e = &mut rec.eyes[eye];
+        e.cols = if rows[eye].0 <= rows[eye].1 { range(fold(&|v| v.x[eye]), p.width) } else { (1, 0) };
+        // Orientation from the f64 area; a sliver whose area the vertex error could flip is flat.
+        let (mut area2, mut perimeter) = (0.0f64, 0.0f64);
+        for k in 0..n {
+            let j = (k + 1) % n;
+            area2 += v[k].x[eye] * v[j].y[eye] - v[j].x[eye] * v[k].y[eye];
+            perimeter += (v[j].x[eye] - v[k].x[eye]).abs() + (v[j].y[eye] - v[k].y[eye]).abs();
+        }
+        if !(area2.is_finite() && perimeter.is_finite()) {
+            return Record::CULLED;
+        }
+        if area2.abs() <= 4.0 * f64::from(vertex_err) * perimeter || area2 == 0.0 {
+            rec.flat = true;
+        }
+        let sign = if area2 < 0.0 { -1.0 } else { 1.0 };
+        for k in 0..4 {
+            if k >= n {
+                (e.a[k], e.b[k], e.c[k]) = (0.0, 0.0, 1e30);
+                continue;
+            }
+            let j = (k + 1) % n;
+            let (a, b) = (sign * (v[k].y[eye] - v[j].y[eye]), sign * (v[j].x[eye] - v[k].x[eye]));
+            let len = (a * a + b * b).sqrt();
+            let (a, b) = if len > 0.0 { (a / len, b / len) } else { (0.0, 0.0) };
+            e.a[k] = a as f32;
+            e.b[k] = b as f32;
+            e.c[k] = (-(a * v[k].x[eye] + b * v[k].y[eye])) as f32;
+        }
+        // The depth plane, from the triangle's plane (see `depth_plane`), not from the
+        // projected vertices: a clipped vertex far off screen makes a fit through them
+        // ill-conditioned even in f64.
+        let (qa, qb, qc, rel) = depth_plane(t, p, eye);
+        (e.qa, e.qb, e.qc) = (qa as f32, qb as f32, qc as f32);
+        // Its error over the screen: the f32 coefficients and their evaluation (a few ulps
+        // of the largest term), and the f64 setup's conditioning.
+        let terms = qa.abs() * f64::from(p.width) + qb.abs() * f64::from(p.height) + qc.abs();
+        let err = 4.0 * (8.0 * f64::from(U) * terms + rel * terms);
+        e.q_err = if err.is_finite() { err.min(f64::from(f32::MAX)) as f32 } else { f32::MAX };
+    }
+    rec
+}
+
+/// The depth plane `q = qa·x + qb·y + qc` (`q = 1/w`) of a triangle's plane in `eye`'s screen
+/// coordinates, and the relative error of its f64 evaluation.
+///
+/// With `d` a point relative to the left eye's centre and clip `(x, y, w) = M·d`, the plane
+/// `N·d = D` gives `(N·M⁻¹)·(x, y, w) = D`, so `q = (g₀·x/w + g₁·y/w + g₂)/D` with `g = N·M⁻¹`:
+/// affine in normalised device coordinates, hence in pixels. The right eye's points are
+/// `d + (c_L − c_R)` in its own frame, which moves only `D`.
+fn depth_plane(t: &TriVerts, p: &Projection, eye: usize) -> (f64, f64, f64, f64) {
+    let d: [[f64; 3]; 3] =
+        core::array::from_fn(|k| core::array::from_fn(|c| f64::from(t[3 * k + c]) - f64::from(p.centre[c])));
+    let (e1, e2) = ([0, 1, 2].map(|c| d[1][c] - d[0][c]), [0, 1, 2].map(|c| d[2][c] - d[0][c]));
+    let n = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
+    let mut d0 = d[0];
+    if eye == 1 {
+        for c in 0..3 {
+            d0[c] += p.centre_offset[c];
+        }
+    }
+    let dot = n[0] * d0[0] + n[1] * d0[1] + n[2] * d0[2];
+    let scale = n.iter().zip(&d0).map(|(a, b)| (a * b).abs()).sum::<f64>();
+    let g: [f64; 3] = core::array::from_fn(|j| (0..3).map(|i| n[i] * p.m_inv[i][j]).sum());
+    let (hw, hh) = (f64::from(p.hw), f64::from(p.hh));
+    // x/w = (sx − hw)/hw, y/w = (hh − sy)/hh.
+    let qa = g[0] / (hw * dot);
+    let qb = -g[1] / (hh * dot);
+    let qc = (g[2] - g[0] + g[1]) / dot;
+    // f64 rounding, amplified where the plane passes near the eye (D small against its terms).
+    let rel = 64.0 * f64::EPSILON * scale / dot.abs();
+    (qa, qb, qc, rel)
+}
+
+/// A slice written at disjoint indices from several threads (the binning pass).
+struct SharedSlice<T> {
+    ptr: *mut T,
+    len: usize,
+}
+
+// SAFETY: writes go to disjoint indices (see `bin`), and T is Send.
+unsafe impl<T: Send> Sync for SharedSlice<T> {}
+
+impl<T> SharedSlice<T> {
+    fn new(s: &mut [T]) -> Self {
+        Self { ptr: s.as_mut_ptr(), len: s.len() }
+    }
+
+    /// # Safety
+    /// No other thread may write index `i` concurrently.
+    unsafe fn write(&self, i: usize, v: T) {
+        assert!(i < self.len, "bin index {i} outside {}", self.len);
+        // SAFETY: in bounds (checked); exclusivity is the caller's contract.
+        unsafe { self.ptr.add(i).write(v) }
+    }
+}

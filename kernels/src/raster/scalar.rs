@@ -1,0 +1,53 @@
+//! The scalar reference of the fragment loop: one pixel at a time, the same f32 expressions
+//! in the same order as [`super::simd`], so both produce the same buffers bit for bit.
+
+use super::{AlphaTest, BandOut, EyeView, Record};
+
+/// Walks `rec` over the rows of `out` in `eye`; returns how many fragments took the exact
+/// path.
+pub(crate) fn record<M: AlphaTest>(rec: &Record, eye: usize, view: &EyeView<'_, M>, out: &mut BandOut<'_>) -> u64 {
+    let e = &rec.eyes[eye];
+    let (c0, c1) = e.cols;
+    let (y0, y1) = (rec.rows.0.max(out.rows.start as i32), rec.rows.1.min(out.rows.end as i32 - 1));
+    if y0 > y1 || c0 > c1 {
+        return 0;
+    }
+    let edges = rec.n as usize;
+    let band = rec.band;
+    let mut exact = 0;
+    for y in y0..=y1 {
+        let py = y as f32 + 0.5;
+        let c_row = [0, 1, 2, 3].map(|k| e.b[k] * py + e.c[k]);
+        let q_row = e.qb * py + e.qc;
+        for x in c0..=c1 {
+            let px = x as f32 + 0.5;
+            let d = [0, 1, 2, 3].map(|k| e.a[k] * px + c_row[k]);
+            let below = (0..edges).any(|k| d[k] < -band);
+            let (inside, outside) = if rec.flat {
+                (false, below && (0..edges).any(|k| d[k] > band))
+            } else {
+                ((0..edges).all(|k| d[k] > band), below)
+            };
+            if outside {
+                continue;
+            }
+            let i = (y as usize - out.rows.start) * out.width + x as usize;
+            let stored = (&mut out.prim[i], &mut out.q[i], &mut out.q_err[i]);
+            if rec.masked || !inside {
+                view.resolve_exact(rec.prim, x as usize, y as usize, stored);
+                exact += 1;
+                continue;
+            }
+            let q = e.qa * px + q_row;
+            let tol = *stored.2 + e.q_err;
+            if q - *stored.1 > tol {
+                (*stored.0, *stored.1, *stored.2) = (rec.prim, q, e.q_err);
+            } else if !(*stored.1 - q > tol) {
+                // A near tie (or an empty pixel a surface this far cannot claim by q).
+                view.resolve_exact(rec.prim, x as usize, y as usize, stored);
+                exact += 1;
+            }
+        }
+    }
+    exact
+}

@@ -1,0 +1,242 @@
+//! The rasterised G-buffer against the traced one, pixel for pixel, on every built-in and
+//! every scene in `../shared/scenes` (SKIP when absent), at 1280×720 and at odd sizes.
+//!
+//! Where both passes see the same triangle the texels (depth, position, normals, material)
+//! must be identical bit for bit. Where they see different triangles the pixel must be
+//! explained: a **depth tie** (the pixel's traced ray hits both triangles at depths within
+//! 1e-5 relative, so which one a closest-hit search returns is a matter of order) or an
+//! **edge** (its centre within 1e-5 px of an edge of one of the two triangles); the test
+//! prints how many of each it found. At least 99.9 % of pixels must agree.
+
+use std::path::Path;
+
+use glam::{DVec3, Vec3};
+use stereotrace::camera::{Eye, StereoRig};
+use stereotrace::kernels::bvh::{PreparedRay, Ray, TriVerts, intersect_triangle};
+use stereotrace::kernels::raster::{Body, NO_PRIM};
+use stereotrace::kernels::{CameraModel, Extent, PlaneBuf};
+use stereotrace::render::lights::FrameLights;
+use stereotrace::render::raster::RasterGBuffers;
+use stereotrace::render::{GBufferBuf, Renderer};
+use stereotrace::scene::{builtin_names, resolve};
+
+#[derive(Default, Debug)]
+struct Tally {
+    pixels: usize,
+    agree: usize,
+    ties: usize,
+    edges: usize,
+    unexplained: Vec<String>,
+    texel_mismatches: Vec<String>,
+}
+
+fn triangle(renderer: &Renderer, lights: &FrameLights, prim: u32) -> TriVerts {
+    let mesh = &renderer.scene().mesh;
+    let v = if (prim as usize) < mesh.len() {
+        mesh.positions[prim as usize]
+    } else {
+        lights.moving_triangles()[prim as usize - mesh.len()].v
+    };
+    [v[0].x, v[0].y, v[0].z, v[1].x, v[1].y, v[1].z, v[2].x, v[2].y, v[2].z]
+}
+
+/// The traced pixel ray's hit depth on `prim`, ignoring cut-outs (a tie is about geometry).
+fn depth_on(
+    renderer: &Renderer,
+    lights: &FrameLights,
+    camera: &CameraModel,
+    prim: u32,
+    x: usize,
+    y: usize,
+) -> Option<f32> {
+    let dir = Vec3::from(camera.ray(x as f32 + 0.5, y as f32 + 0.5));
+    let r = PreparedRay::new(&Ray::new(Vec3::from(camera.centre), dir))?;
+    intersect_triangle(&r, &triangle(renderer, lights, prim), f32::INFINITY).map(|h| h.t)
+}
+
+/// Distance in pixels from the centre of `(x, y)` to the nearest projected edge of `prim`
+/// (f64 projection through the camera's matrix); `inf` if a vertex is behind the eye.
+fn edge_distance(
+    renderer: &Renderer,
+    lights: &FrameLights,
+    camera: &CameraModel,
+    prim: u32,
+    x: usize,
+    y: usize,
+) -> f64 {
+    let t = triangle(renderer, lights, prim);
+    let rows = camera.rows.map(|r| r.map(f64::from));
+    let (hw, hh) = (camera.extent.width() as f64 * 0.5, camera.extent.height() as f64 * 0.5);
+    let mut s = [[0.0f64; 2]; 3];
+    for k in 0..3 {
+        let p = DVec3::new(t[3 * k] as f64, t[3 * k + 1] as f64, t[3 * k + 2] as f64);
+        let dot = |r: &[f64; 4]| r[0] * p.x + r[1] * p.y + r[2] * p.z + r[3];
+        let w = dot(&rows[3]);
+        if !(w > 0.0) {
+            return f64::INFINITY;
+        }
+        s[k] = [dot(&rows[0]) / w * hw + hw, -dot(&rows[1]) / w * hh + hh];
+    }
+    let c = [x as f64 + 0.5, y as f64 + 0.5];
+    (0..3)
+        .map(|k| {
+            let (a, b) = (s[k], s[(k + 1) % 3]);
+            let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+            let len2 = dx * dx + dy * dy;
+            let s = if len2 > 0.0 { (((c[0] - a[0]) * dx + (c[1] - a[1]) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };
+            ((c[0] - a[0] - s * dx).powi(2) + (c[1] - a[1] - s * dy).powi(2)).sqrt()
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+fn texel_bits(g: &GBufferBuf, i: usize) -> [u32; 10] {
+    let f = |p: &PlaneBuf| p.as_slice()[i].to_bits();
+    [
+        f(&g.depth),
+        f(&g.position[0]),
+        f(&g.position[1]),
+        f(&g.position[2]),
+        f(&g.normal[0]),
+        f(&g.normal[1]),
+        f(&g.normal[2]),
+        g.normal_oct.as_slice()[i],
+        g.material.as_slice()[i],
+        0,
+    ]
+}
+
+/// Both passes on frame `frame` of `renderer`'s camera path at `extent`, compared.
+fn compare(renderer: &Renderer, extent: Extent, frame: u32, body: Body) -> Tally {
+    let lights = renderer.frame_lights(frame);
+    let head = renderer.scene().camera.pose_at(frame as f32);
+    let rig = StereoRig::default();
+    let cams = Eye::BOTH.map(|eye| rig.eye_camera(&head, eye, extent).unwrap());
+    let mut raster = RasterGBuffers::new(extent);
+    raster.body = body;
+    let [mut gl, mut gr] = cams.map(GBufferBuf::new);
+    renderer.render_gbuffers_raster(&lights, [&mut gl, &mut gr], &mut raster).unwrap();
+    let mut tally = Tally::default();
+    for (eye, g_raster) in [(0, &gl), (1, &gr)] {
+        let camera = &cams[eye];
+        let mut traced_ids = PlaneBuf::new(extent, NO_PRIM);
+        renderer.trace_visibility(&lights, camera, &mut traced_ids).unwrap();
+        let mut g_traced = GBufferBuf::new(*camera);
+        renderer.render_gbuffer(&lights, &mut g_traced);
+        let raster_ids = raster.visibility()[eye].prim.as_slice();
+        for (i, (&r, &t)) in raster_ids.iter().zip(traced_ids.as_slice()).enumerate() {
+            tally.pixels += 1;
+            let (x, y) = (i % extent.width(), i / extent.width());
+            if r == t {
+                tally.agree += 1;
+                if texel_bits(g_raster, i) != texel_bits(&g_traced, i) && tally.texel_mismatches.len() < 10 {
+                    tally.texel_mismatches.push(format!("eye {eye} ({x}, {y}) prim {r}"));
+                }
+                continue;
+            }
+            let dr = (r != NO_PRIM).then(|| depth_on(renderer, &lights, camera, r, x, y)).flatten();
+            let dt = (t != NO_PRIM).then(|| depth_on(renderer, &lights, camera, t, x, y)).flatten();
+            if let (Some(a), Some(b)) = (dr, dt)
+                && (a - b).abs() <= 1e-5 * a.max(b)
+            {
+                tally.ties += 1;
+                continue;
+            }
+            let edge = [r, t]
+                .into_iter()
+                .filter(|&p| p != NO_PRIM)
+                .map(|p| edge_distance(renderer, &lights, camera, p, x, y))
+                .fold(f64::INFINITY, f64::min);
+            if edge <= 1e-5 {
+                tally.edges += 1;
+            } else if tally.unexplained.len() < 10 {
+                tally.unexplained.push(format!(
+                    "eye {eye} ({x}, {y}): raster {r} (t {dr:?}), traced {t} (t {dt:?}), nearest edge {edge:.2e} px"
+                ));
+            } else {
+                tally.unexplained.push(String::new());
+            }
+        }
+    }
+    tally
+}
+
+fn check(name: &str, renderer: &Renderer, extent: Extent, frame: u32) {
+    let t = compare(renderer, extent, frame, Body::Simd);
+    println!(
+        "{name} {}x{} frame {frame}: {} px, {} agree ({:.4} %), {} depth ties, {} edges, {} unexplained",
+        extent.width(),
+        extent.height(),
+        t.pixels,
+        t.agree,
+        100.0 * t.agree as f64 / t.pixels as f64,
+        t.ties,
+        t.edges,
+        t.unexplained.len()
+    );
+    assert!(t.texel_mismatches.is_empty(), "{name}: same triangle, different texels: {:?}", t.texel_mismatches);
+    assert!(
+        t.unexplained.is_empty(),
+        "{name}: unexplained disagreements: {:?}",
+        &t.unexplained[..t.unexplained.len().min(10)]
+    );
+    assert!(t.agree as f64 >= 0.999 * t.pixels as f64, "{name}: only {} of {} pixels agree", t.agree, t.pixels);
+}
+
+#[test]
+fn raster_and_traced_visibility_agree_on_every_builtin_at_1280x720() {
+    let extent = Extent::new(1280, 720).unwrap();
+    for name in builtin_names() {
+        let renderer = Renderer::new(resolve(name).unwrap()).unwrap();
+        check(name, &renderer, extent, 7);
+    }
+}
+
+#[test]
+fn raster_and_traced_visibility_agree_on_every_shared_scene() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes");
+    if !root.is_dir() {
+        println!("SKIP: ../shared/scenes not found");
+        return;
+    }
+    for name in ["cornell-box", "sponza", "living-room", "classroom", "bunny"] {
+        let renderer = Renderer::new(resolve(root.join(name).to_str().unwrap()).unwrap()).unwrap();
+        check(name, &renderer, Extent::new(1280, 720).unwrap(), 3);
+    }
+}
+
+#[test]
+fn raster_and_traced_visibility_agree_at_odd_sizes() {
+    for name in ["cornell", "living-room", "courtyard"] {
+        let renderer = Renderer::new(resolve(name).unwrap()).unwrap();
+        for (w, h) in [(1, 1), (7, 3), (1281, 721), (33, 200)] {
+            check(name, &renderer, Extent::new(w, h).unwrap(), 11);
+        }
+    }
+}
+
+#[test]
+fn the_scalar_reference_and_the_simd_body_give_the_same_buffers() {
+    let extent = Extent::new(203, 117).unwrap();
+    for name in ["cornell", "atrium", "classroom"] {
+        let renderer = Renderer::new(resolve(name).unwrap()).unwrap();
+        let lights = renderer.frame_lights(5);
+        let head = renderer.scene().camera.pose_at(5.0);
+        let cams = Eye::BOTH.map(|eye| StereoRig::default().eye_camera(&head, eye, extent).unwrap());
+        let run = |body: Body| {
+            let mut raster = RasterGBuffers::new(extent);
+            raster.body = body;
+            let [mut gl, mut gr] = cams.map(GBufferBuf::new);
+            let stats = renderer.render_gbuffers_raster(&lights, [&mut gl, &mut gr], &mut raster).unwrap();
+            (raster.visibility().clone(), stats)
+        };
+        let (simd, s1) = run(Body::Simd);
+        let (scalar, s2) = run(Body::Scalar);
+        assert_eq!(s1, s2, "{name}: statistics");
+        for eye in 0..2 {
+            assert_eq!(simd[eye].prim.as_slice(), scalar[eye].prim.as_slice(), "{name}: ids");
+            let bits = |p: &PlaneBuf| p.as_slice().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&simd[eye].q), bits(&scalar[eye].q), "{name}: depth keys");
+            assert_eq!(bits(&simd[eye].q_err), bits(&scalar[eye].q_err), "{name}: error bounds");
+        }
+    }
+}
