@@ -231,7 +231,11 @@ fn the_scalar_reference_and_the_simd_body_give_the_same_buffers() {
         };
         let (simd, s1) = run(Body::Simd);
         let (scalar, s2) = run(Body::Scalar);
-        assert_eq!(s1, s2, "{name}: statistics");
+        let counts = |s: &stereotrace::render::raster::RasterPassStats| {
+            let r = &s.raster;
+            (r.triangles, r.visible, r.clipped, r.band_records, r.exact)
+        };
+        assert_eq!(counts(&s1), counts(&s2), "{name}: statistics");
         for eye in 0..2 {
             assert_eq!(simd[eye].prim.as_slice(), scalar[eye].prim.as_slice(), "{name}: ids");
             let bits = |p: &PlaneBuf| p.as_slice().iter().map(|v| v.to_bits()).collect::<Vec<_>>();

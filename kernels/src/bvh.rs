@@ -304,6 +304,43 @@ impl PreparedRay {
         })
     }
 
+    /// The fields [`intersect_triangle`] reads (axis permutation, shear, origin, `t` range),
+    /// computed as [`PreparedRay::new`] computes them, without the node test's reciprocals:
+    /// for callers that test single triangles (the rasteriser's exact path). `None` for an
+    /// invalid ray.
+    #[inline]
+    pub fn for_triangles(ray: &Ray) -> Option<Self> {
+        if !ray.is_valid() {
+            return None;
+        }
+        let o = ray.origin.to_array();
+        let d = ray.dir.to_array();
+        let a = d.map(f32::abs);
+        let kz = if a[0] >= a[1] && a[0] >= a[2] {
+            0
+        } else if a[1] >= a[2] {
+            1
+        } else {
+            2
+        };
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        if d[kz] < 0.0 {
+            core::mem::swap(&mut kx, &mut ky);
+        }
+        Some(Self {
+            origin: Vec3A::from_array(o),
+            inv: Vec3A::ZERO,
+            pad: Vec3A::ZERO,
+            oct_inv: 0,
+            k: [kx, ky, kz],
+            shear: [d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]],
+            origin_k: [o[kx], o[ky], o[kz]],
+            tmin: ray.tmin,
+            tmax: ray.tmax,
+        })
+    }
+
     /// Dominant-axis class used to group packet lanes: `oct_inv | kz << 3` (0..24). Lanes
     /// of one class share the node-test plane choice and the triangle-test permutation.
     #[inline]
@@ -347,6 +384,27 @@ pub(crate) fn edge_f64(ax: f32, ay: f32, bx: f32, by: f32) -> f32 {
 /// shared edge are exact negatives, so a ray through an edge hits at least one triangle.
 #[inline(always)]
 pub fn intersect_triangle(r: &PreparedRay, tri: &TriVerts, tmax: f32) -> Option<TriHit> {
+    let (hit, t_scaled, x, y, z) = watertight(r, tri)?;
+    // NaN fails both comparisons.
+    if !(hit.t >= r.tmin && hit.t < tmax) {
+        return None;
+    }
+    let bound = t_rounding_bound(x, y, z, hit.det);
+    if t_scaled.abs() > bound { Some(hit) } else { None }
+}
+
+/// The watertight test alone: the hit of the ray's *line* with the triangle (any `t`, no
+/// rounding check), for a caller that already knows the ray sees this triangle and wants
+/// its `t` and barycentrics exactly as [`intersect_triangle`] computes them (the
+/// rasterised G-buffer's resolve).
+#[inline(always)]
+pub fn intersect_triangle_line(r: &PreparedRay, tri: &TriVerts) -> Option<TriHit> {
+    watertight(r, tri).map(|(hit, ..)| hit)
+}
+
+/// The shared body: the hit, `t·det`, and the sheared coordinates the rounding bound needs.
+#[inline(always)]
+fn watertight(r: &PreparedRay, tri: &TriVerts) -> Option<(TriHit, f32, [f32; 3], [f32; 3], [f32; 3])> {
     let [kx, ky, kz] = r.k;
     let [ox, oy, oz] = r.origin_k;
     let [sx, sy, sz] = r.shear;
@@ -378,12 +436,7 @@ pub fn intersect_triangle(r: &PreparedRay, tri: &TriVerts, tmax: f32) -> Option<
     let (z0, z1, z2) = (sz * a_z, sz * b_z, sz * c_z);
     let t_scaled = u * z0 + v * z1 + w * z2;
     let t = t_scaled / det;
-    // NaN fails both comparisons.
-    if !(t >= r.tmin && t < tmax) {
-        return None;
-    }
-    let bound = t_rounding_bound([ax, bx, cx], [ay, by, cy], [z0, z1, z2], det);
-    if t_scaled.abs() > bound { Some(TriHit { t, e: [u, v, w], det }) } else { None }
+    Some((TriHit { t, e: [u, v, w], det }, t_scaled, [ax, bx, cx], [ay, by, cy], [z0, z1, z2]))
 }
 
 /// `γ(n) = n·u / (1 − n·u)` with the unit roundoff `u = 2⁻²⁴`: the relative error bound of a

@@ -278,6 +278,39 @@ pub fn encode_normal(n: [f32; 3]) -> u32 {
     q(px) | (q(py) << 16)
 }
 
+/// [`encode_normal`] of eight normals (lane `i` of each component), bit for bit: the
+/// rasterised G-buffer's resolve encodes eight pixels at once. `f32::round` (half away from
+/// zero) lowers to a long sequence; here it is `trunc` plus one more unit where the exact
+/// remainder `|v − trunc(v)|` is at least ½, which is the same function.
+pub fn encode_normals(n: [F32s; 3]) -> [u32; LANES] {
+    let l1 = n[0].abs() + n[1].abs() + n[2].abs();
+    let valid = l1.simd_lt(F32s::splat(f32::INFINITY)) & l1.simd_ne(F32s::ZERO);
+    let (mut px, mut py) = (n[0] / l1, n[1] / l1);
+    let lower = n[2].simd_lt(F32s::ZERO);
+    if lower.any() {
+        let sign = |v: F32s| v.simd_ge(F32s::ZERO).select(F32s::ONE, -F32s::ONE);
+        let (fx, fy) = ((F32s::ONE - py.abs()) * sign(px), (F32s::ONE - px.abs()) * sign(py));
+        (px, py) = (lower.select(fx, px), lower.select(fy, py));
+    }
+    let quantise = |v: F32s| -> i32x8 {
+        // v.clamp(-1, 1): NaN cannot reach here (invalid lanes are replaced below).
+        let scaled = v.fast_max(-F32s::ONE).fast_min(F32s::ONE) * F32s::splat(SNORM_MAX);
+        let t = scaled.trunc();
+        let away = (scaled - t).abs().simd_ge(F32s::splat(0.5));
+        let rounded = away.select(t + scaled.simd_lt(F32s::ZERO).select(-F32s::ONE, F32s::ONE), t);
+        rounded.trunc_int()
+    };
+    let (qx, qy) = (quantise(px).to_array(), quantise(py).to_array());
+    let valid = valid.to_bitmask();
+    core::array::from_fn(|i| {
+        if valid & (1 << i) == 0 {
+            NO_NORMAL
+        } else {
+            (qx[i] as i16 as u16 as u32) | ((qy[i] as i16 as u16 as u32) << 16)
+        }
+    })
+}
+
 /// Scalar decoding of [`encode_normal`]: a unit vector, or NaN for [`NO_NORMAL`].
 pub fn decode_normal(packed: u32) -> [f32; 3] {
     let [x, y, z] = decode_normal_raw(packed);
@@ -397,6 +430,33 @@ mod tests {
     #[test]
     fn invalid_normals_encode_to_the_sentinel() {
         assert_eq!(encode_normal([0.0; 3]), NO_NORMAL);
+        // The eight-lane encoder equals the scalar one, including halves that round away.
+        let mut cases: Vec<[f32; 3]> = vec![
+            [0.0; 3],
+            [f32::NAN, 0.0, 1.0],
+            [f32::INFINITY, 0.0, 1.0],
+            [1.0, 0.0, 0.0],
+            [-1.0, 0.0, 0.0],
+            [0.0, 0.0, -1.0],
+            [0.5 / 32767.0, 0.0, 1.0 - 0.5 / 32767.0],
+            [-0.5 / 32767.0, 0.0, -1.0],
+            [1.5 / 32767.0, -2.5 / 32767.0, 1.0],
+        ];
+        let mut seed = 9u32;
+        let mut next = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (seed >> 8) as f32 / (1u32 << 24) as f32 * 2.0 - 1.0
+        };
+        for _ in 0..20_000 {
+            cases.push([next(), next(), next()]);
+        }
+        for chunk in cases.chunks(LANES) {
+            let lanes: [[f32; 3]; LANES] = core::array::from_fn(|i| chunk[i.min(chunk.len() - 1)]);
+            let simd = encode_normals([0, 1, 2].map(|c| F32s::from(lanes.map(|n| n[c]))));
+            for i in 0..chunk.len() {
+                assert_eq!(simd[i], encode_normal(chunk[i]), "{:?}", chunk[i]);
+            }
+        }
         assert_eq!(encode_normal([f32::NAN, 0.0, 1.0]), NO_NORMAL);
         assert_eq!(encode_normal([f32::INFINITY, 0.0, 1.0]), NO_NORMAL);
         assert!(decode_normal(NO_NORMAL)[0].is_nan());

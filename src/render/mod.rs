@@ -48,7 +48,7 @@ use rayon::prelude::*;
 use crate::camera::Eye;
 use crate::kernels::bvh::{BuildQuality, BuildStats, Hit, PreparedRay, Ray, TriangleBvh, intersect_triangle};
 use crate::kernels::gbuffer::{CompactGBuffer, GBuffer, NO_NORMAL, encode_normal};
-use crate::kernels::simd::LANES;
+use crate::kernels::simd::{F32s, LANES};
 use crate::kernels::{CameraModel, Extent, FrameError, PlaneBuf, RgbBuf};
 use crate::scene::{MaterialKind, Scene};
 use bsdf::ShadingPoint;
@@ -780,6 +780,15 @@ impl GTexel {
     };
 }
 
+/// Eight texels of a row, plane by plane (see [`GRow::set_lanes`]).
+pub(crate) struct GLanes {
+    pub depth: F32s,
+    pub position: [F32s; 3],
+    pub normal: [F32s; 3],
+    pub oct: [u32; LANES],
+    pub material: [u32; LANES],
+}
+
 /// One row of every plane of a [`GBufferBuf`].
 pub(crate) struct GRow<'a> {
     depth: &'a mut [f32],
@@ -790,6 +799,19 @@ pub(crate) struct GRow<'a> {
 }
 
 impl GRow<'_> {
+    /// Eight texels from `x` on (lane `i` of each plane value is pixel `x + i`).
+    #[inline(always)]
+    pub(crate) fn set_lanes(&mut self, x: usize, lanes: &GLanes) {
+        let f = |dst: &mut [f32], v: &F32s| dst[x..x + LANES].copy_from_slice(&v.to_array());
+        f(self.depth, &lanes.depth);
+        for c in 0..3 {
+            f(self.position[c], &lanes.position[c]);
+            f(self.normal[c], &lanes.normal[c]);
+        }
+        self.oct[x..x + LANES].copy_from_slice(&lanes.oct);
+        self.material[x..x + LANES].copy_from_slice(&lanes.material);
+    }
+
     #[inline(always)]
     pub(crate) fn set(&mut self, x: usize, t: &GTexel) {
         self.depth[x] = t.depth;

@@ -17,9 +17,12 @@ use glam::Vec3;
 
 use super::effects::{ALPHA_MASKS, has};
 use super::lights::FrameLights;
-use super::{GBufferBuf, RenderError, Renderer, Surface, for_each_gbuffer_row};
-use crate::kernels::bvh::{Hit, PreparedRay, Ray, TriVerts, intersect_triangle};
+use super::{GBufferBuf, GLanes, GTexel, RenderError, Renderer, Surface, for_each_gbuffer_row};
+use crate::kernels::CameraModel;
+use crate::kernels::bvh::{Hit, PreparedRay, Ray, TriVerts, intersect_triangle_line};
+use crate::kernels::gbuffer::encode_normals;
 use crate::kernels::raster::{AlphaTest, Body, NO_PRIM, RasterStats, Rasterizer, Triangles, VisibilityBuffer};
+use crate::kernels::simd::{F32s, LANES, lane_offsets};
 use crate::kernels::{Extent, FrameError};
 
 /// The rasterised pass's own buffers (kept between frames).
@@ -49,6 +52,14 @@ impl RasterGBuffers {
     }
 }
 
+/// What one rasterised G-buffer pass did: the kernel's statistics (with its step times) and
+/// the resolve's time.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RasterPassStats {
+    pub raster: RasterStats,
+    pub resolve: std::time::Duration,
+}
+
 /// The scene's cut-outs as the kernel asks for them.
 struct CutOuts<'a> {
     renderer: &'a Renderer,
@@ -76,7 +87,7 @@ impl Renderer {
         lights: &FrameLights,
         out: [&mut GBufferBuf; 2],
         raster: &mut RasterGBuffers,
-    ) -> Result<RasterStats, RenderError> {
+    ) -> Result<RasterPassStats, RenderError> {
         let [left, right] = out;
         crate::kernels::frame::same_extent("right G-buffer", left.extent(), right.extent())?;
         crate::kernels::frame::same_extent("raster buffers", left.extent(), raster.visibility[0].extent())?;
@@ -92,36 +103,172 @@ impl Renderer {
             .rasterizer
             .rasterize(tris, [&left.camera, &right.camera], &masks, self.raster_near, [vl, vr], raster.body)
             .map_err(|e: FrameError| RenderError::Frame(e))?;
+        let start = std::time::Instant::now();
         self.resolve(lights, &raster.visibility[0], left, &tris);
         self.resolve(lights, &raster.visibility[1], right, &tris);
-        Ok(stats)
+        Ok(RasterPassStats { raster: stats, resolve: start.elapsed() })
     }
 
-    /// Writes `out` from one eye's visibility (see the module notes).
+    /// Writes `out` from one eye's visibility (see the module notes): eight pixels at a time
+    /// where all eight see mesh triangles ([`Renderer::resolve_lanes`]), one at a time
+    /// elsewhere ([`Renderer::resolve_pixel`]); both compute what the traced pass does.
     fn resolve(&self, lights: &FrameLights, vis: &VisibilityBuffer, out: &mut GBufferBuf, tris: &Triangles<'_>) {
         let camera = out.camera;
         let width = camera.extent.width();
-        let origin = Vec3::from(camera.centre);
         let mesh_len = self.scene.mesh.len() as u32;
         let prims = vis.prim.as_slice();
         for_each_gbuffer_row(out, |y, mut row| {
-            for x in 0..width {
-                let prim = prims[y * width + x];
-                let dir = Vec3::from(camera.ray(x as f32 + 0.5, y as f32 + 0.5));
-                let surface = (prim != NO_PRIM).then(|| {
-                    let r = PreparedRay::new(&Ray::new(origin, dir))?;
-                    let hit = intersect_triangle(&r, tris.get(prim), f32::INFINITY)?;
-                    let (u, v) = hit.uv();
-                    Some(if prim < mesh_len {
-                        Surface::Mesh(Hit { t: hit.t, prim, u, v })
-                    } else {
-                        let tri = &lights.moving_triangles()[(prim - mesh_len) as usize];
-                        let normal = (tri.v[1] - tri.v[0]).cross(tri.v[2] - tri.v[0]).normalize_or_zero();
-                        Surface::MovingLight { t: hit.t, normal, radiance: tri.radiance, index: prim - mesh_len }
-                    })
-                });
-                row.set(x, &self.gbuffer_texel(surface.flatten(), dir, &camera));
+            let prims = &prims[y * width..(y + 1) * width];
+            let mut x0 = 0;
+            while x0 + LANES <= width {
+                let group: &[u32; LANES] = prims[x0..x0 + LANES].try_into().expect("8 lanes");
+                let scalar = if group.iter().all(|&p| p < mesh_len) {
+                    let (lanes, scalar) = self.resolve_lanes(&camera, x0, y, group);
+                    row.set_lanes(x0, &lanes);
+                    scalar
+                } else {
+                    (1 << LANES) - 1
+                };
+                let mut m = scalar;
+                while m != 0 {
+                    let i = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    row.set(x0 + i, &self.resolve_pixel(lights, &camera, x0 + i, y, group[i], tris));
+                }
+                x0 += LANES;
+            }
+            for x in x0..width {
+                row.set(x, &self.resolve_pixel(lights, &camera, x, y, prims[x], tris));
             }
         });
     }
+
+    /// One pixel: the watertight test of its centre ray on the triangle the raster found
+    /// (the scalar reference of [`Renderer::resolve_lanes`], and the path for moving lights
+    /// and background).
+    fn resolve_pixel(
+        &self,
+        lights: &FrameLights,
+        camera: &CameraModel,
+        x: usize,
+        y: usize,
+        prim: u32,
+        tris: &Triangles<'_>,
+    ) -> GTexel {
+        let dir = Vec3::from(camera.ray(x as f32 + 0.5, y as f32 + 0.5));
+        if prim == NO_PRIM {
+            return GTexel::BACKGROUND;
+        }
+        let mesh_len = self.scene.mesh.len() as u32;
+        let surface = PreparedRay::new(&Ray::new(Vec3::from(camera.centre), dir))
+            .and_then(|r| intersect_triangle_line(&r, tris.get(prim)))
+            .map(|hit| {
+                let (u, v) = hit.uv();
+                if prim < mesh_len {
+                    Surface::Mesh(Hit { t: hit.t, prim, u, v })
+                } else {
+                    let index = prim - mesh_len;
+                    let tri = &lights.moving_triangles()[index as usize];
+                    let normal = (tri.v[1] - tri.v[0]).cross(tri.v[2] - tri.v[0]).normalize_or_zero();
+                    Surface::MovingLight { t: hit.t, normal, radiance: tri.radiance, index }
+                }
+            });
+        self.gbuffer_texel(surface, dir, camera)
+    }
+
+    /// Eight neighbouring pixels of row `y` from `x0` that all see mesh triangles, as eight
+    /// SIMD lanes: the pixel rays, the watertight test (each lane its own axis permutation
+    /// and triangle), barycentrics and normals, with the operations of `camera.ray`,
+    /// `PreparedRay::new`, `intersect_triangle` and [`Renderer::gbuffer_texel`] in their
+    /// order, so every texel equals the traced pass's bit for bit. Returns the texels and the
+    /// lanes the scalar path must redo: an edge function of exactly 0 (the f64
+    /// recomputation), a miss, a zero determinant.
+    fn resolve_lanes(&self, camera: &CameraModel, x0: usize, y: usize, prims: &[u32; LANES]) -> (GLanes, u32) {
+        let mesh = &self.scene.mesh;
+        let (o, rdx, rdy) = (camera.ray_origin_corner, camera.ray_dx, camera.ray_dy);
+        let px = F32s::splat(x0 as f32) + lane_offsets() + F32s::splat(0.5);
+        let py = y as f32 + 0.5;
+        let dir: [F32s; 3] =
+            core::array::from_fn(|i| F32s::splat(o[i]) + px * F32s::splat(rdx[i]) + F32s::splat(py * rdy[i]));
+        // Dominant axis and the winding-preserving permutation, as PreparedRay::new.
+        let a = dir.map(|d| d.abs());
+        let k0 = a[0].simd_ge(a[1]) & a[0].simd_ge(a[2]);
+        let k1 = !k0 & a[1].simd_ge(a[2]);
+        let k2 = !(k0 | k1);
+        let pick = |v: &[F32s; 3], i0: F32s, i1: F32s| i0.select(v[0], i1.select(v[1], v[2]));
+        let d_z = pick(&dir, k0, k1);
+        let neg = d_z.simd_lt(F32s::ZERO);
+        // kx = kz + 1, ky = kz + 2 (mod 3), swapped when d[kz] < 0.
+        let (kx0, kx1) = (neg.select(k1, k2), neg.select(k2, k0));
+        let (ky0, ky1) = (neg.select(k2, k1), neg.select(k0, k2));
+        let (d_x, d_y) = (pick(&dir, kx0, kx1), pick(&dir, ky0, ky1));
+        let (sx, sy, sz) = (d_x / d_z, d_y / d_z, F32s::ONE / d_z);
+        let c = camera.centre.map(F32s::splat);
+        let (ox, oy, oz) = (pick(&c, kx0, kx1), pick(&c, ky0, ky1), pick(&c, k0, k1));
+        // The eight triangles, vertex by vertex, permuted per lane.
+        let tri = prims.map(|p| &mesh.positions[p as usize]);
+        let verts: [[F32s; 3]; 3] =
+            core::array::from_fn(|v| core::array::from_fn(|axis| F32s::from(tri.map(|t| t[v][axis]))));
+        let z = verts.map(|v| pick(&v, k0, k1) - oz);
+        let sheared =
+            |v: &[F32s; 3], vz: F32s| ((pick(v, kx0, kx1) - ox) - sx * vz, (pick(v, ky0, ky1) - oy) - sy * vz);
+        let (ax, ay) = sheared(&verts[0], z[0]);
+        let (bx, by) = sheared(&verts[1], z[1]);
+        let (cx, cy) = sheared(&verts[2], z[2]);
+        let u = cx * by - cy * bx;
+        let v = ax * cy - ay * cx;
+        let w = bx * ay - by * ax;
+        let zero = F32s::ZERO;
+        let neg_e = u.simd_lt(zero) | v.simd_lt(zero) | w.simd_lt(zero);
+        let pos_e = u.simd_gt(zero) | v.simd_gt(zero) | w.simd_gt(zero);
+        let det = u + v + w;
+        let scalar =
+            (u.simd_eq(zero) | v.simd_eq(zero) | w.simd_eq(zero) | (neg_e & pos_e) | det.simd_eq(zero)).to_bitmask();
+        let t = (u * (sz * z[0]) + v * (sz * z[1]) + w * (sz * z[2])) / det;
+        let (b1, b2) = (v / det, w / det);
+        // Normals, as Mesh::geometric_normal / shading_normal and Renderer::normals.
+        let e1 = [0, 1, 2].map(|i| verts[1][i] - verts[0][i]);
+        let e2 = [0, 1, 2].map(|i| verts[2][i] - verts[0][i]);
+        let cross = [e1[1] * e2[2] - e2[1] * e1[2], e1[2] * e2[0] - e2[2] * e1[0], e1[0] * e2[1] - e2[0] * e1[1]];
+        let (ng0, ng_ok) = try_normalize(cross);
+        let ng0 = [ng_ok.select(ng0[0], zero), ng_ok.select(ng0[1], F32s::ONE), ng_ok.select(ng0[2], zero)];
+        let facing = dot3(&ng0, &dir).simd_gt(zero);
+        let ng = ng0.map(|n| facing.select(-n, n));
+        let mut ns = ng0;
+        if let Some(normals) = &mesh.normals {
+            let vn = prims.map(|p| &normals[p as usize]);
+            let n: [[F32s; 3]; 3] =
+                core::array::from_fn(|k| core::array::from_fn(|axis| F32s::from(vn.map(|t| t[k][axis]))));
+            let b0 = (F32s::ONE - b1) - b2;
+            let interp: [F32s; 3] = core::array::from_fn(|i| n[0][i] * b0 + n[1][i] * b1 + n[2][i] * b2);
+            let (s, ok) = try_normalize(interp);
+            // Unnormalisable: the (unflipped) geometric normal.
+            ns = core::array::from_fn(|i| ok.select(s[i], ng0[i]));
+        }
+        let against = dot3(&ns, &ng).simd_lt(zero);
+        let ns = ns.map(|n| against.select(-n, n));
+        let lanes = GLanes {
+            depth: t,
+            position: core::array::from_fn(|i| c[i] + t * dir[i]),
+            normal: ns,
+            oct: encode_normals(ns),
+            material: prims.map(|p| mesh.material[p as usize]),
+        };
+        (lanes, scalar)
+    }
+}
+
+/// `a · b` as glam computes it, lane by lane.
+#[inline(always)]
+fn dot3(a: &[F32s; 3], b: &[F32s; 3]) -> F32s {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// glam's `try_normalize`, lane by lane: `v · (1 / √(v·v))` where that reciprocal is finite
+/// and positive; the mask says where.
+#[inline(always)]
+fn try_normalize(v: [F32s; 3]) -> ([F32s; 3], F32s) {
+    let rcp = F32s::ONE / dot3(&v, &v).sqrt();
+    let ok = rcp.simd_lt(F32s::splat(f32::INFINITY)) & rcp.simd_gt(F32s::ZERO);
+    (v.map(|c| c * rcp), ok)
 }

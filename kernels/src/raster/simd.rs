@@ -1,16 +1,23 @@
 //! The SIMD body of the fragment loop: eight pixel columns of one row at a time (one
-//! `f32x8` per edge), the same expressions as [`super::scalar`] lane for lane. Lanes that
-//! need the exact path (uncertain coverage, near ties, masked triangles) go through the
-//! scalar code per pixel, and a block reaching past the right image border is depth-tested
-//! one lane at a time, both computing exactly what the reference does.
+//! `f32x8` per edge), the same expressions as [`super::scalar`] lane for lane: `a·px` is
+//! formed once per block of columns and `b·py + c` once per row, exactly the two products
+//! and the sum the reference computes per pixel. Lanes that need the exact path (uncertain
+//! coverage, near ties, masked triangles) go through the scalar code per pixel, and a block
+//! reaching past the right image border is depth-tested one lane at a time; both compute
+//! exactly what the reference does.
 
-use wide::i32x8;
+use wide::{i32x8, u32x8};
 
 use super::{AlphaTest, BandOut, EyeEdges, EyeView, Record};
 use crate::simd::{F32s, LANES, lane_offsets};
 
 /// [`super::scalar::record`]'s SIMD twin.
 pub(crate) fn record<M: AlphaTest>(rec: &Record, eye: usize, view: &EyeView<'_, M>, out: &mut BandOut<'_>) -> u64 {
+    if rec.n == 4 { walk::<4, M>(rec, eye, view, out) } else { walk::<3, M>(rec, eye, view, out) }
+}
+
+#[inline(always)]
+fn walk<const N: usize, M: AlphaTest>(rec: &Record, eye: usize, view: &EyeView<'_, M>, out: &mut BandOut<'_>) -> u64 {
     let e = &rec.eyes[eye];
     let (c0, c1) = e.cols;
     let (y0, y1) = (rec.rows.0.max(out.rows.start as i32), rec.rows.1.min(out.rows.end as i32 - 1));
@@ -19,10 +26,14 @@ pub(crate) fn record<M: AlphaTest>(rec: &Record, eye: usize, view: &EyeView<'_, 
     }
     let half = lane_offsets() + F32s::splat(0.5);
     let lane_x = i32x8::from([0, 1, 2, 3, 4, 5, 6, 7]);
+    let band = F32s::splat(rec.band);
+    let (q_err, prim) = (F32s::splat(e.q_err), u32x8::splat(rec.prim));
     let mut exact = 0;
     let mut bx = (c0 / 8) * 8;
     while bx <= c1 {
         let px = F32s::splat(bx as f32) + half;
+        let apx: [F32s; N] = core::array::from_fn(|k| F32s::splat(e.a[k]) * px);
+        let qpx = F32s::splat(e.qa) * px;
         let full = bx as usize + LANES <= out.width;
         // Lanes inside the record's column range.
         let xs = lane_x + i32x8::splat(bx);
@@ -30,20 +41,34 @@ pub(crate) fn record<M: AlphaTest>(rec: &Record, eye: usize, view: &EyeView<'_, 
         for y in y0..=y1 {
             let row = y as usize - out.rows.start;
             let py = y as f32 + 0.5;
-            let (inside, outside) =
-                if rec.n == 4 { classify::<4>(rec, e, px, py) } else { classify::<3>(rec, e, px, py) };
+            let mut above_all = F32s::splat(f32::from_bits(u32::MAX));
+            let mut above_any = F32s::ZERO;
+            let mut below_any = F32s::ZERO;
+            for k in 0..N {
+                let d = apx[k] + F32s::splat(e.b[k] * py + e.c[k]);
+                let above = d.simd_gt(band);
+                above_all &= above;
+                above_any |= above;
+                below_any |= d.simd_lt(-band);
+            }
+            let (inside, outside) = if rec.flat {
+                (0, (below_any & above_any).to_bitmask())
+            } else {
+                (above_all.to_bitmask(), below_any.to_bitmask())
+            };
             let candidates = cols & !outside;
             if candidates == 0 {
                 continue;
             }
+            let at = row * out.width + bx as usize;
             let mut slow = if rec.masked { candidates } else { candidates & !inside };
             let fast = candidates & !slow;
-            let at = row * out.width + bx as usize;
             if fast != 0 {
+                let q = qpx + F32s::splat(e.qb * py + e.qc);
                 slow |= if full {
-                    depth_test(rec.prim, e, px, py, fast, out, at)
+                    depth_test(q, q_err, prim, fast, out, at)
                 } else {
-                    depth_test_lanes(rec.prim, e, bx, py, fast, out, at)
+                    depth_test_lanes(rec.prim, e, q, fast, out, at)
                 };
             }
             let mut m = slow;
@@ -61,67 +86,53 @@ pub(crate) fn record<M: AlphaTest>(rec: &Record, eye: usize, view: &EyeView<'_, 
     exact
 }
 
-/// Inside (every edge above the band) and outside (one below minus the band) lane masks;
-/// for a flat record nothing is inside and outside needs one edge below and another above.
+/// Lane mask (bit `i` ⇒ all ones) as a float mask.
 #[inline(always)]
-fn classify<const N: usize>(rec: &Record, e: &EyeEdges, px: F32s, py: f32) -> (u32, u32) {
-    let band = F32s::splat(rec.band);
-    let mut above_all = F32s::splat(f32::from_bits(u32::MAX));
-    let mut above_any = F32s::ZERO;
-    let mut below_any = F32s::ZERO;
-    for k in 0..N {
-        let c_row = e.b[k] * py + e.c[k];
-        let d = F32s::splat(e.a[k]) * px + F32s::splat(c_row);
-        let above = d.simd_gt(band);
-        above_all &= above;
-        above_any |= above;
-        below_any |= d.simd_lt(-band);
-    }
-    if rec.flat { (0, (below_any & above_any).to_bitmask()) } else { (above_all.to_bitmask(), below_any.to_bitmask()) }
+fn lanes_mask(bits: u32) -> F32s {
+    let bit = i32x8::from([1, 2, 4, 8, 16, 32, 64, 128]);
+    let set = (i32x8::splat(bits as i32) & bit).simd_eq(bit);
+    bytemuck::cast(set)
 }
 
 /// The depth test of the lanes `fast` (certainly inside, not masked) of a full block at
-/// plane index `at`: nearer by more than both error bounds writes; returns the near ties.
+/// plane index `at`: nearer by more than both error bounds writes (as a blend); returns
+/// the near ties.
 #[inline(always)]
-fn depth_test(prim: u32, e: &EyeEdges, px: F32s, py: f32, fast: u32, out: &mut BandOut<'_>, at: usize) -> u32 {
-    let q_row = e.qb * py + e.qc;
-    let q = F32s::splat(e.qa) * px + F32s::splat(q_row);
-    let stored_q = F32s::from(<[f32; 8]>::try_from(&out.q[at..at + LANES]).expect("8 lanes"));
-    let stored_e = F32s::from(<[f32; 8]>::try_from(&out.q_err[at..at + LANES]).expect("8 lanes"));
-    let tol = stored_e + F32s::splat(e.q_err);
-    let win = (q - stored_q).simd_gt(tol).to_bitmask() & fast;
+fn depth_test(q: F32s, q_err: F32s, prim: u32x8, fast: u32, out: &mut BandOut<'_>, at: usize) -> u32 {
+    let sq_slice: &mut [f32; LANES] = (&mut out.q[at..at + LANES]).try_into().expect("8 lanes");
+    let stored_q = F32s::from(*sq_slice);
+    let se_slice: &mut [f32; LANES] = (&mut out.q_err[at..at + LANES]).try_into().expect("8 lanes");
+    let stored_e = F32s::from(*se_slice);
+    let tol = stored_e + q_err;
+    let win_mask = (q - stored_q).simd_gt(tol) & lanes_mask(fast);
+    let win = win_mask.to_bitmask();
     let lose = (stored_q - q).simd_gt(tol).to_bitmask() & fast;
     if win != 0 {
-        let q = q.to_array();
-        let mut m = win;
-        while m != 0 {
-            let lane = m.trailing_zeros() as usize;
-            m &= m - 1;
-            out.prim[at + lane] = prim;
-            out.q[at + lane] = q[lane];
-            out.q_err[at + lane] = e.q_err;
-        }
+        *sq_slice = win_mask.select(q, stored_q).to_array();
+        *se_slice = win_mask.select(q_err, stored_e).to_array();
+        let sp_slice: &mut [u32; LANES] = (&mut out.prim[at..at + LANES]).try_into().expect("8 lanes");
+        let w: u32x8 = bytemuck::cast(win_mask);
+        *sp_slice = w.bitselect(prim, u32x8::from(*sp_slice)).to_array();
     }
     fast & !win & !lose
 }
 
 /// [`depth_test`] one lane at a time (a block reaching past the right border).
 #[inline(never)]
-fn depth_test_lanes(prim: u32, e: &EyeEdges, bx: i32, py: f32, fast: u32, out: &mut BandOut<'_>, at: usize) -> u32 {
-    let q_row = e.qb * py + e.qc;
+fn depth_test_lanes(prim: u32, e: &EyeEdges, q: F32s, fast: u32, out: &mut BandOut<'_>, at: usize) -> u32 {
+    let q = q.to_array();
     let mut ties = 0;
     let mut m = fast;
     while m != 0 {
         let lane = m.trailing_zeros() as usize;
         m &= m - 1;
-        let q = e.qa * ((bx + lane as i32) as f32 + 0.5) + q_row;
         let (sq, se) = (out.q[at + lane], out.q_err[at + lane]);
         let tol = se + e.q_err;
-        if q - sq > tol {
+        if q[lane] - sq > tol {
             out.prim[at + lane] = prim;
-            out.q[at + lane] = q;
+            out.q[at + lane] = q[lane];
             out.q_err[at + lane] = e.q_err;
-        } else if !(sq - q > tol) {
+        } else if !(sq - q[lane] > tol) {
             ties |= 1 << lane;
         }
     }
