@@ -384,7 +384,7 @@ pub(crate) fn edge_f64(ax: f32, ay: f32, bx: f32, by: f32) -> f32 {
 /// shared edge are exact negatives, so a ray through an edge hits at least one triangle.
 #[inline(always)]
 pub fn intersect_triangle(r: &PreparedRay, tri: &TriVerts, tmax: f32) -> Option<TriHit> {
-    let (hit, t_scaled, x, y, z) = watertight(r, tri)?;
+    let Watertight { hit, t_scaled, x, y, z } = watertight(r, tri)?;
     // NaN fails both comparisons.
     if !(hit.t >= r.tmin && hit.t < tmax) {
         return None;
@@ -399,12 +399,21 @@ pub fn intersect_triangle(r: &PreparedRay, tri: &TriVerts, tmax: f32) -> Option<
 /// rasterised G-buffer's resolve).
 #[inline(always)]
 pub fn intersect_triangle_line(r: &PreparedRay, tri: &TriVerts) -> Option<TriHit> {
-    watertight(r, tri).map(|(hit, ..)| hit)
+    watertight(r, tri).map(|w| w.hit)
 }
 
-/// The shared body: the hit, `t·det`, and the sheared coordinates the rounding bound needs.
+/// The shared body's result: the hit, `t·det`, and the sheared vertex coordinates the
+/// rounding bound needs.
+struct Watertight {
+    hit: TriHit,
+    t_scaled: f32,
+    x: [f32; 3],
+    y: [f32; 3],
+    z: [f32; 3],
+}
+
 #[inline(always)]
-fn watertight(r: &PreparedRay, tri: &TriVerts) -> Option<(TriHit, f32, [f32; 3], [f32; 3], [f32; 3])> {
+fn watertight(r: &PreparedRay, tri: &TriVerts) -> Option<Watertight> {
     let [kx, ky, kz] = r.k;
     let [ox, oy, oz] = r.origin_k;
     let [sx, sy, sz] = r.shear;
@@ -436,7 +445,13 @@ fn watertight(r: &PreparedRay, tri: &TriVerts) -> Option<(TriHit, f32, [f32; 3],
     let (z0, z1, z2) = (sz * a_z, sz * b_z, sz * c_z);
     let t_scaled = u * z0 + v * z1 + w * z2;
     let t = t_scaled / det;
-    Some((TriHit { t, e: [u, v, w], det }, t_scaled, [ax, bx, cx], [ay, by, cy], [z0, z1, z2]))
+    Some(Watertight {
+        hit: TriHit { t, e: [u, v, w], det },
+        t_scaled,
+        x: [ax, bx, cx],
+        y: [ay, by, cy],
+        z: [z0, z1, z2],
+    })
 }
 
 /// `γ(n) = n·u / (1 − n·u)` with the unit roundoff `u = 2⁻²⁴`: the relative error bound of a
