@@ -38,6 +38,9 @@ enum Command {
         /// G-buffer layout the reprojection reads.
         #[arg(long, value_enum, default_value_t = stereotrace::pipeline::Layout::Compact)]
         layout: stereotrace::pipeline::Layout,
+        /// How the G-buffers are made: rasterised (default) or traced (the reference).
+        #[arg(long, value_enum, default_value_t = stereotrace::pipeline::GBufferPass::Raster)]
+        gbuffer: stereotrace::pipeline::GBufferPass,
         /// Per-frame time budget in milliseconds (tracing stops when it is spent).
         #[arg(long)]
         budget_ms: Option<f64>,
@@ -150,6 +153,9 @@ enum Command {
         /// Stop after computing this many units (references, curves, configurations); run again to resume.
         #[arg(long)]
         max_units: Option<usize>,
+        /// How the pipelines make their G-buffers (default: raster).
+        #[arg(long, value_enum)]
+        gbuffer: Option<stereotrace::pipeline::GBufferPass>,
     },
     /// What accuracy costs in time: sweeps pipeline settings on one scene and measures time
     /// per stereo frame and effective spp (table, CSV, JSON and a plot with the Pareto front).
@@ -181,6 +187,12 @@ enum Command {
         /// Budgets as fractions of the unbudgeted spatiotemporal frame time (comma-separated).
         #[arg(long, value_delimiter = ',', default_value = "0.75,0.5,0.25")]
         budgets: Vec<f64>,
+        /// Budgets in milliseconds per stereo frame (comma-separated, e.g. 33,50,100).
+        #[arg(long, value_delimiter = ',')]
+        budgets_ms: Vec<f64>,
+        /// How the G-buffers are made (the sweep adds one row with the other pass).
+        #[arg(long, value_enum, default_value_t = stereotrace::pipeline::GBufferPass::Raster)]
+        gbuffer: stereotrace::pipeline::GBufferPass,
         /// Output folder.
         #[arg(long, default_value = "out/tradeoff")]
         out: std::path::PathBuf,
@@ -204,7 +216,20 @@ fn main() -> ExitCode {
     }
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Throughput { scene, res, threads, frames, spp, mode, order, layout, budget_ms, no_baseline, json } => {
+        Command::Throughput {
+            scene,
+            res,
+            threads,
+            frames,
+            spp,
+            mode,
+            order,
+            layout,
+            gbuffer,
+            budget_ms,
+            no_baseline,
+            json,
+        } => {
             let opts = stereotrace::commands::throughput::ThroughputOptions {
                 scene,
                 extent: res,
@@ -214,6 +239,7 @@ fn main() -> ExitCode {
                 mode,
                 order,
                 layout,
+                gbuffer,
                 budget_ms,
                 baseline: !no_baseline,
             };
@@ -278,6 +304,7 @@ fn main() -> ExitCode {
             cache,
             no_figures,
             max_units,
+            gbuffer,
         } => {
             let opts = stereotrace::commands::eval::EvalOptions {
                 preset,
@@ -295,6 +322,7 @@ fn main() -> ExitCode {
                 cache,
                 no_figures,
                 max_units,
+                gbuffer,
             };
             stereotrace::commands::eval::run(&opts).map(|report| println!("{report}"))
         }
@@ -308,6 +336,8 @@ fn main() -> ExitCode {
             reference_spp,
             curve_spp,
             budgets,
+            budgets_ms,
+            gbuffer,
             out,
             cache,
         } => {
@@ -321,6 +351,8 @@ fn main() -> ExitCode {
                 reference_spp,
                 curve_spp,
                 budget_fractions: budgets,
+                budgets_ms,
+                gbuffer,
                 out,
                 cache,
             };

@@ -112,6 +112,19 @@ fn throughput_reports_json_with_every_field() {
     }
     assert!(v["left_traced_share"].as_f64().unwrap() < 0.5);
     assert_eq!(v["right_traced_share"].as_f64().unwrap(), 1.0);
+    assert_eq!(v["gbuffer_pass"], "raster");
+}
+
+#[test]
+fn throughput_takes_the_traced_gbuffer_and_reports_budget_overruns() {
+    let args = ["throughput", "--scene", "cornell", "--res", "32x18", "--frames", "2", "--no-baseline", "--json"];
+    let out = stereotrace(&[&args[..], &["--gbuffer", "traced", "--budget-ms", "1000"]].concat());
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    assert_eq!(v["gbuffer_pass"], "traced");
+    assert_eq!(v["budget_ms"].as_f64(), Some(1000.0));
+    assert!(v["budget_misses_over_1ms"].as_u64().unwrap() <= v["budget_misses"].as_u64().unwrap());
+    assert_refused(&stereotrace(&[&args[..], &["--gbuffer", "painted"]].concat()), "painted");
 }
 
 #[test]

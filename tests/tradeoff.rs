@@ -27,6 +27,7 @@ fn the_sweep_measures_the_harness_images_and_marks_a_consistent_front() {
     opts.input_spp = vec![1];
     (opts.reference_spp, opts.curve_spp) = (16, 8);
     opts.budget_fractions = vec![0.5];
+    opts.budgets_ms = vec![50.0];
     opts.cache = dir.join("cache");
     opts.out = dir.join("out");
     let report = sweep(&opts, &Quiet).unwrap();
@@ -46,11 +47,17 @@ fn the_sweep_measures_the_harness_images_and_marks_a_consistent_front() {
         assert_eq!(row.effective_rmse, config.rmse, "{v}");
     }
 
-    // 1 path-traced + 7 modes + strict, ramp, full layout + 1 budget.
-    assert_eq!(report.rows.len(), 12);
+    // 1 path-traced + 7 modes + strict, ramp, full layout, traced G-buffer + 2 budgets.
+    assert_eq!(report.rows.len(), 14);
     let unbudgeted = report.rows.iter().find(|r| r.mode == "spatiotemporal" && r.change == "paper").unwrap();
-    let budgeted = report.rows.iter().find(|r| r.budget_ms.is_some()).unwrap();
+    let budgeted = report.rows.iter().find(|r| r.change == "budget 50%").unwrap();
     assert_eq!(budgeted.budget_ms, Some(0.5 * unbudgeted.frame.median_ms));
+    let in_ms = report.rows.iter().find(|r| r.change == "budget 50 ms").unwrap();
+    assert_eq!(in_ms.budget_ms, Some(50.0));
+    // The traced G-buffer (the reference pass) gives the raster pass's quality.
+    let traced = report.rows.iter().find(|r| r.change == "traced G-buffer").unwrap();
+    let (a, b) = (traced.effective_ssim.mean.unwrap(), unbudgeted.effective_ssim.mean.unwrap());
+    assert!((a - b).abs() <= 0.01 * b, "effective spp with a traced G-buffer {a}, rasterised {b}");
     for r in &report.rows {
         assert!(r.frame.median_ms > 0.0 && r.frame.p95_ms >= r.frame.median_ms, "{} {}", r.mode, r.change);
         assert!(r.effective_ssim.count == 2 && r.mean_ssim > 0.0 && r.mean_ssim <= 1.0);

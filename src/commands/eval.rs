@@ -39,6 +39,7 @@ pub struct EvalOptions {
     pub cache: Option<PathBuf>,
     pub no_figures: bool,
     pub max_units: Option<usize>,
+    pub gbuffer: Option<crate::pipeline::GBufferPass>,
 }
 
 impl EvalOptions {
@@ -60,6 +61,7 @@ impl EvalOptions {
             cache: None,
             no_figures: false,
             max_units: None,
+            gbuffer: None,
         }
     }
 
@@ -114,6 +116,9 @@ pub fn build_spec(opts: &EvalOptions) -> Result<EvalSpec, String> {
     }
     if let Some(s) = opts.ssim {
         spec.ssim = s;
+    }
+    if let Some(g) = opts.gbuffer {
+        spec.gbuffer = g;
     }
     let first = spec.scenes.first().cloned();
     let has = |s: &Option<String>| s.as_ref().is_some_and(|s| spec.scenes.contains(s));

@@ -26,7 +26,7 @@ use crate::eval::stats::Summary;
 use crate::eval::{EvalSpec, Metric, Preset, Reporter, Variant};
 use crate::kernels::Extent;
 use crate::kernels::reproject::TapPolicy;
-use crate::pipeline::{Layout, Mode, Order, Pipeline};
+use crate::pipeline::{GBufferPass, Layout, Mode, Order, Pipeline};
 
 /// Options of the trade-off sweep.
 #[derive(Clone, Debug)]
@@ -42,6 +42,10 @@ pub struct TradeoffOptions {
     pub curve_spp: u32,
     /// Budgets as fractions of the unbudgeted spatiotemporal frame time at the same spp.
     pub budget_fractions: Vec<f64>,
+    /// Budgets in milliseconds per stereo frame (what a real-time user sets: 33, 50, 100).
+    pub budgets_ms: Vec<f64>,
+    /// How the G-buffers are made (the sweep adds one row with the other pass).
+    pub gbuffer: GBufferPass,
     pub out: PathBuf,
     pub cache: PathBuf,
 }
@@ -59,6 +63,8 @@ impl TradeoffOptions {
             reference_spp: 256,
             curve_spp: 128,
             budget_fractions: vec![0.75, 0.5, 0.25],
+            budgets_ms: Vec::new(),
+            gbuffer: GBufferPass::Raster,
             out: PathBuf::from("out/tradeoff"),
             cache: PathBuf::from("out/eval-cache"),
         }
@@ -75,6 +81,7 @@ impl TradeoffOptions {
         spec.input_spp = self.input_spp.clone();
         spec.reference_spp = self.reference_spp;
         spec.curve_spp = self.curve_spp;
+        spec.gbuffer = self.gbuffer;
         spec
     }
 
@@ -87,6 +94,9 @@ impl TradeoffOptions {
         }
         if let Some(f) = self.budget_fractions.iter().find(|f| !(**f > 0.0 && **f <= 1.0)) {
             return Err(format!("budget fraction {f} is not in (0, 1]"));
+        }
+        if let Some(b) = self.budgets_ms.iter().find(|b| !(**b > 0.0 && b.is_finite())) {
+            return Err(format!("budget {b} ms is not a finite number > 0"));
         }
         if self.frames < 2 {
             return Err("--frames must be at least 2 (frame 0 has no history and is not timed)".into());
@@ -104,12 +114,15 @@ pub struct Setting {
     pub policy: TapPolicy,
     pub ramp: bool,
     pub layout: Layout,
+    pub gbuffer: GBufferPass,
     /// A fraction of the unbudgeted spatiotemporal (paper order) time at the same spp.
     pub budget_fraction: Option<f64>,
+    /// A budget in milliseconds.
+    pub budget_ms: Option<f64>,
 }
 
 impl Setting {
-    fn paper(mode: Mode, order: Order, spp: u32) -> Self {
+    fn paper(mode: Mode, order: Order, spp: u32, gbuffer: GBufferPass) -> Self {
         let order = if mode.has_order() { order } else { Order::Paper };
         Self {
             mode,
@@ -118,7 +131,9 @@ impl Setting {
             policy: TapPolicy::Renormalize,
             ramp: false,
             layout: Layout::Compact,
+            gbuffer,
             budget_fraction: None,
+            budget_ms: None,
         }
     }
 
@@ -134,8 +149,14 @@ impl Setting {
         if self.layout == Layout::Full {
             parts.push("full G-buffer".to_owned());
         }
+        if self.gbuffer != GBufferPass::default() {
+            parts.push(format!("{} G-buffer", self.gbuffer.name()));
+        }
         if let Some(f) = self.budget_fraction {
             parts.push(format!("budget {:.0}%", f * 100.0));
+        }
+        if let Some(b) = self.budget_ms {
+            parts.push(format!("budget {b} ms"));
         }
         if parts.is_empty() { "paper".to_owned() } else { parts.join(", ") }
     }
@@ -155,21 +176,31 @@ impl Setting {
 }
 
 /// The settings swept at each input spp: full stereo path tracing, every mode and order of
-/// the paper, and the spatiotemporal mode with each option changed in turn and under each
-/// budget. The unbudgeted spatiotemporal setting comes before its budgeted ones.
-pub fn settings(input_spp: &[u32], budget_fractions: &[f64]) -> Vec<Setting> {
+/// the paper, and the spatiotemporal mode with each option changed in turn (the other
+/// G-buffer pass among them) and under each budget. The unbudgeted spatiotemporal setting
+/// comes before its budgeted ones.
+pub fn settings(opts: &TradeoffOptions) -> Vec<Setting> {
     let mut out = Vec::new();
-    for &spp in input_spp {
-        out.push(Setting::paper(Mode::PathTraced, Order::Paper, spp));
+    let other_pass = match opts.gbuffer {
+        GBufferPass::Raster => GBufferPass::Traced,
+        GBufferPass::Traced => GBufferPass::Raster,
+    };
+    for &spp in &opts.input_spp {
+        let paper = |mode, order| Setting::paper(mode, order, spp, opts.gbuffer);
+        out.push(paper(Mode::PathTraced, Order::Paper));
         for v in Variant::ALL {
-            out.push(Setting::paper(v.mode, v.order, spp));
+            out.push(paper(v.mode, v.order));
         }
-        let base = Setting::paper(Mode::Spatiotemporal, Order::Paper, spp);
+        let base = paper(Mode::Spatiotemporal, Order::Paper);
         out.push(Setting { policy: TapPolicy::Strict, ..base });
         out.push(Setting { ramp: true, ..base });
         out.push(Setting { layout: Layout::Full, ..base });
-        for &f in budget_fractions {
+        out.push(Setting { gbuffer: other_pass, ..base });
+        for &f in &opts.budget_fractions {
             out.push(Setting { budget_fraction: Some(f), ..base });
+        }
+        for &b in &opts.budgets_ms {
+            out.push(Setting { budget_ms: Some(b), ..base });
         }
     }
     out
@@ -234,6 +265,7 @@ fn measure_setting(
     config.policy = setting.policy;
     config.ramp = setting.ramp;
     config.layout = setting.layout;
+    config.gbuffer = setting.gbuffer;
     config.budget = budget_ms.map(|b| Duration::from_secs_f64(b / 1e3));
     let rig = StereoRig::new(spec.eye_separation)?;
     let mut pipeline = Pipeline::new(renderer, config, rig, extent).map_err(|e| e.to_string())?;
@@ -322,14 +354,14 @@ pub fn sweep(opts: &TradeoffOptions, reporter: &dyn Reporter) -> Result<Tradeoff
     let cache = Cache::open(&opts.cache)?;
     reporter.status(&format!("{}: references and error curves", opts.scene));
     let basis = pool.install(|| scene_basis(&spec, &opts.scene, &cache, reporter)).map_err(|e| e.to_string())?;
-    let settings = settings(&opts.input_spp, &opts.budget_fractions);
+    let settings = settings(opts);
     let mut rows: Vec<TradeoffRow> = Vec::with_capacity(settings.len());
     // Unbudgeted spatiotemporal time per spp, the unit of the budgets.
     let mut unbudgeted_ms: Vec<(u32, f64)> = Vec::new();
     reporter.begin(settings.len() as u64);
     for (i, s) in settings.iter().enumerate() {
         let budget_ms = match s.budget_fraction {
-            None => None,
+            None => s.budget_ms,
             Some(f) => {
                 let base = unbudgeted_ms.iter().find(|(spp, _)| *spp == s.spp).map(|(_, t)| *t);
                 Some(f * base.ok_or("a budgeted setting came before its unbudgeted one")?)

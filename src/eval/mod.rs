@@ -192,6 +192,8 @@ pub struct EvalSpec {
     /// References and curves are checkpointed every this many samples.
     pub checkpoint_spp: u32,
     pub eye_separation: f32,
+    /// How the pipelines make their G-buffers.
+    pub gbuffer: crate::pipeline::GBufferPass,
     pub figures: FigureSpec,
 }
 
@@ -240,6 +242,7 @@ impl Preset {
             seeds: Seeds::default(),
             checkpoint_spp: 256,
             eye_separation: crate::camera::DEFAULT_EYE_SEPARATION,
+            gbuffer: crate::pipeline::GBufferPass::Raster,
             figures,
         };
         match self {

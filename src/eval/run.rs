@@ -919,6 +919,7 @@ pub fn pipeline_config(
     let mut cfg = PipelineConfig::paper(variant.mode, spp, tolerances);
     cfg.order = variant.order;
     cfg.seed = spec.seeds.pipeline;
+    cfg.gbuffer = spec.gbuffer;
     cfg
 }
 

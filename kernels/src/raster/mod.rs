@@ -358,14 +358,9 @@ impl Projection {
             4.0 * U * (n(cam.ray_origin_corner) + w * n(cam.ray_dx) + h * n(cam.ray_dy)) / pixel
         };
         let row_max = [0usize, 1, 3].iter().flat_map(|&i| l[i][..3].iter()).fold(0.0f32, |m, v| m.max(v.abs()));
-        let m = glam::DMat3::from_cols_array(
-            &[0usize, 1, 3]
-                .map(|i| l[i][..3].iter().map(|&v| f64::from(v)).collect::<Vec<_>>())
-                .concat()
-                .try_into()
-                .expect("9"),
-        )
-        .transpose();
+        // Rows x, y, w of the view-projection's 3×3 part (columns of the transpose).
+        let row = |i: usize| glam::DVec3::new(f64::from(l[i][0]), f64::from(l[i][1]), f64::from(l[i][2]));
+        let m = glam::DMat3::from_cols(row(0), row(1), row(3)).transpose();
         let inv = m.inverse();
         if !inv.is_finite() {
             return Err(FrameError::SingularCamera);
