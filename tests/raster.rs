@@ -233,7 +233,7 @@ fn the_scalar_reference_and_the_simd_body_give_the_same_buffers() {
         let (scalar, s2) = run(Body::Scalar);
         let counts = |s: &stereotrace::render::raster::RasterPassStats| {
             let r = &s.raster;
-            (r.triangles, r.visible, r.clipped, r.band_records, r.exact)
+            (r.triangles, r.visible, r.clipped, r.band_records, r.exact, r.exact_ties)
         };
         assert_eq!(counts(&s1), counts(&s2), "{name}: statistics");
         for eye in 0..2 {

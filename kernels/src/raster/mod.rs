@@ -3,8 +3,8 @@
 //!
 //! # Pipeline of one call ([`Rasterizer::rasterize`])
 //! 1. **Setup** (parallel over fixed chunks of triangles): each triangle's vertices are moved
-//!    into the left eye's camera frame once (camera-relative, so f32 keeps its precision far
-//!    from the origin), projected, clipped against a near plane `w > near` (a triangle
+//!    into the left eye's camera frame once (camera-relative and in f64, so the projection
+//!    is exact to ~1e-9 px wherever the scene sits), projected, clipped against a near plane `w > near` (a triangle
 //!    crossing it becomes a quad), and turned into one [`Record`] that holds both eyes:
 //!    the parallel rig's eyes differ only by a constant offset of clip-space `x`, so the
 //!    right eye's screen `x` is the left eye's plus `Δ/w`. Triangles whose pixel-centre
@@ -15,8 +15,9 @@
 //!    the order independent of the thread count.
 //! 3. **Fragments** (parallel over bands of both eyes): each record of a band is walked in
 //!    blocks of 8 pixel columns ([`simd`], the scalar reference in [`scalar`]); edge
-//!    functions and `q = 1/w` are evaluated at pixel centres `(x + 0.5, y + 0.5)` and
-//!    depth-tested (larger `q` is nearer).
+//!    functions and `q = 1/w` are evaluated in f32 at pixel centres `(x + 0.5, y + 0.5)`,
+//!    relative to the record's first pixel (so their rounding scales with the triangle's
+//!    size, not the screen's), and depth-tested (larger `q` is nearer).
 //!
 //! # Agreeing with the tracer instead of a fill convention
 //! A screen-space raster decides a pixel whose centre lies within ~1e-3 px of an edge by
@@ -134,6 +135,8 @@ pub struct RasterStats {
     pub band_records: u64,
     /// Fragments decided on the exact path (uncertain coverage, near ties, masks).
     pub exact: u64,
+    /// Of those, the near ties (certainly covered, depth too close for `q` to decide).
+    pub exact_ties: u64,
     /// Wall time of the three steps (see the module notes).
     pub setup: Duration,
     pub binning: Duration,
@@ -149,6 +152,7 @@ impl core::ops::Add for RasterStats {
             clipped: self.clipped + o.clipped,
             band_records: self.band_records + o.band_records,
             exact: self.exact + o.exact,
+            exact_ties: self.exact_ties + o.exact_ties,
             setup: self.setup + o.setup,
             binning: self.binning + o.binning,
             fragments: self.fragments + o.fragments,
@@ -180,10 +184,12 @@ impl Triangles<'_> {
     }
 }
 
-/// One eye's view of a record: edge `k` as a line equation in pixel coordinates,
-/// `E_k(x, y) = a[k]·x + b[k]·y + c[k]`, normalised so that `E_k` is the signed distance in
-/// pixels and positive inside; the depth plane `q(x, y) = qa·x + qb·y + qc` with an error
-/// bound `q_err` over the screen; and the pixel columns to visit.
+/// One eye's view of a record: edge `k` as a line equation in pixel coordinates relative to
+/// the record's first pixel `(cols.0, rows.0)`, `E_k(x', y') = a[k]·x' + b[k]·y' + c[k]` at
+/// the pixel centre `x' = x − cols.0 + 0.5`, `y' = y − rows.0 + 0.5`, normalised so that `E_k`
+/// is the signed distance in pixels and positive inside; the depth plane
+/// `q(x', y') = qa·x' + qb·y' + qc` with an error bound `q_err` over the record; and the
+/// pixel columns to visit.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct EyeEdges {
     pub a: [f32; 4],
@@ -313,8 +319,6 @@ struct Projection {
     right_offset: [f64; 3],
     hw: f32,
     hh: f32,
-    /// Largest magnitude in the rows (scales the transform's rounding error).
-    row_max: f32,
     /// How far (pixels) the tracer's f32 pixel rays may stray from exact pixel centres.
     ray_slack: f32,
     /// The inverse of the 3×3 matrix with rows `rx`, `ry`, `rw` (clip = M·d), for the depth
@@ -357,7 +361,6 @@ impl Projection {
             let pixel = n(cam.ray_dx).min(n(cam.ray_dy)).max(f32::MIN_POSITIVE);
             4.0 * U * (n(cam.ray_origin_corner) + w * n(cam.ray_dx) + h * n(cam.ray_dy)) / pixel
         };
-        let row_max = [0usize, 1, 3].iter().flat_map(|&i| l[i][..3].iter()).fold(0.0f32, |m, v| m.max(v.abs()));
         // Rows x, y, w of the view-projection's 3×3 part (columns of the transpose).
         let row = |i: usize| glam::DVec3::new(f64::from(l[i][0]), f64::from(l[i][1]), f64::from(l[i][2]));
         let m = glam::DMat3::from_cols(row(0), row(1), row(3)).transpose();
@@ -376,7 +379,6 @@ impl Projection {
             right_offset,
             hw,
             hh,
-            row_max,
             ray_slack: slack(left).max(slack(right)),
             m_inv,
             centre_offset,
@@ -532,10 +534,12 @@ impl Rasterizer {
             let mut stats = RasterStats { band_records: list.len() as u64, ..RasterStats::default() };
             for &r in list {
                 let rec = &self.records[r as usize];
-                stats.exact += match body {
+                let (exact, ties) = match body {
                     Body::Simd => simd::record(rec, eye, &views[eye], &mut band_out),
                     Body::Scalar => scalar::record(rec, eye, &views[eye], &mut band_out),
                 };
+                stats.exact += exact;
+                stats.exact_ties += ties;
             }
             stats
         };
@@ -574,55 +578,23 @@ fn band_range(rows: (i32, i32)) -> Range<usize> {
 /// Projects one triangle for both eyes (see the module notes). Returns the record (culled
 /// when invisible) and whether the near plane clipped it.
 ///
-/// The common case runs in f32: camera-relative clip coordinates, whose rounding error is
-/// estimated per vertex (a few ulps of the coordinates' sizes, through the division by `w`
-/// and the viewport scale). Triangles for which that estimate exceeds [`F32_VERTEX_ERROR`]
-/// px, and every triangle the near plane clips (its new vertices can land far off screen),
-/// are projected again in f64, where the vertex error is negligible. Either way the edges
-/// are stored as normalised line equations, so huge off-screen coordinates never enter the
-/// per-pixel arithmetic.
+/// Everything runs in f64 on camera-relative coordinates (the difference of two f32 values
+/// is exact in f64), so the projected vertices are exact to far below a pixel's 1e-9 even
+/// where near clipping puts them far off screen; the edges are stored as normalised line
+/// equations relative to the record's first pixel, so neither huge off-screen coordinates
+/// nor the screen's size enter the per-pixel f32 arithmetic.
 fn setup_triangle(t: &TriVerts, prim: u32, p: &Projection, near: f32) -> (Record, bool) {
-    let d: [[f32; 3]; 3] =
-        core::array::from_fn(|k| [t[3 * k] - p.centre[0], t[3 * k + 1] - p.centre[1], t[3 * k + 2] - p.centre[2]]);
-    let dot = |r: &[f32; 3], v: &[f32; 3]| r[0] * v[0] + r[1] * v[1] + r[2] * v[2];
-    let w = d.map(|v| dot(&p.rw, &v));
-    if w.iter().all(|&w| !(w > near)) {
-        return (Record::CULLED, false);
-    }
-    let clipped = !w.iter().all(|&w| w > near);
-    if !clipped {
-        let off = p.right_offset.map(|o| o as f32);
-        let mut verts = [ScreenVertex::default(); 4];
-        let mut vertex_err = 0.0f32;
-        let scale = p.hw.max(p.hh);
-        for k in 0..3 {
-            let clip_l = [dot(&p.rx, &d[k]), dot(&p.ry, &d[k]), w[k]];
-            let clip_r = [clip_l[0] + off[0], clip_l[1] + off[1], clip_l[2] + off[2]];
-            let mut largest = 0.0f32;
-            for (eye, c) in [clip_l, clip_r].iter().enumerate() {
-                let inv_w = 1.0 / c[2];
-                let (nx, ny) = (c[0] * inv_w, c[1] * inv_w);
-                verts[k].x[eye] = f64::from(nx * p.hw + p.hw);
-                verts[k].y[eye] = f64::from(-ny * p.hh + p.hh);
-                verts[k].q[eye] = f64::from(inv_w);
-                largest = largest.max(nx.abs().max(ny.abs()) * inv_w.max(1.0 / w[k]));
-            }
-            // Rounding of the camera-relative transform (a few ulps of the coordinates'
-            // sizes), through the division by w and the viewport scale.
-            let size = d[k][0].abs() + d[k][1].abs() + d[k][2].abs();
-            let rel = 4.0 * U * p.row_max * size / w[k];
-            vertex_err = vertex_err.max(scale * (rel * (1.0 + largest * w[k]) + 4.0 * U));
-        }
-        if vertex_err <= F32_VERTEX_ERROR {
-            return (finish_record(&verts[..3], t, prim, p, vertex_err), false);
-        }
-    }
-    // f64: the same transform, and near clipping (Sutherland–Hodgman against w = near).
-    let dd = d.map(|v| v.map(f64::from));
-    let dot64 = |r: &[f32; 3], v: &[f64; 3]| f64::from(r[0]) * v[0] + f64::from(r[1]) * v[1] + f64::from(r[2]) * v[2];
-    let clip: [[f64; 3]; 3] = dd.map(|v| [dot64(&p.rx, &v), dot64(&p.ry, &v), dot64(&p.rw, &v)]);
+    let d: [[f64; 3]; 3] =
+        core::array::from_fn(|k| core::array::from_fn(|c| f64::from(t[3 * k + c]) - f64::from(p.centre[c])));
+    let dot = |r: &[f32; 3], v: &[f64; 3]| f64::from(r[0]) * v[0] + f64::from(r[1]) * v[1] + f64::from(r[2]) * v[2];
+    let clip: [[f64; 3]; 3] = d.map(|v| [dot(&p.rx, &v), dot(&p.ry, &v), dot(&p.rw, &v)]);
     let near = f64::from(near);
     let inside = clip.map(|c| c[2] > near);
+    if !inside.iter().any(|&i| i) {
+        return (Record::CULLED, false);
+    }
+    let clipped = !inside.iter().all(|&i| i);
+    // Sutherland–Hodgman against w = near: a crossing triangle leaves a triangle or a quad.
     let mut poly = [[0.0f64; 3]; 4];
     let mut n = 0;
     for k in 0..3 {
@@ -645,48 +617,72 @@ fn setup_triangle(t: &TriVerts, prim: u32, p: &Projection, near: f32) -> (Record
             let inv_w = 1.0 / (c[2] + o[2]);
             v.x[eye] = (c[0] + o[0]) * inv_w * hw + hw;
             v.y[eye] = -(c[1] + o[1]) * inv_w * hh + hh;
-            v.q[eye] = inv_w;
         }
     }
-    (finish_record(&verts[..n], t, prim, p, 0.0), clipped)
+    (finish_record(&verts[..n], &d, prim, p), clipped)
 }
 
-/// Largest per-vertex projection error (pixels) the f32 setup may have; beyond it the
-/// triangle is set up again in f64 (a few hundred of atrium's 171k triangles at 1280×720).
-const F32_VERTEX_ERROR: f32 = 1e-3;
-
-/// A projected vertex: screen x, y and `q = 1/w` per eye.
+/// A projected vertex: screen x and y per eye.
 #[derive(Clone, Copy, Debug, Default)]
 struct ScreenVertex {
     x: [f64; 2],
     y: [f64; 2],
-    q: [f64; 2],
 }
 
-/// The record of a projected polygon (3 or 4 vertices) whose vertices are exact to
-/// `vertex_err` pixels (0 for the f64 setup): line equations, depth planes, bands and pixel
-/// ranges (f64, stored as f32; see [`EyeEdges`]).
-fn finish_record(v: &[ScreenVertex], t: &TriVerts, prim: u32, p: &Projection, vertex_err: f32) -> Record {
+/// The record of a projected polygon (3 or 4 vertices; `d` the triangle's camera-relative
+/// vertices, for its depth plane): pixel ranges first (a polygon that covers no pixel
+/// centre in either eye costs only those), then line equations, depth planes and the band
+/// (f64, stored as f32 relative to the record's first pixel; see [`EyeEdges`]).
+fn finish_record(v: &[ScreenVertex], d: &[[f64; 3]; 3], prim: u32, p: &Projection) -> Record {
     let n = v.len();
     let mut rec = Record { n: n as u32, prim, ..Record::CULLED };
-    // The band: both vertices of an edge, the tracer's ray slack, the f32 evaluation of a
-    // line equation over the screen (a few ulps of the screen size), with a factor 2 margin.
-    let screen = f64::from(p.width.max(p.height));
-    let band = 2.0 * (2.0 * f64::from(vertex_err) + f64::from(p.ray_slack) + 16.0 * f64::from(U) * screen) + 1e-5;
-    rec.band = band as f32;
-    let fold = |f: &dyn Fn(&ScreenVertex) -> f64| {
-        v.iter().map(f).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(x), b.max(x)))
-    };
-    let range = |(lo, hi): (f64, f64), size: i32| -> (i32, i32) {
-        let a = (lo - 0.5 - band).ceil().max(0.0);
-        let b = (hi - 0.5 + band).floor().min(f64::from(size - 1));
+    // Rounding of the f64 projection, in pixels (relative 1e-13 of the largest coordinate).
+    let largest = v.iter().flat_map(|v| v.x.iter().chain(&v.y)).fold(0.0f64, |m, c| m.max(c.abs()));
+    let vertex_err = 1e-9 + 1e-13 * largest;
+    // Pixel ranges, widened by the largest band a record of this screen can have (the
+    // record's own band, below, needs its ranges first).
+    let screen_evaluation = 10.0 * f64::from(U) * f64::from(p.width + p.height + 9);
+    let margin = 2.0 * (2.0 * vertex_err + f64::from(p.ray_slack) + screen_evaluation) + 1e-5;
+    let range = |lo: f64, hi: f64, size: i32| -> (i32, i32) {
+        let a = (lo - 0.5 - margin).ceil().max(0.0);
+        let b = (hi - 0.5 + margin).floor().min(f64::from(size - 1));
         if !(a <= b) { (1, 0) } else { (a as i32, b as i32) }
     };
-    let rows = [0, 1].map(|eye| range(fold(&|v| v.y[eye]), p.height));
+    let extent = |eye: usize, y: bool| {
+        v.iter().map(|v| if y { v.y[eye] } else { v.x[eye] }).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), c| {
+            (a.min(c), b.max(c))
+        })
+    };
+    let mut any = false;
+    let mut rows = [(1, 0); 2];
+    for eye in 0..2 {
+        let (y0, y1) = extent(eye, true);
+        rows[eye] = range(y0, y1, p.height);
+        if rows[eye].0 <= rows[eye].1 {
+            let (x0, x1) = extent(eye, false);
+            rec.eyes[eye].cols = range(x0, x1, p.width);
+            any |= rec.eyes[eye].cols.0 <= rec.eyes[eye].cols.1;
+        }
+    }
+    if !any {
+        return Record::CULLED;
+    }
     rec.rows = (rows[0].0.min(rows[1].0), rows[0].1.max(rows[1].1));
+    let oy = f64::from(rec.rows.0);
+    let span_y = f64::from(rec.rows.1 - rec.rows.0) + 1.0;
+    // The band: both vertices of an edge, the tracer's ray slack, and the f32 evaluation
+    // of a line equation relative to the record's first pixel, `a·x' + (b·y' + c')` with
+    // `|a|, |b| ≤ 1`: five roundings of terms no larger than the block's width (+7 columns
+    // of the first SIMD block) and height, and `|c'|` no larger than those where the
+    // classification is close; twice that, for margin.
+    let mut widest = 0.0f64;
     for eye in 0..2 {
         let e = &mut rec.eyes[eye];
-        e.cols = if rows[eye].0 <= rows[eye].1 { range(fold(&|v| v.x[eye]), p.width) } else { (1, 0) };
+        if e.cols.0 > e.cols.1 {
+            e.cols = (1, 0);
+            continue;
+        }
+        widest = widest.max(f64::from(e.cols.1 - e.cols.0) + 8.0);
         // Orientation from the f64 area; a sliver whose area the vertex error could flip is flat.
         let (mut area2, mut perimeter) = (0.0f64, 0.0f64);
         for k in 0..n {
@@ -697,10 +693,11 @@ fn finish_record(v: &[ScreenVertex], t: &TriVerts, prim: u32, p: &Projection, ve
         if !(area2.is_finite() && perimeter.is_finite()) {
             return Record::CULLED;
         }
-        if area2.abs() <= 4.0 * f64::from(vertex_err) * perimeter || area2 == 0.0 {
+        if area2.abs() <= 4.0 * vertex_err * perimeter || area2 == 0.0 {
             rec.flat = true;
         }
         let sign = if area2 < 0.0 { -1.0 } else { 1.0 };
+        let ox = f64::from(e.cols.0);
         for k in 0..4 {
             if k >= n {
                 (e.a[k], e.b[k], e.c[k]) = (0.0, 0.0, 1e30);
@@ -712,21 +709,25 @@ fn finish_record(v: &[ScreenVertex], t: &TriVerts, prim: u32, p: &Projection, ve
             let (a, b) = if len > 0.0 { (a / len, b / len) } else { (0.0, 0.0) };
             e.a[k] = a as f32;
             e.b[k] = b as f32;
-            e.c[k] = (-(a * v[k].x[eye] + b * v[k].y[eye])) as f32;
+            e.c[k] = (-(a * (v[k].x[eye] - ox) + b * (v[k].y[eye] - oy))) as f32;
         }
         // The depth plane, from the triangle's plane (see `depth_plane`), not from the
         // projected vertices: a clipped vertex far off screen makes a fit through them
-        // ill-conditioned even in f64.
-        let (qa, qb, qc, rel) = depth_plane(t, p, eye);
+        // ill-conditioned even in f64. Moved to the record's first pixel.
+        let (qa, qb, qc, rel) = depth_plane(d, p, eye);
+        let qc = qc + qa * ox + qb * oy;
         (e.qa, e.qb, e.qc) = (qa as f32, qb as f32, qc as f32);
-        // Its error over the screen, with `terms = |qa|·W + |qb|·H + |qc|` bounding every
+        // Its error over the record, with `terms = |qa|·w + |qb|·h + |qc|` bounding every
         // partial sum: rounding the coefficients to f32 moves q by at most u·terms, and the
-        // evaluation `qa·px + (qb·py + qc)` rounds four times, each by at most u·terms; the
+        // evaluation `qa·x' + (qb·y' + qc)` rounds four times, each by at most u·terms; the
         // f64 setup adds `rel·terms`. Twice that, for margin.
-        let terms = qa.abs() * f64::from(p.width) + qb.abs() * f64::from(p.height) + qc.abs();
+        let w = f64::from(e.cols.1 - e.cols.0) + 8.0;
+        let terms = qa.abs() * w + qb.abs() * span_y + qc.abs();
         let err = 2.0 * (5.0 * f64::from(U) * terms + rel * terms);
         e.q_err = if err.is_finite() { err.min(f64::from(f32::MAX)) as f32 } else { f32::MAX };
     }
+    let evaluation = 10.0 * f64::from(U) * (widest + span_y + 1.0);
+    rec.band = (2.0 * (2.0 * vertex_err + f64::from(p.ray_slack) + evaluation) + 1e-5) as f32;
     rec
 }
 
@@ -737,9 +738,7 @@ fn finish_record(v: &[ScreenVertex], t: &TriVerts, prim: u32, p: &Projection, ve
 /// `N·d = D` gives `(N·M⁻¹)·(x, y, w) = D`, so `q = (g₀·x/w + g₁·y/w + g₂)/D` with `g = N·M⁻¹`:
 /// affine in normalised device coordinates, hence in pixels. The right eye's points are
 /// `d + (c_L − c_R)` in its own frame, which moves only `D`.
-fn depth_plane(t: &TriVerts, p: &Projection, eye: usize) -> (f64, f64, f64, f64) {
-    let d: [[f64; 3]; 3] =
-        core::array::from_fn(|k| core::array::from_fn(|c| f64::from(t[3 * k + c]) - f64::from(p.centre[c])));
+fn depth_plane(d: &[[f64; 3]; 3], p: &Projection, eye: usize) -> (f64, f64, f64, f64) {
     let (e1, e2) = ([0, 1, 2].map(|c| d[1][c] - d[0][c]), [0, 1, 2].map(|c| d[2][c] - d[0][c]));
     let n = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
     let mut d0 = d[0];

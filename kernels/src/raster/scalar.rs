@@ -4,23 +4,28 @@
 use super::{AlphaTest, BandOut, EyeView, Record};
 
 /// Walks `rec` over the rows of `out` in `eye`; returns how many fragments took the exact
-/// path.
-pub(crate) fn record<M: AlphaTest>(rec: &Record, eye: usize, view: &EyeView<'_, M>, out: &mut BandOut<'_>) -> u64 {
+/// path, and how many of those were near ties.
+pub(crate) fn record<M: AlphaTest>(
+    rec: &Record,
+    eye: usize,
+    view: &EyeView<'_, M>,
+    out: &mut BandOut<'_>,
+) -> (u64, u64) {
     let e = &rec.eyes[eye];
     let (c0, c1) = e.cols;
     let (y0, y1) = (rec.rows.0.max(out.rows.start as i32), rec.rows.1.min(out.rows.end as i32 - 1));
     if y0 > y1 || c0 > c1 {
-        return 0;
+        return (0, 0);
     }
     let edges = rec.n as usize;
     let band = rec.band;
-    let mut exact = 0;
+    let (mut exact, mut ties) = (0, 0);
     for y in y0..=y1 {
-        let py = y as f32 + 0.5;
+        let py = (y - rec.rows.0) as f32 + 0.5;
         let c_row = [0, 1, 2, 3].map(|k| e.b[k] * py + e.c[k]);
         let q_row = e.qb * py + e.qc;
         for x in c0..=c1 {
-            let px = x as f32 + 0.5;
+            let px = (x - c0) as f32 + 0.5;
             let d = [0, 1, 2, 3].map(|k| e.a[k] * px + c_row[k]);
             let below = (0..edges).any(|k| d[k] < -band);
             let (inside, outside) = if rec.flat {
@@ -46,8 +51,9 @@ pub(crate) fn record<M: AlphaTest>(rec: &Record, eye: usize, view: &EyeView<'_, 
                 // A near tie (or an empty pixel a surface this far cannot claim by q).
                 view.resolve_exact(rec.prim, x as usize, y as usize, stored);
                 exact += 1;
+                ties += 1;
             }
         }
     }
-    exact
+    (exact, ties)
 }

@@ -12,26 +12,36 @@ use super::{AlphaTest, BandOut, EyeEdges, EyeView, Record};
 use crate::simd::{F32s, LANES, lane_offsets};
 
 /// [`super::scalar::record`]'s SIMD twin.
-pub(crate) fn record<M: AlphaTest>(rec: &Record, eye: usize, view: &EyeView<'_, M>, out: &mut BandOut<'_>) -> u64 {
+pub(crate) fn record<M: AlphaTest>(
+    rec: &Record,
+    eye: usize,
+    view: &EyeView<'_, M>,
+    out: &mut BandOut<'_>,
+) -> (u64, u64) {
     if rec.n == 4 { walk::<4, M>(rec, eye, view, out) } else { walk::<3, M>(rec, eye, view, out) }
 }
 
 #[inline(always)]
-fn walk<const N: usize, M: AlphaTest>(rec: &Record, eye: usize, view: &EyeView<'_, M>, out: &mut BandOut<'_>) -> u64 {
+fn walk<const N: usize, M: AlphaTest>(
+    rec: &Record,
+    eye: usize,
+    view: &EyeView<'_, M>,
+    out: &mut BandOut<'_>,
+) -> (u64, u64) {
     let e = &rec.eyes[eye];
     let (c0, c1) = e.cols;
     let (y0, y1) = (rec.rows.0.max(out.rows.start as i32), rec.rows.1.min(out.rows.end as i32 - 1));
     if y0 > y1 || c0 > c1 {
-        return 0;
+        return (0, 0);
     }
     let half = lane_offsets() + F32s::splat(0.5);
     let lane_x = i32x8::from([0, 1, 2, 3, 4, 5, 6, 7]);
     let band = F32s::splat(rec.band);
     let (q_err, prim) = (F32s::splat(e.q_err), u32x8::splat(rec.prim));
-    let mut exact = 0;
+    let (mut exact, mut ties) = (0, 0);
     let mut bx = (c0 / 8) * 8;
     while bx <= c1 {
-        let px = F32s::splat(bx as f32) + half;
+        let px = F32s::splat((bx - c0) as f32) + half;
         let apx: [F32s; N] = core::array::from_fn(|k| F32s::splat(e.a[k]) * px);
         let qpx = F32s::splat(e.qa) * px;
         let full = bx as usize + LANES <= out.width;
@@ -40,7 +50,7 @@ fn walk<const N: usize, M: AlphaTest>(rec: &Record, eye: usize, view: &EyeView<'
         let cols = (!(xs.simd_lt(i32x8::splat(c0)) | xs.simd_gt(i32x8::splat(c1)))).to_bitmask();
         for y in y0..=y1 {
             let row = y as usize - out.rows.start;
-            let py = y as f32 + 0.5;
+            let py = (y - rec.rows.0) as f32 + 0.5;
             let mut above_all = F32s::splat(f32::from_bits(u32::MAX));
             let mut above_any = F32s::ZERO;
             let mut below_any = F32s::ZERO;
@@ -65,11 +75,13 @@ fn walk<const N: usize, M: AlphaTest>(rec: &Record, eye: usize, view: &EyeView<'
             let fast = candidates & !slow;
             if fast != 0 {
                 let q = qpx + F32s::splat(e.qb * py + e.qc);
-                slow |= if full {
+                let near = if full {
                     depth_test(q, q_err, prim, fast, out, at)
                 } else {
                     depth_test_lanes(rec.prim, e, q, fast, out, at)
                 };
+                ties += u64::from(near.count_ones());
+                slow |= near;
             }
             let mut m = slow;
             while m != 0 {
@@ -83,7 +95,7 @@ fn walk<const N: usize, M: AlphaTest>(rec: &Record, eye: usize, view: &EyeView<'
         }
         bx += 8;
     }
-    exact
+    (exact, ties)
 }
 
 /// Lane mask (bit `i` ⇒ all ones) as a float mask.
