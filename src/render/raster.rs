@@ -110,8 +110,9 @@ impl Renderer {
     }
 
     /// Writes `out` from one eye's visibility (see the module notes): eight pixels at a time
-    /// where all eight see mesh triangles ([`Renderer::resolve_lanes`]), one at a time
-    /// elsewhere ([`Renderer::resolve_pixel`]); both compute what the traced pass does.
+    /// where the eight see mesh triangles or nothing ([`Renderer::resolve_lanes`]), one at a
+    /// time for moving lights and the lanes the SIMD test leaves undecided
+    /// ([`Renderer::resolve_pixel`]); both compute what the traced pass does.
     fn resolve(&self, lights: &FrameLights, vis: &VisibilityBuffer, out: &mut GBufferBuf, tris: &Triangles<'_>) {
         let camera = out.camera;
         let width = camera.extent.width();
@@ -122,13 +123,29 @@ impl Renderer {
             let mut x0 = 0;
             while x0 + LANES <= width {
                 let group: &[u32; LANES] = prims[x0..x0 + LANES].try_into().expect("8 lanes");
-                let scalar = if group.iter().all(|&p| p < mesh_len) {
-                    let (lanes, scalar) = self.resolve_lanes(&camera, x0, y, group);
-                    row.set_lanes(x0, &lanes);
-                    scalar
-                } else {
-                    (1 << LANES) - 1
-                };
+                let mut background = 0u32;
+                let mut moving = 0u32;
+                for (i, &p) in group.iter().enumerate() {
+                    background |= u32::from(p == NO_PRIM) << i;
+                    moving |= u32::from(p >= mesh_len && p != NO_PRIM) << i;
+                }
+                let mesh_lanes = !(background | moving) & ((1 << LANES) - 1);
+                let mut scalar = moving;
+                if mesh_lanes != 0 {
+                    // Lanes without a mesh triangle compute on a neighbour's and are
+                    // overwritten below.
+                    let stand_in = group[mesh_lanes.trailing_zeros() as usize];
+                    let lanes = group.map(|p| if p < mesh_len { p } else { stand_in });
+                    let (texels, undecided) = self.resolve_lanes(&camera, x0, y, &lanes);
+                    row.set_lanes(x0, &texels);
+                    scalar |= undecided & mesh_lanes;
+                }
+                let mut m = background;
+                while m != 0 {
+                    let i = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    row.set(x0 + i, &GTexel::BACKGROUND);
+                }
                 let mut m = scalar;
                 while m != 0 {
                     let i = m.trailing_zeros() as usize;
@@ -205,10 +222,10 @@ impl Renderer {
         let (sx, sy, sz) = (d_x / d_z, d_y / d_z, F32s::ONE / d_z);
         let c = camera.centre.map(F32s::splat);
         let (ox, oy, oz) = (pick(&c, kx0, kx1), pick(&c, ky0, ky1), pick(&c, k0, k1));
-        // The eight triangles, vertex by vertex, permuted per lane.
-        let tri = prims.map(|p| &mesh.positions[p as usize]);
-        let verts: [[F32s; 3]; 3] =
-            core::array::from_fn(|v| core::array::from_fn(|axis| F32s::from(tri.map(|t| t[v][axis]))));
+        // The eight triangles, vertex by vertex (one triangle's, splat, when all eight lanes
+        // see the same one: the common case inside a triangle), permuted per lane.
+        let uniform = prims.iter().all(|&p| p == prims[0]);
+        let verts = lane_triangles(&mesh.positions, prims, uniform);
         let z = verts.map(|v| pick(&v, k0, k1) - oz);
         let sheared =
             |v: &[F32s; 3], vz: F32s| ((pick(v, kx0, kx1) - ox) - sx * vz, (pick(v, ky0, ky1) - oy) - sy * vz);
@@ -236,9 +253,7 @@ impl Renderer {
         let ng = ng0.map(|n| facing.select(-n, n));
         let mut ns = ng0;
         if let Some(normals) = &mesh.normals {
-            let vn = prims.map(|p| &normals[p as usize]);
-            let n: [[F32s; 3]; 3] =
-                core::array::from_fn(|k| core::array::from_fn(|axis| F32s::from(vn.map(|t| t[k][axis]))));
+            let n = lane_triangles(normals, prims, uniform);
             let b0 = (F32s::ONE - b1) - b2;
             let interp: [F32s; 3] = core::array::from_fn(|i| n[0][i] * b0 + n[1][i] * b1 + n[2][i] * b2);
             let (s, ok) = try_normalize(interp);
@@ -256,6 +271,26 @@ impl Renderer {
         };
         (lanes, scalar)
     }
+}
+
+/// Per-vertex data of the eight lanes' triangles as `[vertex][axis]` lanes: splat when
+/// `uniform` (every lane's triangle is `prims[0]`), else gathered.
+#[inline(always)]
+fn lane_triangles(data: &[[Vec3; 3]], prims: &[u32; LANES], uniform: bool) -> [[F32s; 3]; 3] {
+    if uniform {
+        let t = &data[prims[0] as usize];
+        return [0, 1, 2].map(|v| [F32s::splat(t[v].x), F32s::splat(t[v].y), F32s::splat(t[v].z)]);
+    }
+    let mut cols = [[[0.0f32; LANES]; 3]; 3];
+    for (lane, &p) in prims.iter().enumerate() {
+        let t = &data[p as usize];
+        for v in 0..3 {
+            cols[v][0][lane] = t[v].x;
+            cols[v][1][lane] = t[v].y;
+            cols[v][2][lane] = t[v].z;
+        }
+    }
+    cols.map(|v| v.map(F32s::from))
 }
 
 /// `a · b` as glam computes it, lane by lane.
