@@ -45,7 +45,7 @@ use crate::kernels::reproject::{
 };
 use crate::kernels::{CameraModel, Extent, FrameError, PlaneBuf, RgbBuf};
 use crate::render::lights::FrameLights;
-use crate::render::raster::{RasterGBuffers, RasterPassStats};
+use crate::render::raster::{GBufferPlanes, RasterGBuffers, RasterPassStats};
 use crate::render::{GBufferBuf, PixelSelection, RenderError, Renderer, TraceRequest, TraceStats};
 use crate::scene::CameraPose;
 
@@ -406,7 +406,13 @@ impl<'r> Pipeline<'r> {
             extent,
             lights: renderer.frame_lights(0),
             eyes: [EyeState::new(camera(Eye::Left)?), EyeState::new(camera(Eye::Right)?)],
-            raster: (config.gbuffer == GBufferPass::Raster).then(|| RasterGBuffers::new(extent)),
+            raster: (config.gbuffer == GBufferPass::Raster).then(|| {
+                let mut raster = RasterGBuffers::new(extent);
+                if config.layout == Layout::Compact {
+                    raster.planes = GBufferPlanes::Compact;
+                }
+                raster
+            }),
             frames_done: 0,
             planner: BudgetPlanner::default(),
         })
@@ -439,7 +445,9 @@ impl<'r> Pipeline<'r> {
         }
     }
 
-    /// The G-buffer of `eye` for the last frame.
+    /// The G-buffer of `eye` for the last frame. With the rasterised pass and the compact
+    /// layout only its depth, octahedral-normal and material planes are written (what the
+    /// reprojection reads); the position and normal planes stay NaN.
     pub fn gbuffer(&self, eye: Eye) -> &GBufferBuf {
         &self.eyes[eye as usize].gbuffer
     }

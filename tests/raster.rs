@@ -16,7 +16,7 @@ use stereotrace::kernels::bvh::{PreparedRay, Ray, TriVerts, intersect_triangle};
 use stereotrace::kernels::raster::{Body, NO_PRIM};
 use stereotrace::kernels::{CameraModel, Extent, PlaneBuf};
 use stereotrace::render::lights::FrameLights;
-use stereotrace::render::raster::RasterGBuffers;
+use stereotrace::render::raster::{GBufferPlanes, RasterGBuffers};
 use stereotrace::render::{GBufferBuf, Renderer};
 use stereotrace::scene::{builtin_names, resolve};
 
@@ -242,5 +242,33 @@ fn the_scalar_reference_and_the_simd_body_give_the_same_buffers() {
             assert_eq!(bits(&simd[eye].q), bits(&scalar[eye].q), "{name}: depth keys");
             assert_eq!(bits(&simd[eye].q_err), bits(&scalar[eye].q_err), "{name}: error bounds");
         }
+    }
+}
+
+#[test]
+fn the_compact_planes_are_the_full_passs_and_the_rest_are_left_alone() {
+    let renderer = Renderer::new(resolve("living-room-moving-light").unwrap()).unwrap();
+    let extent = Extent::new(333, 187).unwrap();
+    let lights = renderer.frame_lights(3);
+    let head = renderer.scene().camera.pose_at(3.0);
+    let cams = Eye::BOTH.map(|eye| StereoRig::default().eye_camera(&head, eye, extent).unwrap());
+    let pass = |planes| {
+        let mut raster = RasterGBuffers::new(extent);
+        raster.planes = planes;
+        let [mut gl, mut gr] = cams.map(GBufferBuf::new);
+        renderer.render_gbuffers_raster(&lights, [&mut gl, &mut gr], &mut raster).unwrap();
+        [gl, gr]
+    };
+    let (all, compact) = (pass(GBufferPlanes::All), pass(GBufferPlanes::Compact));
+    for (a, c) in all.iter().zip(&compact) {
+        let bits = |p: &PlaneBuf<f32>| p.as_slice().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&a.depth), bits(&c.depth));
+        assert_eq!(a.normal_oct.as_slice(), c.normal_oct.as_slice());
+        assert_eq!(a.material.as_slice(), c.material.as_slice());
+        // Never written: still the NaN a new buffer holds, except where the scalar path
+        // (moving lights, undecided lanes, the row tails) wrote whole texels.
+        let written = c.position[0].as_slice().iter().filter(|v| !v.is_nan()).count();
+        assert!(written < extent.pixels() / 10, "{written} positions written by the compact pass");
+        assert!(a.depth.as_slice().iter().any(|d| d.is_finite()));
     }
 }

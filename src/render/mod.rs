@@ -812,6 +812,15 @@ impl GRow<'_> {
         self.material[x..x + LANES].copy_from_slice(&lanes.material);
     }
 
+    /// [`GRow::set_lanes`] for the compact layout's planes only (depth, octahedral normal,
+    /// material).
+    #[inline(always)]
+    pub(crate) fn set_compact_lanes(&mut self, x: usize, lanes: &GLanes) {
+        self.depth[x..x + LANES].copy_from_slice(&lanes.depth.to_array());
+        self.oct[x..x + LANES].copy_from_slice(&lanes.oct);
+        self.material[x..x + LANES].copy_from_slice(&lanes.material);
+    }
+
     #[inline(always)]
     pub(crate) fn set(&mut self, x: usize, t: &GTexel) {
         self.depth[x] = t.depth;

@@ -34,6 +34,20 @@ pub struct RasterGBuffers {
     extra: Vec<TriVerts>,
     /// The kernel body (the SIMD one, or its scalar reference for tests).
     pub body: Body,
+    /// Which planes the resolve writes.
+    pub planes: GBufferPlanes,
+}
+
+/// Which planes of a [`GBufferBuf`] a rasterised pass writes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum GBufferPlanes {
+    /// Every plane, as the traced pass writes them.
+    #[default]
+    All,
+    /// Depth, octahedral normal and material only: what the compact layout's reprojection
+    /// reads (it rebuilds positions from depth). The position and normal planes are left
+    /// as they were, which saves two thirds of the resolve's writes.
+    Compact,
 }
 
 impl RasterGBuffers {
@@ -43,6 +57,7 @@ impl RasterGBuffers {
             visibility: [VisibilityBuffer::new(extent), VisibilityBuffer::new(extent)],
             extra: Vec::new(),
             body: Body::Simd,
+            planes: GBufferPlanes::All,
         }
     }
 
@@ -104,8 +119,9 @@ impl Renderer {
             .rasterize(tris, [&left.camera, &right.camera], &masks, self.raster_near, [vl, vr], raster.body)
             .map_err(|e: FrameError| RenderError::Frame(e))?;
         let start = std::time::Instant::now();
-        self.resolve(lights, &raster.visibility[0], left, &tris);
-        self.resolve(lights, &raster.visibility[1], right, &tris);
+        let all_planes = raster.planes == GBufferPlanes::All;
+        self.resolve(lights, &raster.visibility[0], left, &tris, all_planes);
+        self.resolve(lights, &raster.visibility[1], right, &tris, all_planes);
         Ok(RasterPassStats { raster: stats, resolve: start.elapsed() })
     }
 
@@ -113,7 +129,14 @@ impl Renderer {
     /// where the eight see mesh triangles or nothing ([`Renderer::resolve_lanes`]), one at a
     /// time for moving lights and the lanes the SIMD test leaves undecided
     /// ([`Renderer::resolve_pixel`]); both compute what the traced pass does.
-    fn resolve(&self, lights: &FrameLights, vis: &VisibilityBuffer, out: &mut GBufferBuf, tris: &Triangles<'_>) {
+    fn resolve(
+        &self,
+        lights: &FrameLights,
+        vis: &VisibilityBuffer,
+        out: &mut GBufferBuf,
+        tris: &Triangles<'_>,
+        all_planes: bool,
+    ) {
         let camera = out.camera;
         let width = camera.extent.width();
         let mesh_len = self.scene.mesh.len() as u32;
@@ -137,7 +160,11 @@ impl Renderer {
                     let stand_in = group[mesh_lanes.trailing_zeros() as usize];
                     let lanes = group.map(|p| if p < mesh_len { p } else { stand_in });
                     let (texels, undecided) = self.resolve_lanes(&camera, x0, y, &lanes);
-                    row.set_lanes(x0, &texels);
+                    if all_planes {
+                        row.set_lanes(x0, &texels);
+                    } else {
+                        row.set_compact_lanes(x0, &texels);
+                    }
                     scalar |= undecided & mesh_lanes;
                 }
                 let mut m = background;
