@@ -649,9 +649,9 @@ fn finish_record(v: &[ScreenVertex], d: &[[f64; 3]; 3], prim: u32, p: &Projectio
         if !(a <= b) { (1, 0) } else { (a as i32, b as i32) }
     };
     let extent = |eye: usize, y: bool| {
-        v.iter().map(|v| if y { v.y[eye] } else { v.x[eye] }).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), c| {
-            (a.min(c), b.max(c))
-        })
+        v.iter()
+            .map(|v| if y { v.y[eye] } else { v.x[eye] })
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), c| (a.min(c), b.max(c)))
     };
     let mut any = false;
     let mut rows = [(1, 0); 2];
