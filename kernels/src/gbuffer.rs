@@ -300,15 +300,11 @@ pub fn encode_normals(n: [F32s; 3]) -> [u32; LANES] {
         let rounded = away.select(t + scaled.simd_lt(F32s::ZERO).select(-F32s::ONE, F32s::ONE), t);
         rounded.trunc_int()
     };
-    let (qx, qy) = (quantise(px).to_array(), quantise(py).to_array());
-    let valid = valid.to_bitmask();
-    core::array::from_fn(|i| {
-        if valid & (1 << i) == 0 {
-            NO_NORMAL
-        } else {
-            (qx[i] as i16 as u16 as u32) | ((qy[i] as i16 as u16 as u32) << 16)
-        }
-    })
+    // `q as i16 as u16 as u32` is the low 16 bits of `q` (|q| ≤ 32767), and `<< 16` drops
+    // the high ones.
+    let packed = (quantise(px) & i32x8::splat(0xFFFF)) | (quantise(py) << 16);
+    let valid: i32x8 = bytemuck::cast(valid);
+    bytemuck::cast(valid.select(packed, i32x8::splat(NO_NORMAL as i32)))
 }
 
 /// Scalar decoding of [`encode_normal`]: a unit vector, or NaN for [`NO_NORMAL`].

@@ -158,7 +158,12 @@ impl Renderer {
                     // Lanes without a mesh triangle compute on a neighbour's and are
                     // overwritten below.
                     let stand_in = group[mesh_lanes.trailing_zeros() as usize];
-                    let lanes = group.map(|p| if p < mesh_len { p } else { stand_in });
+                    let mut lanes = *group;
+                    for p in &mut lanes {
+                        if *p >= mesh_len {
+                            *p = stand_in;
+                        }
+                    }
                     let (texels, undecided) = self.resolve_lanes(&camera, x0, y, &lanes);
                     if all_planes {
                         row.set_lanes(x0, &texels);
@@ -233,9 +238,9 @@ impl Renderer {
         let px = F32s::splat(x0 as f32) + lane_offsets() + F32s::splat(0.5);
         let py = y as f32 + 0.5;
         let dir: [F32s; 3] =
-            core::array::from_fn(|i| F32s::splat(o[i]) + px * F32s::splat(rdx[i]) + F32s::splat(py * rdy[i]));
+            from3(|i| F32s::splat(o[i]) + px * F32s::splat(rdx[i]) + F32s::splat(py * rdy[i]));
         // Dominant axis and the winding-preserving permutation, as PreparedRay::new.
-        let a = dir.map(|d| d.abs());
+        let a = map3(dir, |d| d.abs());
         let k0 = a[0].simd_ge(a[1]) & a[0].simd_ge(a[2]);
         let k1 = !k0 & a[1].simd_ge(a[2]);
         let k2 = !(k0 | k1);
@@ -247,13 +252,13 @@ impl Renderer {
         let (ky0, ky1) = (neg.select(k2, k1), neg.select(k0, k2));
         let (d_x, d_y) = (pick(&dir, kx0, kx1), pick(&dir, ky0, ky1));
         let (sx, sy, sz) = (d_x / d_z, d_y / d_z, F32s::ONE / d_z);
-        let c = camera.centre.map(F32s::splat);
+        let c = map3(camera.centre, F32s::splat);
         let (ox, oy, oz) = (pick(&c, kx0, kx1), pick(&c, ky0, ky1), pick(&c, k0, k1));
         // The eight triangles, vertex by vertex (one triangle's, splat, when all eight lanes
         // see the same one: the common case inside a triangle), permuted per lane.
         let uniform = prims.iter().all(|&p| p == prims[0]);
         let verts = lane_triangles(&mesh.positions, prims, uniform);
-        let z = verts.map(|v| pick(&v, k0, k1) - oz);
+        let z = map3(verts, |v| pick(&v, k0, k1) - oz);
         let sheared =
             |v: &[F32s; 3], vz: F32s| ((pick(v, kx0, kx1) - ox) - sx * vz, (pick(v, ky0, ky1) - oy) - sy * vz);
         let (ax, ay) = sheared(&verts[0], z[0]);
@@ -271,30 +276,30 @@ impl Renderer {
         let t = (u * (sz * z[0]) + v * (sz * z[1]) + w * (sz * z[2])) / det;
         let (b1, b2) = (v / det, w / det);
         // Normals, as Mesh::geometric_normal / shading_normal and Renderer::normals.
-        let e1 = [0, 1, 2].map(|i| verts[1][i] - verts[0][i]);
-        let e2 = [0, 1, 2].map(|i| verts[2][i] - verts[0][i]);
+        let e1 = from3(|i| verts[1][i] - verts[0][i]);
+        let e2 = from3(|i| verts[2][i] - verts[0][i]);
         let cross = [e1[1] * e2[2] - e2[1] * e1[2], e1[2] * e2[0] - e2[2] * e1[0], e1[0] * e2[1] - e2[0] * e1[1]];
         let (ng0, ng_ok) = try_normalize(cross);
         let ng0 = [ng_ok.select(ng0[0], zero), ng_ok.select(ng0[1], F32s::ONE), ng_ok.select(ng0[2], zero)];
         let facing = dot3(&ng0, &dir).simd_gt(zero);
-        let ng = ng0.map(|n| facing.select(-n, n));
+        let ng = map3(ng0, |n| facing.select(-n, n));
         let mut ns = ng0;
         if let Some(normals) = &mesh.normals {
             let n = lane_triangles(normals, prims, uniform);
             let b0 = (F32s::ONE - b1) - b2;
-            let interp: [F32s; 3] = core::array::from_fn(|i| n[0][i] * b0 + n[1][i] * b1 + n[2][i] * b2);
+            let interp: [F32s; 3] = from3(|i| n[0][i] * b0 + n[1][i] * b1 + n[2][i] * b2);
             let (s, ok) = try_normalize(interp);
             // Unnormalisable: the (unflipped) geometric normal.
-            ns = core::array::from_fn(|i| ok.select(s[i], ng0[i]));
+            ns = from3(|i| ok.select(s[i], ng0[i]));
         }
         let against = dot3(&ns, &ng).simd_lt(zero);
-        let ns = ns.map(|n| against.select(-n, n));
+        let ns = map3(ns, |n| against.select(-n, n));
         let lanes = GLanes {
             depth: t,
-            position: core::array::from_fn(|i| c[i] + t * dir[i]),
+            position: from3(|i| c[i] + t * dir[i]),
             normal: ns,
             oct: encode_normals(ns),
-            material: prims.map(|p| mesh.material[p as usize]),
+            material: lane_materials(&mesh.material, prims, uniform),
         };
         (lanes, scalar)
     }
@@ -306,7 +311,7 @@ impl Renderer {
 fn lane_triangles(data: &[[Vec3; 3]], prims: &[u32; LANES], uniform: bool) -> [[F32s; 3]; 3] {
     if uniform {
         let t = &data[prims[0] as usize];
-        return [0, 1, 2].map(|v| [F32s::splat(t[v].x), F32s::splat(t[v].y), F32s::splat(t[v].z)]);
+        return from3(|v| [F32s::splat(t[v].x), F32s::splat(t[v].y), F32s::splat(t[v].z)]);
     }
     let mut cols = [[[0.0f32; LANES]; 3]; 3];
     for (lane, &p) in prims.iter().enumerate() {
@@ -317,7 +322,34 @@ fn lane_triangles(data: &[[Vec3; 3]], prims: &[u32; LANES], uniform: bool) -> [[
             cols[v][2][lane] = t[v].z;
         }
     }
-    cols.map(|v| v.map(F32s::from))
+    from3(|v| from3(|axis| F32s::from(cols[v][axis])))
+}
+
+/// The eight lanes' materials.
+#[inline(always)]
+fn lane_materials(material: &[u32], prims: &[u32; LANES], uniform: bool) -> [u32; LANES] {
+    if uniform {
+        return [material[prims[0] as usize]; LANES];
+    }
+    let mut out = [0; LANES];
+    for (m, &p) in out.iter_mut().zip(prims) {
+        *m = material[p as usize];
+    }
+    out
+}
+
+/// `[f(0), f(1), f(2)]`, inlined (`core::array::from_fn` and `map` are not always, and
+/// here they sit in the resolve's innermost loop).
+#[inline(always)]
+fn from3<T>(f: impl Fn(usize) -> T) -> [T; 3] {
+    [f(0), f(1), f(2)]
+}
+
+/// `a.map(f)` for three elements, inlined (see [`from3`]).
+#[inline(always)]
+fn map3<T, U>(a: [T; 3], f: impl Fn(T) -> U) -> [U; 3] {
+    let [x, y, z] = a;
+    [f(x), f(y), f(z)]
 }
 
 /// `a · b` as glam computes it, lane by lane.
@@ -332,5 +364,5 @@ fn dot3(a: &[F32s; 3], b: &[F32s; 3]) -> F32s {
 fn try_normalize(v: [F32s; 3]) -> ([F32s; 3], F32s) {
     let rcp = F32s::ONE / dot3(&v, &v).sqrt();
     let ok = rcp.simd_lt(F32s::splat(f32::INFINITY)) & rcp.simd_gt(F32s::ZERO);
-    (v.map(|c| c * rcp), ok)
+    (map3(v, |c| c * rcp), ok)
 }
