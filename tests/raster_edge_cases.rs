@@ -1,0 +1,172 @@
+//! The rasteriser on the cases that break rasterisers, against a brute-force oracle: for every
+//! pixel, the tracer's own pixel-centre ray tested against every triangle with the tracer's
+//! watertight test, the closest hit winning (equal `t`: the smaller id, the rule the
+//! rasteriser's exact path uses). No BVH, no binning, no edge functions: nothing the
+//! rasteriser shares except the triangle test that defines what the tracer sees.
+//!
+//! Cases: a camera inside a closed box (every direction hits), triangles behind the camera
+//! and crossing the near plane (clipped to quads whose vertices land far off screen), a
+//! million tiny triangles inside one pixel, and NaN or infinite vertices (the scene loader
+//! refuses them, `tests/scenes.rs`; the kernel must still not let one reach a pixel). Scalar
+//! reference and SIMD body must give the same buffers on each.
+
+use glam::Vec3;
+use stereotrace::camera::{Eye, StereoRig};
+use stereotrace::kernels::bvh::{PreparedRay, Ray, TriVerts, intersect_triangle};
+use stereotrace::kernels::raster::{Body, NO_PRIM, NoMasks, Rasterizer, Triangles, VisibilityBuffer};
+use stereotrace::kernels::{CameraModel, Extent};
+use stereotrace::scene::CameraPose;
+
+fn pose(eye: Vec3, target: Vec3) -> CameraPose {
+    let forward = (target - eye).normalize();
+    let right = forward.cross(Vec3::Y).normalize();
+    CameraPose { eye, forward, up: right.cross(forward), right, vfov_deg: 60.0 }
+}
+
+fn tri(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> TriVerts {
+    [a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2]]
+}
+
+/// The oracle's answer at pixel `(x, y)`.
+fn brute_force(camera: &CameraModel, tris: &[TriVerts], x: usize, y: usize) -> u32 {
+    let d = camera.ray(x as f32 + 0.5, y as f32 + 0.5);
+    let Some(r) = PreparedRay::new(&Ray::new(camera.centre.into(), d.into())) else { return NO_PRIM };
+    let mut best = (f32::INFINITY, NO_PRIM);
+    for (i, t) in tris.iter().enumerate() {
+        if let Some(hit) = intersect_triangle(&r, t, f32::INFINITY)
+            && (hit.t < best.0 || (hit.t == best.0 && (i as u32) < best.1))
+        {
+            best = (hit.t, i as u32);
+        }
+    }
+    best.1
+}
+
+/// Rasterises `tris` for both eyes of `head` at `extent` with both bodies; checks them equal
+/// to each other and to the oracle on every pixel (or on `only` when given). Returns the
+/// left eye's ids.
+fn check(name: &str, tris: &[TriVerts], head: &CameraPose, extent: Extent, only: Option<(usize, usize)>) -> Vec<u32> {
+    let rig = StereoRig::default();
+    let cams = Eye::BOTH.map(|eye| rig.eye_camera(head, eye, extent).unwrap());
+    let run = |body| {
+        let mut out = [VisibilityBuffer::new(extent), VisibilityBuffer::new(extent)];
+        let [l, r] = &mut out;
+        let tris = Triangles { main: tris, extra: &[] };
+        Rasterizer::new().rasterize(tris, [&cams[0], &cams[1]], &NoMasks, 1e-6, [l, r], body).unwrap();
+        out
+    };
+    let (simd, scalar) = (run(Body::Simd), run(Body::Scalar));
+    assert_eq!(simd, scalar, "{name}: the SIMD body and the scalar reference differ");
+    for (eye, vis) in simd.iter().enumerate() {
+        let ids = vis.prim.as_slice();
+        for y in 0..extent.height() {
+            for x in 0..extent.width() {
+                if only.is_some_and(|p| p != (x, y)) {
+                    continue;
+                }
+                let expected = brute_force(&cams[eye], tris, x, y);
+                let got = ids[y * extent.width() + x];
+                assert_eq!(got, expected, "{name}: eye {eye} pixel ({x}, {y}): raster {got}, oracle {expected}");
+            }
+        }
+    }
+    simd[0].prim.as_slice().to_vec()
+}
+
+/// The twelve triangles of an axis-aligned box from `lo` to `hi`.
+fn cube(lo: [f32; 3], hi: [f32; 3]) -> Vec<TriVerts> {
+    let p = |i: usize| {
+        [
+            if i & 1 == 0 { lo[0] } else { hi[0] },
+            if i & 2 == 0 { lo[1] } else { hi[1] },
+            if i & 4 == 0 { lo[2] } else { hi[2] },
+        ]
+    };
+    let quads = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]];
+    quads.iter().flat_map(|q| [tri(p(q[0]), p(q[1]), p(q[2])), tri(p(q[0]), p(q[2]), p(q[3]))]).collect()
+}
+
+#[test]
+fn a_camera_inside_a_closed_box_sees_a_wall_at_every_pixel() {
+    let mut tris = cube([-1.0, -1.0, -1.0], [1.0, 1.5, 2.0]);
+    // A panel inside the box, in front of the camera, and one exactly on a wall (a depth tie).
+    tris.push(tri([-0.3, -0.3, -0.5], [0.4, -0.2, -0.5], [0.0, 0.5, -0.6]));
+    tris.push(tri([-0.5, -0.5, -1.0], [0.5, -0.5, -1.0], [0.0, 0.5, -1.0]));
+    let extent = Extent::new(67, 41).unwrap();
+    let ids = check("inside a box", &tris, &pose(Vec3::new(0.1, 0.2, 0.3), Vec3::new(0.0, 0.0, -1.0)), extent, None);
+    assert!(ids.iter().all(|&p| p != NO_PRIM), "a closed box leaves no pixel empty");
+}
+
+#[test]
+fn triangles_behind_the_camera_and_across_the_near_plane() {
+    let eye = Vec3::new(0.0, 1.0, 0.0);
+    let tris = vec![
+        // A ground plane running from far in front to far behind the camera (clipped).
+        tri([-50.0, 0.0, -50.0], [50.0, 0.0, -50.0], [0.0, 0.0, 50.0]),
+        // Entirely behind the camera.
+        tri([-1.0, 0.5, 3.0], [1.0, 0.5, 3.0], [0.0, 2.0, 3.0]),
+        // One vertex behind the eye plane, passing right beside the eye (huge clipped quad).
+        tri([0.02, 1.0, 0.5], [0.3, 0.8, -2.0], [-0.3, 1.3, -2.0]),
+        // Crossing the eye plane through the eye point itself.
+        tri([0.0, 1.0, 0.0], [1.0, 1.5, -3.0], [0.5, 0.4, -3.0]),
+        // A wall in front.
+        tri([-3.0, 0.0, -4.0], [3.0, 0.0, -4.0], [0.0, 3.0, -4.0]),
+    ];
+    for extent in [Extent::new(64, 36).unwrap(), Extent::new(7, 3).unwrap(), Extent::new(1, 1).unwrap()] {
+        let ids = check("near plane", &tris, &pose(eye, Vec3::new(0.0, 0.9, -1.0)), extent, None);
+        assert!(!ids.contains(&1), "a triangle behind the camera was drawn");
+    }
+}
+
+#[test]
+fn a_million_tiny_triangles_in_one_pixel() {
+    let extent = Extent::new(16, 9).unwrap();
+    let head = pose(Vec3::ZERO, Vec3::new(0.0, 0.0, -1.0));
+    let camera = StereoRig::default().eye_camera(&head, Eye::Left, extent).unwrap();
+    // The left eye's pixel (8, 4): its centre direction at depth 1, and one pixel's size there.
+    let origin = Vec3::from(camera.centre);
+    let centre = Vec3::from(camera.ray(8.5, 4.5));
+    let pixel = Vec3::from(camera.ray(9.5, 4.5)) - centre;
+    let size = pixel.length();
+    let mut tris = vec![tri([-50.0, -50.0, -3.0], [50.0, -50.0, -3.0], [0.0, 50.0, -3.0])];
+    // 10⁶ triangles of 1e-3 px on a jittered grid across the pixel, at depths 1 to 2: a few
+    // contain the pixel centre's ray, most fall between pixel centres.
+    let mut state = 0x9E37_79B9_7F4A_7C15u64;
+    let mut next = || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 40) as f32 / (1u64 << 24) as f32
+    };
+    let (u, v) = (pixel.normalize(), Vec3::Y * size);
+    for i in 0..1_000_000 {
+        let depth = 1.0 + next();
+        let offset = (next() - 0.5) * u * size + (next() - 0.5) * v;
+        // Every 1000th triangle sits on the centre ray itself.
+        let e = 1e-3 * size * depth;
+        let along =
+            if i % 1000 == 0 { centre * depth - (u * 0.2 + Vec3::Y * 0.3) * e } else { (centre + offset) * depth };
+        let base = origin + along;
+        tris.push(tri(base.into(), (base + u * e).into(), (base + Vec3::Y * e - u * e * 0.3).into()));
+    }
+    let ids = check("tiny triangles", &tris, &head, extent, Some((8, 4)));
+    assert_ne!(ids[4 * 16 + 8], 0, "the pixel sees one of the tiny triangles on its centre ray");
+    let elsewhere = check("tiny triangles", &tris[..1], &head, extent, None);
+    assert!(elsewhere.iter().all(|&p| p == 0));
+}
+
+#[test]
+fn non_finite_vertices_never_reach_a_pixel() {
+    let n = f32::NAN;
+    let inf = f32::INFINITY;
+    let tris = vec![
+        tri([-3.0, -2.0, -4.0], [3.0, -2.0, -4.0], [0.0, 3.0, -4.0]),
+        tri([n, 0.0, -2.0], [1.0, 0.0, -2.0], [0.0, 1.0, -2.0]),
+        tri([-1.0, -1.0, -2.0], [inf, 0.0, -2.0], [0.0, 1.0, -2.0]),
+        tri([-1.0, -1.0, -2.0], [1.0, -1.0, -2.0], [0.0, 1.0, -inf]),
+        tri([n; 3], [n; 3], [n; 3]),
+    ];
+    let ids =
+        check("non-finite", &tris, &pose(Vec3::ZERO, Vec3::new(0.0, 0.0, -1.0)), Extent::new(40, 30).unwrap(), None);
+    assert!(ids.iter().all(|&p| p == 0 || p == NO_PRIM), "a non-finite triangle was drawn");
+}
