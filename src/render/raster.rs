@@ -237,8 +237,7 @@ impl Renderer {
         let (o, rdx, rdy) = (camera.ray_origin_corner, camera.ray_dx, camera.ray_dy);
         let px = F32s::splat(x0 as f32) + lane_offsets() + F32s::splat(0.5);
         let py = y as f32 + 0.5;
-        let dir: [F32s; 3] =
-            from3(|i| F32s::splat(o[i]) + px * F32s::splat(rdx[i]) + F32s::splat(py * rdy[i]));
+        let dir: [F32s; 3] = from3(|i| F32s::splat(o[i]) + px * F32s::splat(rdx[i]) + F32s::splat(py * rdy[i]));
         // Dominant axis and the winding-preserving permutation, as PreparedRay::new.
         let a = map3(dir, |d| d.abs());
         let k0 = a[0].simd_ge(a[1]) & a[0].simd_ge(a[2]);
