@@ -22,7 +22,11 @@
 //!
 //! Only the pixels an eye needs are traced: in `stereo` and both `spatiotemporal` modes the
 //! left eye traces just the pixels whose stereo reprojection was discarded (2–6 % in the
-//! paper), with exactly the random numbers a full render would use for them.
+//! paper), with exactly the random numbers a full render would use for them. Likewise in
+//! the paper-order `spatiotemporal` mode the left eye's history is reprojected only where
+//! its stereo reprojection was discarded: elsewhere the shown pixel is the stereo sample
+//! and the history restarts from it, so the temporal reprojection there would be unused
+//! (its reason is recorded as `Invalid` and not counted).
 //!
 //! # Budget
 //! With a per-frame time budget, G-buffers, reprojection and accumulation always run; path
@@ -40,6 +44,7 @@ use std::time::{Duration, Instant};
 
 use crate::camera::{Eye, StereoRig};
 use crate::kernels::accumulate::{self, AccumulateStats, BlendParams, EmaInput, EmaParams, EmaState};
+use crate::kernels::gbuffer::{CompactGBuffer, GBuffer};
 use crate::kernels::reproject::{
     self, Reason, ReasonCounts, ReprojectInput, ReprojectOutput, ReprojectParams, TapPolicy, Tolerances,
 };
@@ -291,6 +296,9 @@ struct EyeState {
     has_new: PlaneBuf<u8>,
     /// Pixels with no valid reprojected data (traced first under a budget).
     urgent: PlaneBuf<u8>,
+    /// This frame's depth where the temporal reprojection is needed, +inf elsewhere (the
+    /// kernel skips background): see the module notes.
+    masked_depth: PlaneBuf,
 }
 
 impl EyeState {
@@ -314,6 +322,7 @@ impl EyeState {
             wanted: PlaneBuf::new(e, 0),
             has_new: PlaneBuf::new(e, 0),
             urgent: PlaneBuf::new(e, 0),
+            masked_depth: PlaneBuf::new(e, f32::INFINITY),
         }
     }
 }
@@ -503,7 +512,9 @@ impl<'r> Pipeline<'r> {
         if mode.temporal() {
             let t = Instant::now();
             for eye in Eye::BOTH {
-                stats.temporal_reasons[eye as usize] = self.reproject_history(eye, has_history)?;
+                if !(eye == Eye::Left && self.left_history_on_demand()) {
+                    stats.temporal_reasons[eye as usize] = self.reproject_history(eye, has_history, false)?;
+                }
             }
             stats.times.reprojection += t.elapsed();
         }
@@ -584,13 +595,26 @@ impl<'r> Pipeline<'r> {
         Ok(stats)
     }
 
+    /// Whether the left eye's temporal reprojection runs only where its stereo reprojection
+    /// was discarded (see the module notes).
+    fn left_history_on_demand(&self) -> bool {
+        self.config.mode == Mode::Spatiotemporal && self.config.order == Order::Paper
+    }
+
     fn reproject_params(&self) -> ReprojectParams {
         ReprojectParams { tolerances: self.config.tolerances, policy: self.config.policy, band_rows: 16 }
     }
 
     /// Reprojects `eye`'s previous history into this frame (`history`, `len`,
-    /// `temporal_reason`); on the first frame every pixel is marked invalid.
-    fn reproject_history(&mut self, eye: Eye, has_history: bool) -> Result<ReasonCounts, PipelineError> {
+    /// `temporal_reason`); on the first frame every pixel is marked invalid. With
+    /// `only_stereo_discarded`, only the pixels whose stereo reprojection was discarded are
+    /// reprojected; the others are marked invalid and not counted.
+    fn reproject_history(
+        &mut self,
+        eye: Eye,
+        has_history: bool,
+        only_stereo_discarded: bool,
+    ) -> Result<ReasonCounts, PipelineError> {
         let params = self.reproject_params();
         let ramp = self.config.ramp;
         let layout = self.config.layout;
@@ -599,6 +623,17 @@ impl<'r> Pipeline<'r> {
             s.temporal_reason.as_mut_slice().fill(Reason::Invalid as u8);
             return Ok(ReasonCounts::default());
         };
+        let mut skipped = 0;
+        if only_stereo_discarded {
+            for ((m, &d), &stereo) in
+                s.masked_depth.as_mut_slice().iter_mut().zip(s.gbuffer.depth.as_slice()).zip(s.stereo_reason.as_slice())
+            {
+                let reprojected = is_reprojected(stereo);
+                skipped += u64::from(reprojected);
+                *m = if reprojected { f32::INFINITY } else { d };
+            }
+        }
+        let target_depth = if only_stereo_discarded { s.masked_depth.view() } else { s.gbuffer.depth.view() };
         let (history, len, reason) = (&mut s.history, &mut s.len, &mut s.temporal_reason);
         let out = ReprojectOutput {
             colour: history.view_mut(),
@@ -608,18 +643,34 @@ impl<'r> Pipeline<'r> {
         };
         let colour = s.prev_history.view();
         let extra = ramp.then(|| s.prev_len.view());
-        let counts = match layout {
+        let g = &s.gbuffer;
+        let mut counts = match layout {
             Layout::Compact => {
-                let (t, src) = (s.gbuffer.compact(), s.prev_gbuffer.compact());
+                let t = CompactGBuffer::new(target_depth, g.normal_oct.view(), g.camera)?;
+                let src = s.prev_gbuffer.compact();
                 let input = ReprojectInput { target: &t, source: &src, source_camera: &prev_camera, colour, extra };
                 reproject::reproject(&input, out, &params)?
             }
             Layout::Full => {
-                let (t, src) = (s.gbuffer.view(), s.prev_gbuffer.view());
+                let t = GBuffer::new(
+                    target_depth,
+                    g.position.each_ref().map(|p| p.view()),
+                    g.normal.each_ref().map(|p| p.view()),
+                )?;
+                let src = s.prev_gbuffer.view();
                 let input = ReprojectInput { target: &t, source: &src, source_camera: &prev_camera, colour, extra };
                 reproject::reproject(&input, out, &params)?
             }
         };
+        if only_stereo_discarded {
+            // The skipped pixels came out as background; they are not part of the statistics.
+            counts.0[Reason::Background as usize] -= skipped;
+            for (r, &stereo) in s.temporal_reason.as_mut_slice().iter_mut().zip(s.stereo_reason.as_slice()) {
+                if is_reprojected(stereo) {
+                    *r = Reason::Invalid as u8;
+                }
+            }
+        }
         Ok(counts)
     }
 
@@ -674,6 +725,9 @@ impl<'r> Pipeline<'r> {
     ) -> Result<(), PipelineError> {
         let t = Instant::now();
         stats.stereo_reasons[L] = self.stereo_into(Eye::Left, source)?;
+        if self.left_history_on_demand() && self.config.mode.temporal() {
+            stats.temporal_reasons[L] = self.reproject_history(Eye::Left, self.frames_done > 0, true)?;
+        }
         stats.times.reprojection += t.elapsed();
         let s = &mut self.eyes[L];
         let temporal_valid = self.config.mode.temporal() && self.frames_done > 0;

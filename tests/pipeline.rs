@@ -2,6 +2,7 @@
 //! the renderer and the kernels, determinism, history handling and the budget.
 
 use stereotrace::camera::{Eye, StereoRig};
+use stereotrace::kernels::accumulate;
 use stereotrace::kernels::reproject::{self, Reason, ReprojectInput, ReprojectOutput, ReprojectParams};
 use stereotrace::kernels::{Extent, PlaneBuf, RgbBuf};
 use stereotrace::pipeline::{Mode, Order, Pipeline, PipelineConfig};
@@ -86,6 +87,56 @@ fn stereo_mode_reprojects_where_valid_and_traces_only_the_rest() {
         }
     }
     assert!(discarded > 0 && discarded < extent().pixels() / 4, "{discarded} discarded");
+}
+
+#[test]
+fn the_paper_order_left_eye_reprojects_its_history_only_where_stereo_failed() {
+    // Frame 1 of the paper-order spatiotemporal mode composed from the kernels: where the
+    // stereo reprojection failed, the EMA of the *whole-frame* temporal reprojection of the
+    // left history (frame 0's shown image) with the left eye's own samples; elsewhere the
+    // stereo sample. The pipeline reprojects the left history only at the failed pixels.
+    let r = renderer("living-room");
+    let cfg = config(&r, Mode::Spatiotemporal, 1);
+    let mut p = Pipeline::new(&r, cfg, StereoRig::default(), extent()).unwrap();
+    run(&mut p, &r, 0..1);
+    let (prev_gbuffer, prev_image) = (p.gbuffer(Eye::Left).clone(), p.output(Eye::Left).clone());
+    let stats = p.render_frame(1, &r.scene().camera.pose_at(1.0)).unwrap();
+    let (stereo, temporal) = (p.stereo_reasons(Eye::Left).clone(), p.temporal_reasons(Eye::Left).clone());
+    let failed: Vec<bool> = stereo.as_slice().iter().map(|&c| c != Reason::Reprojected as u8).collect();
+    let failed_count = failed.iter().filter(|&&f| f).count() as u64;
+    assert!(failed_count > 0 && failed_count < extent().pixels() as u64 / 4, "{failed_count} stereo failures");
+    assert_eq!(stats.temporal_reasons[Eye::Left as usize].total(), failed_count, "only failed pixels counted");
+
+    let g = p.gbuffer(Eye::Left);
+    let mut history = RgbBuf::new(extent(), 0.0);
+    let mut reason = PlaneBuf::new(extent(), 0u8);
+    let (t, src) = (g.compact(), prev_gbuffer.compact());
+    let input = ReprojectInput {
+        target: &t,
+        source: &src,
+        source_camera: &prev_gbuffer.camera,
+        colour: prev_image.view(),
+        extra: None,
+    };
+    let out = ReprojectOutput { colour: history.view_mut(), extra: None, reason: reason.view_mut(), weight: None };
+    let params = ReprojectParams { tolerances: r.scene().tolerances.at_height(H), ..ReprojectParams::default() };
+    reproject::reproject(&input, out, &params).unwrap();
+    let own = traced(&r, Eye::Left, 1, 1, 1);
+    let ema = accumulate::EmaParams { alpha: 0.2, ramp: false, band_rows: 16 };
+    let mut checked = 0;
+    for i in (0..extent().pixels()).filter(|&i| failed[i]) {
+        let (x, y) = (i % W, i / W);
+        assert_eq!(temporal.as_slice()[i], reason.as_slice()[i], "({x}, {y}): the temporal reason");
+        let valid = reason.as_slice()[i] == Reason::Reprojected as u8;
+        let (expected, _) =
+            accumulate::ema_pixel(history.get(x, y), 0.0, own.get(x, y), valid, true, &ema, &mut Default::default());
+        assert_eq!(p.output(Eye::Left).get(x, y), expected, "({x}, {y})");
+        checked += usize::from(valid);
+    }
+    assert!(checked > 0, "no failed stereo pixel had a valid history to accumulate");
+    for i in (0..extent().pixels()).filter(|&i| !failed[i]) {
+        assert_eq!(temporal.as_slice()[i], Reason::Invalid as u8, "not reprojected, marked invalid");
+    }
 }
 
 #[test]

@@ -66,6 +66,10 @@ pub trait SurfaceLayout: Sync {
     /// # Safety
     /// `x + LANES <= width` and `y < height`.
     unsafe fn surfels_row_unchecked(&self, x: usize, y: usize) -> Surfels;
+    /// The depths of pixels `x .. x + LANES` of row `y` alone (the reprojection skips groups
+    /// that are all background before decoding anything else). Panics unless
+    /// `x + LANES <= width`.
+    fn depth_row(&self, x: usize, y: usize) -> F32s;
     /// The pixels at `taps` (already clamped into the extent).
     fn surfels_gather(&self, taps: &TapCoords) -> Surfels;
     /// Bytes read per pixel (for roofline figures).
@@ -128,6 +132,12 @@ impl SurfaceLayout for GBuffer<'_> {
     }
 
     #[inline(always)]
+    fn depth_row(&self, x: usize, y: usize) -> F32s {
+        assert!(x + LANES <= self.depth.width() && y < self.depth.height(), "vector load outside the G-buffer");
+        // SAFETY: checked on the line above.
+        unsafe { load_row(&self.depth, x, y) }
+    }
+
     unsafe fn surfels_row_unchecked(&self, x: usize, y: usize) -> Surfels {
         // SAFETY (all loads): every plane has the G-buffer's extent (checked by `new`) and
         // the caller keeps the lanes inside it.
@@ -227,6 +237,12 @@ impl SurfaceLayout for CompactGBuffer<'_> {
     }
 
     #[inline(always)]
+    fn depth_row(&self, x: usize, y: usize) -> F32s {
+        assert!(x + LANES <= self.depth.width() && y < self.depth.height(), "vector load outside the G-buffer");
+        // SAFETY: checked on the line above.
+        unsafe { load_row(&self.depth, x, y) }
+    }
+
     unsafe fn surfels_row_unchecked(&self, x: usize, y: usize) -> Surfels {
         // SAFETY: both planes have the G-buffer's extent (checked by `new`) and the caller
         // keeps the lanes inside it.

@@ -804,6 +804,12 @@ fn reproject_lanes<L: SurfaceLayout, const C: usize>(
     y: usize,
     cache: &mut [SourceCache; 2],
 ) -> Lanes<C> {
+    let code = |r: Reason| F32s::splat(r as u8 as f32);
+    // Eight background pixels: what the general path below computes for them, without it
+    // (skies, and the pixels a caller masked out by giving them no surface).
+    if p.target.depth_row(x, y).simd_eq(F32s::splat(f32::INFINITY)).all() {
+        return Lanes { channels: [F32s::ZERO; C], weight: F32s::ZERO, reason: code(Reason::Background), ok_bits: 0 };
+    }
     let t = target_lanes(p, x, y);
     let coherent = coherent_row(&t.footprints, t.active, p.source_extent);
     let totals = match coherent {
@@ -811,7 +817,6 @@ fn reproject_lanes<L: SurfaceLayout, const C: usize>(
         None => evaluate_taps::<L, C, _, false>(p, &t, &Gathers).0,
     };
     let ok = if p.strict { totals.any_accepted & !totals.any_failed } else { totals.any_accepted };
-    let code = |r: Reason| F32s::splat(r as u8 as f32);
     let reason = if (ok | t.background).all() {
         t.background.select(code(Reason::Background), code(Reason::Reprojected))
     } else {
