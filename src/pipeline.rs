@@ -262,7 +262,8 @@ pub struct FrameStats {
     /// Stereo reprojection into each eye (left, right), by reason; zero where unused.
     pub stereo_reasons: [ReasonCounts; 2],
     /// Temporal reprojection of each eye's history, by reason; zero where unused or on the
-    /// first frame.
+    /// first frame (paper-order spatiotemporal left eye: only the pixels whose stereo
+    /// reprojection failed).
     pub temporal_reasons: [ReasonCounts; 2],
     pub accumulation: [AccumulateStats; 2],
     pub budget: Option<Duration>,
@@ -467,7 +468,9 @@ impl<'r> Pipeline<'r> {
         &self.eyes[eye as usize].stereo_reason
     }
 
-    /// The temporal reprojection reason codes of `eye` for the last frame.
+    /// The temporal reprojection reason codes of `eye` for the last frame. In the paper-order
+    /// spatiotemporal mode the left eye's history is reprojected only where its stereo
+    /// reprojection failed; its other pixels read `Invalid` (see the module notes).
     pub fn temporal_reasons(&self, eye: Eye) -> &PlaneBuf<u8> {
         &self.eyes[eye as usize].temporal_reason
     }
