@@ -266,48 +266,19 @@ impl PreparedRay {
     /// `None` for an invalid ray (see [`Ray::is_valid`]).
     #[inline]
     pub fn new(ray: &Ray) -> Option<Self> {
-        if !ray.is_valid() {
-            return None;
-        }
-        let o = ray.origin.to_array();
-        let d = ray.dir.to_array();
-        let inv = d.map(safe_rcp);
-        let pad = inv.map(|i| NODE_PAD * i.abs());
-        let oct_inv = (if inv[0] < 0.0 { 0 } else { 4 })
+        let mut r = Self::for_triangles(ray)?;
+        let inv = ray.dir.to_array().map(safe_rcp);
+        r.inv = Vec3A::from_array(inv);
+        r.pad = Vec3A::from_array(inv.map(|i| NODE_PAD * i.abs()));
+        r.oct_inv = (if inv[0] < 0.0 { 0 } else { 4 })
             | (if inv[1] < 0.0 { 0 } else { 2 })
             | (if inv[2] < 0.0 { 0 } else { 1 });
-        let a = d.map(f32::abs);
-        let kz = if a[0] >= a[1] && a[0] >= a[2] {
-            0
-        } else if a[1] >= a[2] {
-            1
-        } else {
-            2
-        };
-        let mut kx = (kz + 1) % 3;
-        let mut ky = (kx + 1) % 3;
-        // Keep the winding (and so the sign convention of the edge functions) per ray.
-        if d[kz] < 0.0 {
-            core::mem::swap(&mut kx, &mut ky);
-        }
-        let shear = [d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]];
-        Some(Self {
-            origin: Vec3A::from_array(o),
-            inv: Vec3A::from_array(inv),
-            pad: Vec3A::from_array(pad),
-            oct_inv,
-            k: [kx, ky, kz],
-            shear,
-            origin_k: [o[kx], o[ky], o[kz]],
-            tmin: ray.tmin,
-            tmax: ray.tmax,
-        })
+        Some(r)
     }
 
-    /// The fields [`intersect_triangle`] reads (axis permutation, shear, origin, `t` range),
-    /// computed as [`PreparedRay::new`] computes them, without the node test's reciprocals:
-    /// for callers that test single triangles (the rasteriser's exact path). `None` for an
-    /// invalid ray.
+    /// The fields [`intersect_triangle`] reads (axis permutation, shear, origin, `t` range)
+    /// without the node test's reciprocals ([`PreparedRay::new`] adds them): for callers
+    /// that test single triangles (the rasteriser's exact path). `None` for an invalid ray.
     #[inline]
     pub fn for_triangles(ray: &Ray) -> Option<Self> {
         if !ray.is_valid() {
@@ -325,6 +296,7 @@ impl PreparedRay {
         };
         let mut kx = (kz + 1) % 3;
         let mut ky = (kx + 1) % 3;
+        // Keep the winding (and so the sign convention of the edge functions) per ray.
         if d[kz] < 0.0 {
             core::mem::swap(&mut kx, &mut ky);
         }
