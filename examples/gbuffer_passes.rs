@@ -3,7 +3,8 @@
 //! pass, medians over 9 rasterised passes and 3 traced ones, with the raster's counters.
 //!
 //! `cargo run --release --example gbuffer_passes -- SCENE [THREADS]` (default 2 threads);
-//! the figures in BENCHMARKS.md come from it.
+//! the figures in BENCHMARKS.md come from it. With `COMPACT=1` in the environment the
+//! resolve writes only the compact layout's planes, as the pipeline does with that layout.
 
 use std::time::Instant;
 

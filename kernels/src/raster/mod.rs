@@ -233,6 +233,15 @@ impl Record {
         flat: false,
     };
 
+    /// The columns and rows `eye`'s walk of this record visits in the band `out` (both
+    /// inclusive), or `None` when there are none: the one span both fragment bodies walk.
+    #[inline(always)]
+    pub(crate) fn walk_span(&self, eye: usize, out: &BandOut<'_>) -> Option<((i32, i32), (i32, i32))> {
+        let (c0, c1) = self.eyes[eye].cols;
+        let (y0, y1) = (self.rows.0.max(out.rows.start as i32), self.rows.1.min(out.rows.end as i32 - 1));
+        (y0 <= y1 && c0 <= c1).then_some(((c0, c1), (y0, y1)))
+    }
+
     #[inline(always)]
     pub(crate) fn visible_in(&self, eye: usize) -> bool {
         self.rows.0 <= self.rows.1 && self.eyes[eye].cols.0 <= self.eyes[eye].cols.1

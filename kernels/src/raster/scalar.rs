@@ -12,11 +12,7 @@ pub(crate) fn record<M: AlphaTest>(
     out: &mut BandOut<'_>,
 ) -> (u64, u64) {
     let e = &rec.eyes[eye];
-    let (c0, c1) = e.cols;
-    let (y0, y1) = (rec.rows.0.max(out.rows.start as i32), rec.rows.1.min(out.rows.end as i32 - 1));
-    if y0 > y1 || c0 > c1 {
-        return (0, 0);
-    }
+    let Some(((c0, c1), (y0, y1))) = rec.walk_span(eye, out) else { return (0, 0) };
     let edges = rec.n as usize;
     let band = rec.band;
     let (mut exact, mut ties) = (0, 0);
