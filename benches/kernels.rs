@@ -83,6 +83,7 @@ fn run_reprojection<L: SurfaceLayout>(
         source_camera: &source_frame.camera,
         colour: source_frame.colour.view(),
         extra: None,
+        pixel_mask: None,
     };
     let o = ReprojectOutput { colour: out.colour.view_mut(), extra: None, reason: out.reason.view_mut(), weight: None };
     let counts =

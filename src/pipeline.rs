@@ -297,9 +297,6 @@ struct EyeState {
     has_new: PlaneBuf<u8>,
     /// Pixels with no valid reprojected data (traced first under a budget).
     urgent: PlaneBuf<u8>,
-    /// This frame's depth where the temporal reprojection is needed, +inf elsewhere (the
-    /// kernel skips background): see the module notes.
-    masked_depth: PlaneBuf,
 }
 
 impl EyeState {
@@ -323,7 +320,6 @@ impl EyeState {
             wanted: PlaneBuf::new(e, 0),
             has_new: PlaneBuf::new(e, 0),
             urgent: PlaneBuf::new(e, 0),
-            masked_depth: PlaneBuf::new(e, f32::INFINITY),
         }
     }
 }
@@ -611,7 +607,8 @@ impl<'r> Pipeline<'r> {
     /// Reprojects `eye`'s previous history into this frame (`history`, `len`,
     /// `temporal_reason`); on the first frame every pixel is marked invalid. With
     /// `only_stereo_discarded`, only the pixels whose stereo reprojection was discarded are
-    /// reprojected; the others are marked invalid and not counted.
+    /// reprojected (the kernel's pixel mask, in `wanted`); the others are marked invalid,
+    /// keep stale history (the EMA restarts them from the stereo sample) and are not counted.
     fn reproject_history(
         &mut self,
         eye: Eye,
@@ -626,17 +623,13 @@ impl<'r> Pipeline<'r> {
             s.temporal_reason.as_mut_slice().fill(Reason::Invalid as u8);
             return Ok(ReasonCounts::default());
         };
-        let mut skipped = 0;
         if only_stereo_discarded {
-            for ((m, &d), &stereo) in
-                s.masked_depth.as_mut_slice().iter_mut().zip(s.gbuffer.depth.as_slice()).zip(s.stereo_reason.as_slice())
-            {
-                let reprojected = is_reprojected(stereo);
-                skipped += u64::from(reprojected);
-                *m = if reprojected { f32::INFINITY } else { d };
+            for (w, &stereo) in s.wanted.as_mut_slice().iter_mut().zip(s.stereo_reason.as_slice()) {
+                *w = u8::from(!is_reprojected(stereo));
             }
         }
-        let target_depth = if only_stereo_discarded { s.masked_depth.view() } else { s.gbuffer.depth.view() };
+        let pixel_mask = only_stereo_discarded.then(|| s.wanted.view());
+        let target_depth = s.gbuffer.depth.view();
         let (history, len, reason) = (&mut s.history, &mut s.len, &mut s.temporal_reason);
         let out = ReprojectOutput {
             colour: history.view_mut(),
@@ -647,11 +640,12 @@ impl<'r> Pipeline<'r> {
         let colour = s.prev_history.view();
         let extra = ramp.then(|| s.prev_len.view());
         let g = &s.gbuffer;
-        let mut counts = match layout {
+        let counts = match layout {
             Layout::Compact => {
                 let t = CompactGBuffer::new(target_depth, g.normal_oct.view(), g.camera)?;
                 let src = s.prev_gbuffer.compact();
-                let input = ReprojectInput { target: &t, source: &src, source_camera: &prev_camera, colour, extra };
+                let input =
+                    ReprojectInput { target: &t, source: &src, source_camera: &prev_camera, colour, extra, pixel_mask };
                 reproject::reproject(&input, out, &params)?
             }
             Layout::Full => {
@@ -661,19 +655,11 @@ impl<'r> Pipeline<'r> {
                     g.normal.each_ref().map(|p| p.view()),
                 )?;
                 let src = s.prev_gbuffer.view();
-                let input = ReprojectInput { target: &t, source: &src, source_camera: &prev_camera, colour, extra };
+                let input =
+                    ReprojectInput { target: &t, source: &src, source_camera: &prev_camera, colour, extra, pixel_mask };
                 reproject::reproject(&input, out, &params)?
             }
         };
-        if only_stereo_discarded {
-            // The skipped pixels came out as background; they are not part of the statistics.
-            counts.0[Reason::Background as usize] -= skipped;
-            for (r, &stereo) in s.temporal_reason.as_mut_slice().iter_mut().zip(s.stereo_reason.as_slice()) {
-                if is_reprojected(stereo) {
-                    *r = Reason::Invalid as u8;
-                }
-            }
-        }
         Ok(counts)
     }
 
@@ -704,14 +690,26 @@ impl<'r> Pipeline<'r> {
         let counts = match layout {
             Layout::Compact => {
                 let (t, src) = (target.gbuffer.compact(), other.gbuffer.compact());
-                let input =
-                    ReprojectInput { target: &t, source: &src, source_camera: &other.camera, colour, extra: None };
+                let input = ReprojectInput {
+                    target: &t,
+                    source: &src,
+                    source_camera: &other.camera,
+                    colour,
+                    extra: None,
+                    pixel_mask: None,
+                };
                 reproject::reproject(&input, out, &params)?
             }
             Layout::Full => {
                 let (t, src) = (target.gbuffer.view(), other.gbuffer.view());
-                let input =
-                    ReprojectInput { target: &t, source: &src, source_camera: &other.camera, colour, extra: None };
+                let input = ReprojectInput {
+                    target: &t,
+                    source: &src,
+                    source_camera: &other.camera,
+                    colour,
+                    extra: None,
+                    pixel_mask: None,
+                };
                 reproject::reproject(&input, out, &params)?
             }
         };

@@ -70,7 +70,14 @@ fn stereo_mode_reprojects_where_valid_and_traces_only_the_rest() {
     let mut expected = RgbBuf::new(extent(), 0.0);
     let mut reason = PlaneBuf::new(extent(), 0u8);
     let (t, s) = (gl.compact(), gr.compact());
-    let input = ReprojectInput { target: &t, source: &s, source_camera: &gr.camera, colour: right.view(), extra: None };
+    let input = ReprojectInput {
+        target: &t,
+        source: &s,
+        source_camera: &gr.camera,
+        colour: right.view(),
+        extra: None,
+        pixel_mask: None,
+    };
     let out = ReprojectOutput { colour: expected.view_mut(), extra: None, reason: reason.view_mut(), weight: None };
     let params = ReprojectParams { tolerances: r.scene().tolerances.at_height(H), ..ReprojectParams::default() };
     reproject::reproject(&input, out, &params).unwrap();
@@ -117,6 +124,7 @@ fn the_paper_order_left_eye_reprojects_its_history_only_where_stereo_failed() {
         source_camera: &prev_gbuffer.camera,
         colour: prev_image.view(),
         extra: None,
+        pixel_mask: None,
     };
     let out = ReprojectOutput { colour: history.view_mut(), extra: None, reason: reason.view_mut(), weight: None };
     let params = ReprojectParams { tolerances: r.scene().tolerances.at_height(H), ..ReprojectParams::default() };

@@ -135,6 +135,14 @@ pub fn reproject(data: &[u8]) {
     };
     let policy = if bytes.u8() % 2 == 0 { TapPolicy::Renormalize } else { TapPolicy::Strict };
     let params = ReprojectParams { tolerances, policy, band_rows: 1 + usize::from(bytes.u8() % 8) };
+    // A pixel mask on a quarter, half or three quarters of the pixels, in a scattered
+    // pattern (so groups of 8 come out all on, all off and mixed), or none.
+    let mask_share = bytes.u8() % 4;
+    let mask = (mask_share != 0).then(|| {
+        let on =
+            (0..extent.pixels()).map(|i| u8::from((i as u32).wrapping_mul(0x9E37_79B9) >> 30 < u32::from(mask_share)));
+        PlaneBuf::from_vec(on.collect(), extent).expect("extent matches")
+    });
     let mut target = scene.render(&target_camera, [0.0; 3]);
     let mut source = scene.render(&source_camera, [0.0; 3]);
     let edit_source = bytes.u8() % 2 == 0;
@@ -145,9 +153,9 @@ pub fn reproject(data: &[u8]) {
         .expect("extent matches");
     let (target, source) = (Strided::new(&target, pad), Strided::new(&source, pad));
     let (tf, sf) = (target.gbuffer(), source.gbuffer());
-    check_reprojection(&tf, &sf, &source, None, &params, source_finite);
+    check_reprojection(&tf, &sf, &source, None, mask.as_ref(), &params, source_finite);
     let (tc, sc) = (target.compact(), source.compact());
-    check_reprojection(&tc, &sc, &source, Some(&extra), &params, source_finite);
+    check_reprojection(&tc, &sc, &source, Some(&extra), mask.as_ref(), &params, source_finite);
 }
 
 /// A copy of a frame's planes with `pad` extra elements per row (filled with NaN or an
@@ -215,6 +223,7 @@ fn check_reprojection<L: SurfaceLayout>(
     source: &L,
     source_frame: &Strided,
     extra: Option<&PlaneBuf>,
+    mask: Option<&PlaneBuf<u8>>,
     params: &ReprojectParams,
     source_finite: bool,
 ) {
@@ -224,6 +233,7 @@ fn check_reprojection<L: SurfaceLayout>(
         source_camera: &source_frame.frame.camera,
         colour: source_frame.colour(),
         extra: extra.map(|p| p.view()),
+        pixel_mask: mask.map(|m| m.view()),
     };
     let e = target.extent();
     if let Err(refusal) = params.tolerances.validate() {
@@ -266,12 +276,22 @@ fn check_reprojection<L: SurfaceLayout>(
         assert_bits("extra channel", &extra_out, &extra_ref);
     }
     assert_bits("weight", &weight, &weight_ref);
-    assert_eq!(counts.total(), e.pixels() as u64);
     assert!(reason.as_slice().iter().all(|&c| Reason::from_code(c).is_some()));
-    assert!(weight.as_slice().iter().all(|w| (0.0..=1.0).contains(w)), "weights in [0, 1]");
-    if source_finite {
-        for p in [&colour.r, &colour.g, &colour.b] {
-            assert!(all_finite(p), "non-finite output from finite source samples");
+    // Pixels a mask skips keep the NaN the outputs started with and read `Invalid`.
+    let on = |i: usize| mask.is_none_or(|m| m.as_slice()[i] != 0);
+    let chosen = (0..e.pixels()).filter(|&i| on(i)).count();
+    assert_eq!(counts.total(), chosen as u64, "every chosen pixel counted once");
+    for i in 0..e.pixels() {
+        if on(i) {
+            assert!((0.0..=1.0).contains(&weight.as_slice()[i]), "weights in [0, 1]");
+            if source_finite {
+                for p in [&colour.r, &colour.g, &colour.b] {
+                    assert!(p.as_slice()[i].is_finite(), "non-finite output from finite source samples");
+                }
+            }
+        } else {
+            assert_eq!(reason.as_slice()[i], Reason::Invalid as u8, "a skipped pixel reads invalid");
+            assert!(weight.as_slice()[i].is_nan(), "a skipped pixel's weight is left as it was");
         }
     }
 }

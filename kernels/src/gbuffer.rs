@@ -138,6 +138,7 @@ impl SurfaceLayout for GBuffer<'_> {
         unsafe { load_row(&self.depth, x, y) }
     }
 
+    #[inline(always)]
     unsafe fn surfels_row_unchecked(&self, x: usize, y: usize) -> Surfels {
         // SAFETY (all loads): every plane has the G-buffer's extent (checked by `new`) and
         // the caller keeps the lanes inside it.
@@ -243,6 +244,7 @@ impl SurfaceLayout for CompactGBuffer<'_> {
         unsafe { load_row(&self.depth, x, y) }
     }
 
+    #[inline(always)]
     unsafe fn surfels_row_unchecked(&self, x: usize, y: usize) -> Surfels {
         // SAFETY: both planes have the G-buffer's extent (checked by `new`) and the caller
         // keeps the lanes inside it.

@@ -205,6 +205,12 @@ pub struct ReprojectInput<'a, L: SurfaceLayout> {
     pub colour: RgbPlanes<'a>,
     /// An optional fourth channel reprojected the same way (e.g. history length).
     pub extra: Option<Plane<'a>>,
+    /// Optional target-extent mask: only pixels where it is non-zero are reprojected. The
+    /// others are skipped: their reason becomes [`Reason::Invalid`], their colour, extra and
+    /// weight outputs are left as they were, and they are not counted. A caller that needs a
+    /// few scattered pixels (the paper-order left eye's history, needed only where its
+    /// stereo reprojection failed) then pays for those pixels, not for the frame.
+    pub pixel_mask: Option<Plane<'a, u8>>,
 }
 
 /// Where a reprojection writes.
@@ -237,6 +243,7 @@ struct Prepared<'a, L: SurfaceLayout> {
     camera: &'a CameraModel,
     channels: [Plane<'a>; MAX_CHANNELS],
     channel_count: usize,
+    pixel_mask: Option<Plane<'a, u8>>,
     source_extent: Extent,
     half_width: f32,
     half_height: f32,
@@ -275,6 +282,9 @@ fn prepare<'a, L: SurfaceLayout>(
     if let Some(extra) = &input.extra {
         same_extent("extra source channel", source, extra.extent())?;
     }
+    if let Some(mask) = &input.pixel_mask {
+        same_extent("pixel mask", input.target.extent(), mask.extent())?;
+    }
     let c = input.colour;
     let tol = params.tolerances;
     Ok(Prepared {
@@ -283,6 +293,7 @@ fn prepare<'a, L: SurfaceLayout>(
         camera: input.source_camera,
         channels: [c.r, c.g, c.b, input.extra.unwrap_or(c.r)],
         channel_count: if input.extra.is_some() { 4 } else { 3 },
+        pixel_mask: input.pixel_mask,
         source_extent: source,
         half_width: input.source_camera.half_extent().0,
         half_height: input.source_camera.half_extent().1,
@@ -408,17 +419,53 @@ fn simd_row<L: SurfaceLayout, const C: usize>(p: &Prepared<'_, L>, y: usize, row
     let mut counts = ReasonCounts::default();
     let width = row.reason.len();
     let mut cache = [SourceCache::EMPTY; 2];
+    let mask_row = p.pixel_mask.map(|m| m.row(y));
     let mut x = 0;
     while x + LANES <= width {
-        let lanes = reproject_lanes::<L, C>(p, x, y, &mut cache);
-        for c in 0..C {
-            store(row.channels[c], x, lanes.channels[c]);
+        // Bit `i` set where lane `i` is to be reprojected.
+        let wanted = match mask_row {
+            None => ALL_LANES,
+            Some(m) => m[x..x + LANES].iter().enumerate().fold(0, |bits, (i, &v)| bits | (u32::from(v != 0) << i)),
+        };
+        if wanted == 0 {
+            row.reason[x..x + LANES].fill(Reason::Invalid as u8);
+            x += LANES;
+            continue;
         }
-        if let Some(w) = row.weight.as_deref_mut() {
-            store(w, x, lanes.weight);
+        let lanes = reproject_lanes::<L, C>(p, x, y, &mut cache);
+        if wanted == ALL_LANES {
+            for c in 0..C {
+                store(row.channels[c], x, lanes.channels[c]);
+            }
+            if let Some(w) = row.weight.as_deref_mut() {
+                store(w, x, lanes.weight);
+            }
+        } else {
+            let keep = |dst: &mut [f32], v: F32s| {
+                for (i, (d, v)) in dst[x..x + LANES].iter_mut().zip(v.to_array()).enumerate() {
+                    if wanted & (1 << i) != 0 {
+                        *d = v;
+                    }
+                }
+            };
+            for c in 0..C {
+                keep(row.channels[c], lanes.channels[c]);
+            }
+            if let Some(w) = row.weight.as_deref_mut() {
+                keep(w, lanes.weight);
+            }
+            let reasons = &mut row.reason[x..x + LANES];
+            for (i, (dst, code)) in reasons.iter_mut().zip(lanes.reason.to_array()).enumerate() {
+                *dst = if wanted & (1 << i) != 0 { code as u8 } else { Reason::Invalid as u8 };
+                if wanted & (1 << i) != 0 {
+                    counts.0[usize::from(*dst)] += 1;
+                }
+            }
+            x += LANES;
+            continue;
         }
         let reasons = &mut row.reason[x..x + LANES];
-        if lanes.ok_bits == (1 << LANES) - 1 {
+        if lanes.ok_bits == ALL_LANES {
             // The common case: every lane reprojected (code 0).
             reasons.fill(Reason::Reprojected as u8);
             counts.0[Reason::Reprojected as usize] += LANES as u64;
@@ -446,10 +493,17 @@ fn check_against_scalar<L: SurfaceLayout>(
     use crate::check::assert_planes_equal;
     use crate::frame::{PlaneBuf, RgbBuf};
     let extent = out.reason.extent();
-    let mut colour = RgbBuf::new(extent, 0.0);
-    let mut extra = out.extra.as_ref().map(|_| PlaneBuf::new(extent, 0.0f32));
+    // The reference starts from the SIMD body's output, so that the pixels a pixel mask
+    // skips (left as they were by both) compare equal.
+    let copy = |plane: Plane<'_>| {
+        let data = (0..extent.height()).flat_map(|y| plane.row(y).iter().copied()).collect();
+        PlaneBuf::from_vec(data, extent).expect("same extent")
+    };
+    let [r, g, b] = out.colour.as_planes().channels();
+    let mut colour = RgbBuf { r: copy(r), g: copy(g), b: copy(b) };
+    let mut extra = out.extra.as_ref().map(|p| copy(p.as_plane()));
     let mut reason = PlaneBuf::new(extent, 0u8);
-    let mut weight = out.weight.as_ref().map(|_| PlaneBuf::new(extent, 0.0f32));
+    let mut weight = out.weight.as_ref().map(|p| copy(p.as_plane()));
     let reference = reproject_scalar(
         input,
         ReprojectOutput {
@@ -507,6 +561,10 @@ fn write_pixel<L: SurfaceLayout>(
     row: &mut RowOut<'_>,
     counts: &mut ReasonCounts,
 ) {
+    if p.pixel_mask.is_some_and(|m| m.get(x, y) == 0) {
+        row.reason[x] = Reason::Invalid as u8;
+        return;
+    }
     let (reason, values, weight) = reproject_pixel_prepared(p, x, y);
     for c in 0..row.count {
         row.channels[c][x] = values[c];
@@ -666,6 +724,9 @@ enum TapVerdict {
     Normal,
     Invalid,
 }
+
+/// A lane bit set with every lane.
+const ALL_LANES: u32 = (1 << LANES) - 1;
 
 /// Results for `LANES` pixels.
 struct Lanes<const C: usize> {

@@ -42,6 +42,7 @@ fn second_frame_allocates_nothing() {
             source_camera: &right.camera,
             colour: right.colour.view(),
             extra: None,
+            pixel_mask: None,
         };
         let out = ReprojectOutput {
             colour: reprojected.view_mut(),
@@ -60,6 +61,7 @@ fn second_frame_allocates_nothing() {
             source_camera: &left_prev.camera,
             colour: left_prev.colour.view(),
             extra: Some(history_len.view()),
+            pixel_mask: None,
         };
         let out = ReprojectOutput {
             colour: history.view_mut(),
@@ -79,6 +81,7 @@ fn second_frame_allocates_nothing() {
             source_camera: &right.camera,
             colour: right.colour.view(),
             extra: None,
+            pixel_mask: None,
         };
         let out =
             ReprojectOutput { colour: reprojected.view_mut(), extra: None, reason: reason.view_mut(), weight: None };

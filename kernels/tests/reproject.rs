@@ -33,6 +33,7 @@ fn run_reprojection<L: SurfaceLayout>(
     simd: bool,
 ) -> Result<Reprojected, FrameError> {
     let e = input.target.extent();
+    // Sentinels: a pixel a mask skips must keep them.
     let mut colour = RgbBuf::new(e, -7.0);
     let mut extra = PlaneBuf::new(e, -7.0);
     let mut reason = PlaneBuf::new(e, 99u8);
@@ -79,7 +80,14 @@ fn input_for<'a, L: SurfaceLayout>(
     source_frame: &'a SynthFrame,
     extra: Option<Plane<'a>>,
 ) -> ReprojectInput<'a, L> {
-    ReprojectInput { target, source, source_camera: &source_frame.camera, colour: source_frame.colour.view(), extra }
+    ReprojectInput {
+        target,
+        source,
+        source_camera: &source_frame.camera,
+        colour: source_frame.colour.view(),
+        extra,
+        pixel_mask: None,
+    }
 }
 
 /// Test tolerances. The test images are small, so one pixel spans decimetres at these
@@ -107,6 +115,57 @@ fn simd_equals_scalar_on_stereo_and_temporal_pairs_at_awkward_widths() {
                 let a = run_reprojection(&input, &p, true).unwrap();
                 let b = run_reprojection(&input, &p, false).unwrap();
                 assert_same(&a, &b);
+            }
+        }
+    }
+}
+
+/// A pixel mask (the paper-order left eye reprojects its history only where its stereo
+/// reprojection failed): masked-out pixels keep their old outputs, read `Invalid` and are not
+/// counted; the others are exactly what the unmasked call gives; SIMD == scalar.
+#[test]
+fn pixel_mask_reprojects_only_the_chosen_pixels() {
+    let mut rng = Rng::new(0x6d61_736b);
+    for &(w, h) in &[(1, 1), (7, 3), (17, 5), (64, 9)] {
+        let e = extent(w, h);
+        let (left, right) = stereo_room(e, 0.4);
+        // Whole groups of 8 on, off and mixed, so every branch of the SIMD body runs.
+        for share in [0.0f32, 0.03, 0.5, 1.0] {
+            let mask =
+                PlaneBuf::from_vec((0..e.pixels()).map(|_| u8::from(rng.next_f32() < share)).collect(), e).unwrap();
+            let extra = PlaneBuf::from_vec((0..e.pixels()).map(|i| (i % 5) as f32).collect(), e).unwrap();
+            let (tc, sc) = (left.compact(), right.compact());
+            let full = input_for(&tc, &sc, &right, Some(extra.view()));
+            let masked =
+                ReprojectInput { pixel_mask: Some(mask.view()), ..input_for(&tc, &sc, &right, Some(extra.view())) };
+            for policy in [TapPolicy::Renormalize, TapPolicy::Strict] {
+                let p = params(policy);
+                let all = run_reprojection(&full, &p, true).unwrap();
+                let a = run_reprojection(&masked, &p, true).unwrap();
+                let b = run_reprojection(&masked, &p, false).unwrap();
+                assert_same(&a, &b);
+                let mut expected = ReasonCounts::default();
+                for i in 0..e.pixels() {
+                    let on = mask.as_slice()[i] != 0;
+                    let planes = [
+                        (&a.colour.r, &all.colour.r),
+                        (&a.colour.g, &all.colour.g),
+                        (&a.colour.b, &all.colour.b),
+                        (&a.extra, &all.extra),
+                        (&a.weight, &all.weight),
+                    ];
+                    for (got, unmasked) in planes {
+                        let want = if on { unmasked.as_slice()[i] } else { -7.0 };
+                        assert!(same_bits(got.as_slice()[i], want), "pixel {i}: {} vs {want}", got.as_slice()[i]);
+                    }
+                    if on {
+                        assert_eq!(a.reason.as_slice()[i], all.reason.as_slice()[i]);
+                        expected.0[usize::from(all.reason.as_slice()[i])] += 1;
+                    } else {
+                        assert_eq!(a.reason.as_slice()[i], Reason::Invalid as u8);
+                    }
+                }
+                assert_eq!(a.counts, expected);
             }
         }
     }
@@ -452,6 +511,7 @@ fn bad_inputs_are_refused_with_named_errors() {
         source_camera: &other.camera,
         colour: right.colour.view(),
         extra: None,
+        pixel_mask: None,
     };
     let err = run_reprojection(&input, &params(TapPolicy::Strict), true).unwrap_err();
     assert!(err.to_string().contains("source colour"), "{err}");
