@@ -44,7 +44,8 @@ enum Command {
         /// Per-frame time budget in milliseconds (tracing stops when it is spent).
         #[arg(long)]
         budget_ms: Option<f64>,
-        /// Skip the full-stereo baseline run (no speed-up figure).
+        /// Skip the baseline runs (full stereo path tracing and mono frames: no speed-up or
+        /// stereo-over-mono figure).
         #[arg(long)]
         no_baseline: bool,
         /// Print one JSON object instead of text.

@@ -594,6 +594,35 @@ impl<'r> Pipeline<'r> {
         Ok(stats)
     }
 
+    /// A mono frame, the baseline a stereo frame is compared with: the right eye alone path
+    /// traced at the configured spp (primary rays included, so no G-buffer), nothing
+    /// reprojected or accumulated, no budget. Writes the right eye's `traced` image, which
+    /// [`Pipeline::render_frame`] rewrites; call [`Pipeline::reset`] before going back to
+    /// stereo frames on the same pipeline.
+    pub fn render_mono_frame(&mut self, frame: u32, head: &CameraPose) -> Result<FrameStats, PipelineError> {
+        let start = Instant::now();
+        let mut stats = FrameStats { frame, budget: None, ..FrameStats::default() };
+        self.lights.update(self.renderer.scene(), frame);
+        let camera = self.rig.eye_camera(head, Eye::Right, self.extent)?;
+        let config = self.config;
+        let request = TraceRequest { eye: Eye::Right, frame, spp: config.spp, seed: config.seed, first_sample: 0 };
+        let s = &mut self.eyes[Eye::Right as usize];
+        stats.trace = self.renderer.trace_rows(
+            &self.lights,
+            &camera,
+            &request,
+            PixelSelection::All,
+            0..self.extent.height(),
+            &mut s.traced,
+            config.general_integrator,
+        )?;
+        stats.traced_pixels[Eye::Right as usize] = self.extent.pixels() as u64;
+        stats.times.tracing = start.elapsed();
+        stats.times.total = start.elapsed();
+        stats.budget_met = true;
+        Ok(stats)
+    }
+
     /// Whether the left eye's temporal reprojection runs only where its stereo reprojection
     /// was discarded (see the module notes).
     fn left_history_on_demand(&self) -> bool {

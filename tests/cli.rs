@@ -107,12 +107,16 @@ fn throughput_reports_json_with_every_field() {
         "mrays_per_s",
         "left_traced_share",
         "speedup_over_full_stereo",
+        "mono_frame_ms",
+        "stereo_over_mono",
     ] {
         assert!(v.get(key).is_some(), "missing {key}: {v}");
     }
     assert!(v["left_traced_share"].as_f64().unwrap() < 0.5);
     assert_eq!(v["right_traced_share"].as_f64().unwrap(), 1.0);
     assert_eq!(v["gbuffer_pass"], "raster");
+    let (frame, mono) = (v["frame"]["median_ms"].as_f64().unwrap(), v["mono_frame_ms"].as_f64().unwrap());
+    assert!(mono > 0.0 && (v["stereo_over_mono"].as_f64().unwrap() - frame / mono).abs() < 1e-9);
 }
 
 #[test]

@@ -50,6 +50,17 @@ fn path_traced_mode_is_the_renderer_image() {
     }
 }
 
+/// The driver's mono baseline is the renderer's image of the right eye, traced alone.
+#[test]
+fn a_mono_frame_is_the_right_eye_path_traced_alone() {
+    let r = renderer("cornell");
+    let mut p = Pipeline::new(&r, config(&r, Mode::PathTraced, 2), StereoRig::default(), extent()).unwrap();
+    let stats = p.render_mono_frame(4, &r.scene().camera.pose_at(4.0)).unwrap();
+    assert_eq!(p.output(Eye::Right), &traced(&r, Eye::Right, 4, 2, 1));
+    assert_eq!(stats.traced_pixels, [0, extent().pixels() as u64]);
+    assert!(stats.trace.rays >= 2 * extent().pixels() as u64, "every pixel's primary rays traced");
+}
+
 #[test]
 fn stereo_mode_reprojects_where_valid_and_traces_only_the_rest() {
     let r = renderer("living-room");

@@ -1,8 +1,8 @@
 //! `stereotrace throughput`: the thin real-time driver. Runs the pipeline for a scene and
-//! mode on a fixed thread pool, then the same frames with both eyes fully path traced, and
-//! reports frames per second, per-stage times (median and p95), Mrays/s, the share of
-//! left-eye pixels path traced and the speed-up over full stereo path tracing, all measured
-//! in the same run.
+//! mode on a fixed thread pool, then the same frames with both eyes fully path traced and as
+//! mono frames (the right eye alone), and reports frames per second, per-stage times (median
+//! and p95), Mrays/s, the share of left-eye pixels path traced, the speed-up over full stereo
+//! path tracing and the cost over mono, all measured in the same run.
 
 use std::time::Duration;
 
@@ -26,7 +26,8 @@ pub struct ThroughputOptions {
     pub layout: Layout,
     pub gbuffer: GBufferPass,
     pub budget_ms: Option<f64>,
-    /// Also measure full stereo path tracing for the speed-up (doubles the run time).
+    /// Also measure full stereo path tracing (for the speed-up) and mono frames (for the
+    /// cost of stereo): about doubles the run time.
     pub baseline: bool,
 }
 
@@ -80,6 +81,12 @@ pub struct ThroughputReport {
     pub full_stereo_frame_ms: Option<f64>,
     /// `full_stereo_frame_ms / frame.median_ms`.
     pub speedup_over_full_stereo: Option<f64>,
+    /// Median frame time of the right eye alone path traced at the same spp (primary rays
+    /// included, nothing reprojected), if measured: what a mono renderer pays per frame.
+    pub mono_frame_ms: Option<f64>,
+    /// `frame.median_ms / mono_frame_ms`: what stereo costs over mono (the target for
+    /// spatiotemporal at 1 spp is ≤ 1.05).
+    pub stereo_over_mono: Option<f64>,
     pub budget_ms: Option<f64>,
     pub budget_misses: usize,
     /// Frames over the budget by more than 1 ms (the real-time target is none).
@@ -95,12 +102,14 @@ fn ms(d: Duration) -> f64 {
 }
 
 /// Runs `frames + 1` frames (the first, without history, is not measured) and returns the
-/// stats of the measured ones.
+/// stats of the measured ones; with `mono`, mono frames (the right eye alone path traced,
+/// see [`Pipeline::render_mono_frame`]).
 fn run_frames(
     renderer: &Renderer,
     config: PipelineConfig,
     extent: Extent,
     frames: u32,
+    mono: bool,
 ) -> Result<Vec<FrameStats>, String> {
     let mut pipeline = Pipeline::new(renderer, config, StereoRig::default(), extent).map_err(|e| e.to_string())?;
     let path = &renderer.scene().camera;
@@ -112,9 +121,9 @@ fn run_frames(
         let k = i % period;
         let frame = if k < n { k } else { period - k };
         let head = path.pose(frame);
-        let s = pipeline.render_frame(i, &head).map_err(|e| e.to_string())?;
+        let s = if mono { pipeline.render_mono_frame(i, &head) } else { pipeline.render_frame(i, &head) };
         if i > 0 {
-            stats.push(s);
+            stats.push(s.map_err(|e| e.to_string())?);
         }
     }
     Ok(stats)
@@ -141,13 +150,19 @@ pub fn run(opts: &ThroughputOptions) -> Result<ThroughputReport, String> {
     config.layout = opts.layout;
     config.gbuffer = opts.gbuffer;
     config.budget = opts.budget_ms.map(|b| Duration::from_secs_f64(b / 1e3));
-    let stats = pool.install(|| run_frames(&renderer, config, opts.extent, opts.frames))?;
+    let stats = pool.install(|| run_frames(&renderer, config, opts.extent, opts.frames, false))?;
+    let frame_ms = |s: &[FrameStats]| Spread::of(s.iter().map(|f| ms(f.times.total)).collect());
     let baseline = if opts.baseline && opts.mode != Mode::PathTraced {
         let full = PipelineConfig { mode: Mode::PathTraced, budget: None, ..config };
-        let s = pool.install(|| run_frames(&renderer, full, opts.extent, opts.frames))?;
-        Some(Spread::of(s.iter().map(|f| ms(f.times.total)).collect()))
+        Some(frame_ms(&pool.install(|| run_frames(&renderer, full, opts.extent, opts.frames, false))?))
     } else if opts.mode == Mode::PathTraced {
-        Some(Spread::of(stats.iter().map(|f| ms(f.times.total)).collect()))
+        Some(frame_ms(&stats))
+    } else {
+        None
+    };
+    let mono = if opts.baseline {
+        let mono = PipelineConfig { budget: None, ..config };
+        Some(frame_ms(&pool.install(|| run_frames(&renderer, mono, opts.extent, opts.frames, true))?))
     } else {
         None
     };
@@ -193,6 +208,8 @@ pub fn run(opts: &ThroughputOptions) -> Result<ThroughputReport, String> {
         right_traced_share: share(Eye::Right),
         full_stereo_frame_ms: baseline.map(|b| b.median_ms),
         speedup_over_full_stereo: baseline.map(|b| b.median_ms / frame.median_ms),
+        mono_frame_ms: mono.map(|m| m.median_ms),
+        stereo_over_mono: mono.map(|m| frame.median_ms / m.median_ms),
         budget_ms: opts.budget_ms,
         budget_misses: misses,
         budget_misses_over_1ms: misses_1ms,
@@ -237,6 +254,11 @@ impl ThroughputReport {
         );
         if let (Some(full), Some(speedup)) = (self.full_stereo_frame_ms, self.speedup_over_full_stereo) {
             out += &format!("  full stereo   {full:>9.2} ms median (both eyes path traced): speed-up {speedup:.2}x\n");
+        }
+        if let (Some(mono), Some(ratio)) = (self.mono_frame_ms, self.stereo_over_mono) {
+            out += &format!(
+                "  mono          {mono:>9.2} ms median (right eye alone path traced): stereo costs {ratio:.3}x\n"
+            );
         }
         if let Some(b) = self.budget_ms {
             out += &format!(

@@ -1,9 +1,13 @@
 #!/usr/bin/env python3
 """The real-time table: `stereotrace throughput` at 1280x720 on 2 threads, spatiotemporal
 mode at 1 spp, on every built-in scene, unbudgeted and with each budget. Prints a Markdown
-table (median frame and stage times, fps, share traced per eye, frames over budget).
+table (median frame and stage times, fps, share traced per eye, frames over budget). With
+`--mono-frames N`, then a second table from N unbudgeted frames per scene with the driver's
+baselines: the stereo frame against a mono frame (the right eye alone path traced) and
+against full stereo path tracing, measured in the same run.
 
-    cargo build --release && python3 tools/bench/budgets.py [--budgets 33,50,100] [--frames 20]
+    cargo build --release && python3 tools/bench/budgets.py [--budgets 33,50,100] [--frames 20] \
+        [--mono-frames 6]
 """
 import argparse
 import json
@@ -13,10 +17,11 @@ import sys
 BIN = "target/release/stereotrace"
 
 
-def run(scene, args, budget):
+def run(scene, args, budget, frames=None):
+    baselines = frames is not None
     cmd = [BIN, "throughput", "--scene", scene, "--res", args.res, "--threads", str(args.threads),
-           "--frames", str(args.frames), "--spp", "1", "--mode", "spatiotemporal",
-           "--gbuffer", args.gbuffer, "--no-baseline", "--json"]
+           "--frames", str(frames if baselines else args.frames), "--spp", "1", "--mode", "spatiotemporal",
+           "--gbuffer", args.gbuffer, "--json"] + ([] if baselines else ["--no-baseline"])
     if budget is not None:
         cmd += ["--budget-ms", str(budget)]
     out = subprocess.run(cmd, capture_output=True, text=True)
@@ -33,6 +38,7 @@ def main():
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--gbuffer", default="raster")
     ap.add_argument("--scenes", default=None, help="comma-separated (default: every built-in)")
+    ap.add_argument("--mono-frames", type=int, default=0, help="also the stereo-over-mono table")
     args = ap.parse_args()
     if args.scenes:
         scenes = args.scenes.split(",")
@@ -55,6 +61,15 @@ def main():
                   f"{r['reprojection']['median_ms']:.1f} | {r['tracing']['median_ms']:.1f} | "
                   f"{r['accumulation']['median_ms']:.1f} | {100 * r['left_traced_share']:.1f} % | "
                   f"{100 * r['right_traced_share']:.1f} % | {over} | {over1} |", flush=True)
+    if args.mono_frames:
+        print()
+        print("| scene | stereo frame ms | mono frame ms | stereo ÷ mono | full stereo ms | speed-up over full stereo |")
+        print("|---|---:|---:|---:|---:|---:|")
+        for scene in scenes:
+            r = run(scene, args, None, args.mono_frames)
+            print(f"| {r['scene']} | {r['frame']['median_ms']:.1f} | {r['mono_frame_ms']:.1f} | "
+                  f"{r['stereo_over_mono']:.3f} | {r['full_stereo_frame_ms']:.1f} | "
+                  f"{r['speedup_over_full_stereo']:.2f} |", flush=True)
 
 
 if __name__ == "__main__":
