@@ -73,11 +73,16 @@ impl Default for StereoRig {
     }
 }
 
+/// The widest eye separation a rig accepts, in metres (10 km: wider eyes stand outside any
+/// scene here, and at 10⁶ m and beyond f32 eye positions no longer resolve the scene).
+pub const MAX_EYE_SEPARATION: f32 = 1e4;
+
 impl StereoRig {
-    /// A rig with the given separation; refuses negative or non-finite values.
+    /// A rig with the given separation; refuses negative, non-finite and larger than
+    /// [`MAX_EYE_SEPARATION`] values.
     pub fn new(separation: f32) -> Result<Self, String> {
-        if !(separation >= 0.0 && separation.is_finite()) {
-            return Err(format!("eye separation must be a finite value >= 0, got {separation}"));
+        if !(0.0..=MAX_EYE_SEPARATION).contains(&separation) {
+            return Err(format!("eye separation must be in 0..={MAX_EYE_SEPARATION} m, got {separation}"));
         }
         Ok(Self { separation })
     }

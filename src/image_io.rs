@@ -43,8 +43,26 @@ pub fn write_exr(path: &Path, img: &RgbBuf) -> Result<(), ImageError> {
     .map_err(|err| ImageError::new(path, format!("cannot write EXR: {err}")))
 }
 
-/// Reads the first RGB(A) layer of an EXR as linear f32 RGB.
+/// The extent of an EXR's first layer, read from its header alone, after checking every
+/// layer's size against the frame bounds. Readers call this before the decoder allocates: a
+/// 28 KB file can claim 65536×65536 pixels, and the decoder would try to allocate them all.
+pub fn exr_extent(path: &Path) -> Result<Extent, ImageError> {
+    let meta = exr::meta::MetaData::read_from_file(path, false)
+        .map_err(|err| ImageError::new(path, format!("cannot read EXR header: {err}")))?;
+    let mut first = None;
+    for header in meta.headers.iter() {
+        let size = header.layer_size;
+        let extent = Extent::new(size.width(), size.height())
+            .map_err(|err| ImageError::new(path, format!("EXR layer refused before reading its pixels: {err}")))?;
+        first.get_or_insert(extent);
+    }
+    first.ok_or_else(|| ImageError::new(path, "EXR file has no layer"))
+}
+
+/// Reads the first RGB(A) layer of an EXR as linear f32 RGB (its size checked first, see
+/// [`exr_extent`]).
 pub fn read_exr(path: &Path) -> Result<RgbBuf, ImageError> {
+    exr_extent(path)?;
     let image = exr::prelude::read_first_rgba_layer_from_file(
         path,
         |resolution, _| {

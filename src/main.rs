@@ -24,10 +24,10 @@ enum Command {
         #[arg(long, default_value_t = 2)]
         threads: usize,
         /// Frames to measure (after one warm-up frame).
-        #[arg(long, default_value_t = 20)]
+        #[arg(long, default_value_t = 20, value_parser = stereotrace::commands::parse_frames)]
         frames: u32,
         /// Samples per traced pixel.
-        #[arg(long, default_value_t = 1)]
+        #[arg(long, default_value_t = 1, value_parser = stereotrace::commands::parse_spp)]
         spp: u32,
         /// Pipeline mode.
         #[arg(long, value_enum, default_value_t = stereotrace::pipeline::Mode::Spatiotemporal)]
@@ -42,7 +42,7 @@ enum Command {
         #[arg(long, value_enum, default_value_t = stereotrace::pipeline::GBufferPass::Raster)]
         gbuffer: stereotrace::pipeline::GBufferPass,
         /// Per-frame time budget in milliseconds (tracing stops when it is spent).
-        #[arg(long)]
+        #[arg(long, value_parser = stereotrace::commands::parse_budget_ms)]
         budget_ms: Option<f64>,
         /// Skip the baseline runs (full stereo path tracing and mono frames: no speed-up or
         /// stereo-over-mono figure).
@@ -58,13 +58,13 @@ enum Command {
         #[arg(long, default_value = "cornell")]
         scene: String,
         /// Number of frames of the camera path to render.
-        #[arg(long, default_value_t = 1)]
+        #[arg(long, default_value_t = 1, value_parser = stereotrace::commands::parse_frames)]
         frames: u32,
         /// First frame to render.
         #[arg(long, default_value_t = 0)]
         first_frame: u32,
         /// Samples per pixel.
-        #[arg(long, default_value_t = 16)]
+        #[arg(long, default_value_t = 16, value_parser = stereotrace::commands::parse_spp)]
         spp: u32,
         /// Resolution per eye, WIDTHxHEIGHT.
         #[arg(long, default_value = "640x360", value_parser = stereotrace::commands::parse_resolution)]
@@ -119,22 +119,22 @@ enum Command {
         #[arg(long, value_delimiter = ',')]
         modes: Option<Vec<String>>,
         /// Input samples per pixel (comma-separated).
-        #[arg(long, value_delimiter = ',')]
+        #[arg(long, value_delimiter = ',', value_parser = stereotrace::commands::parse_spp)]
         spp: Option<Vec<u32>>,
         /// Resolution per eye, WIDTHxHEIGHT.
         #[arg(long, value_parser = stereotrace::commands::parse_resolution)]
         res: Option<stereotrace::kernels::Extent>,
         /// Frames the pipeline renders (0..FRAMES).
-        #[arg(long)]
+        #[arg(long, value_parser = stereotrace::commands::parse_frames)]
         frames: Option<u32>,
         /// Warm-up frames left out of the averages.
         #[arg(long)]
         warmup: Option<u32>,
         /// Samples per pixel of the references.
-        #[arg(long)]
+        #[arg(long, value_parser = stereotrace::commands::parse_spp)]
         reference_spp: Option<u32>,
         /// Last spp of the path-traced error curves.
-        #[arg(long)]
+        #[arg(long, value_parser = stereotrace::commands::parse_spp)]
         curve_spp: Option<u32>,
         /// How the error curves are sampled.
         #[arg(long, value_enum)]
@@ -171,25 +171,25 @@ enum Command {
         #[arg(long, default_value_t = 2)]
         threads: usize,
         /// Frames the pipeline renders (0..FRAMES); frame 0 is not timed.
-        #[arg(long, default_value_t = 14)]
+        #[arg(long, default_value_t = 14, value_parser = stereotrace::commands::parse_frames)]
         frames: u32,
         /// Warm-up frames left out of the quality measurement.
         #[arg(long, default_value_t = 10)]
         warmup: u32,
         /// Input samples per pixel (comma-separated).
-        #[arg(long, value_delimiter = ',', default_value = "1,2,4")]
+        #[arg(long, value_delimiter = ',', default_value = "1,2,4", value_parser = stereotrace::commands::parse_spp)]
         spp: Vec<u32>,
         /// Samples per pixel of the references.
-        #[arg(long, default_value_t = 256)]
+        #[arg(long, default_value_t = 256, value_parser = stereotrace::commands::parse_spp)]
         reference_spp: u32,
         /// Last spp of the path-traced error curves.
-        #[arg(long, default_value_t = 128)]
+        #[arg(long, default_value_t = 128, value_parser = stereotrace::commands::parse_spp)]
         curve_spp: u32,
         /// Budgets as fractions of the unbudgeted spatiotemporal frame time (comma-separated).
         #[arg(long, value_delimiter = ',', default_value = "0.75,0.5,0.25")]
         budgets: Vec<f64>,
         /// Budgets in milliseconds per stereo frame (comma-separated, e.g. 33,50,100).
-        #[arg(long, value_delimiter = ',')]
+        #[arg(long, value_delimiter = ',', value_parser = stereotrace::commands::parse_budget_ms)]
         budgets_ms: Vec<f64>,
         /// How the G-buffers are made (the sweep adds one row with the other pass).
         #[arg(long, value_enum, default_value_t = stereotrace::pipeline::GBufferPass::Raster)]
@@ -202,11 +202,19 @@ enum Command {
         cache: std::path::PathBuf,
     },
     /// SSIM (3-D volume and per-channel) and RMSE of two linear EXR images.
+    ///
+    /// A sample that is NaN, infinite or out of range in either image cannot be compared: by
+    /// default any such sample is an error (exit code 1, naming how many); with
+    /// `--exclude-nonfinite` they are left out, the figures are over the rest and the count is
+    /// printed. A comparison left with no sample at all is an error either way.
     Ssim {
         /// First image (EXR).
         a: std::path::PathBuf,
         /// Second image (EXR).
         b: std::path::PathBuf,
+        /// Leave non-finite and out-of-range samples out instead of failing.
+        #[arg(long)]
+        exclude_nonfinite: bool,
     },
 }
 
@@ -359,7 +367,9 @@ fn main() -> ExitCode {
             };
             stereotrace::commands::tradeoff::run_command(&opts).map(|report| println!("{report}"))
         }
-        Command::Ssim { a, b } => stereotrace::commands::ssim::run(&a, &b).map(|report| println!("{report}")),
+        Command::Ssim { a, b, exclude_nonfinite } => {
+            stereotrace::commands::ssim::run(&a, &b, exclude_nonfinite).map(|report| println!("{report}"))
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -231,11 +231,48 @@ fn direct_lighting_only_is_the_first_part_of_the_paper_estimate() {
         ]);
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
         let img = stereotrace::image_io::read_exr(&out_dir.join("cornell/left_000.exr")).unwrap();
-        let v: Vec<f32> = [&img.r, &img.g, &img.b].iter().flat_map(|p| p.as_slice().to_vec()).collect();
+        let v: Vec<f32> = img.planes().iter().flat_map(|p| p.as_slice().to_vec()).collect();
         (v.iter().all(|x| x.is_finite()), v.iter().map(|&x| f64::from(x)).sum::<f64>())
     };
     let ((finite0, direct), (finite1, paper)) = (mean("0"), mean("1"));
     assert!(finite0 && finite1);
     assert!(direct > 0.0 && paper > direct * 1.05, "the secondary bounce adds light: {direct} vs {paper}");
     std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Numbers that used to panic (`--budget-ms NaN` in `Duration::from_secs_f64`), run for days
+/// (`--spp 4000000000`), write nothing (`--frames 0`) or render black without a word (eye
+/// separations of 10⁶ m and more) are refused with the bound in the message.
+#[test]
+fn hostile_numbers_are_refused_with_their_bounds() {
+    let throughput = ["throughput", "--scene", "cornell", "--res", "16x9", "--frames", "1", "--no-baseline"];
+    for budget in ["NaN", "inf", "1e30", "-5", "0"] {
+        let flag = format!("--budget-ms={budget}");
+        let args: Vec<&str> = throughput.iter().copied().chain([flag.as_str()]).collect();
+        assert_refused(&stereotrace(&args), "budget");
+    }
+    let args: Vec<&str> = throughput.iter().copied().chain(["--spp", "4000000000"]).collect();
+    assert_refused(&stereotrace(&args), "1048576");
+    let tradeoff = ["tradeoff", "--scene", "cornell", "--res", "16x9", "--budgets-ms", "NaN"];
+    assert_refused(&stereotrace(&tradeoff), "budget");
+    let dir = temp_dir("hostile");
+    let out = dir.to_str().unwrap();
+    let render = ["render", "--scene", "cornell", "--res", "8x8", "--out", out];
+    for (extra, needle) in [
+        (["--frames", "0"], "frames"),
+        (["--spp", "4000000000"], "1048576"),
+        (["--eye-separation", "1e6"], "eye separation"),
+        (["--eye-separation", "3e38"], "eye separation"),
+    ] {
+        let args: Vec<&str> = render.iter().copied().chain(extra).collect();
+        assert_refused(&stereotrace(&args), needle);
+    }
+    // Wider than the scene but within the bound: rendered, with a warning that says why the
+    // eyes may see nothing; one image is "1 image".
+    let args: Vec<&str> =
+        render.iter().copied().chain(["--eye-separation", "500", "--eye", "left", "--spp", "1"]).collect();
+    let run = stereotrace(&args);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    assert!(String::from_utf8_lossy(&run.stderr).contains("wider than the scene"));
+    assert!(String::from_utf8_lossy(&run.stdout).contains("wrote 1 image ("));
 }

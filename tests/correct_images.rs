@@ -38,7 +38,7 @@ fn estimate(scene: &Scene, extent: Extent, spp: u32, batches: u64) -> Estimate {
             let request = TraceRequest { eye: Eye::Left, frame: 0, spp, seed, first_sample: 0 };
             let stats = renderer.trace(&lights, &camera, &request, PixelSelection::All, &mut image, false).unwrap();
             assert_eq!(stats.non_finite, 0);
-            [&image.r, &image.g, &image.b].map(|p| {
+            image.planes().map(|p| {
                 let v = p.as_slice();
                 assert!(v.iter().all(|x| x.is_finite()));
                 v.iter().map(|&x| f64::from(x)).sum::<f64>() / v.len() as f64

@@ -7,6 +7,8 @@ use std::process::{Command, Output};
 use stereotrace::image_io::write_exr;
 use stereotrace::kernels::{Extent, RgbBuf};
 
+mod common;
+
 fn stereotrace(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_stereotrace")).args(args).output().expect("the binary runs")
 }
@@ -53,8 +55,54 @@ fn ssim_prints_both_variants_and_the_rmse() {
     // The same image: SSIM 1, RMSE 0.
     let same = stereotrace(&["ssim", a.to_str().unwrap(), a.to_str().unwrap()]);
     let text = String::from_utf8_lossy(&same.stdout);
-    assert!(text.contains("volume): 1.000000") && text.contains("RMSE:                  0.000000e0"), "{text}");
+    assert!(text.contains("volume): 1.000000") && text.contains("RMSE:                  0.000000\n"), "{text}");
     std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Writes `img` with the samples `poison` says replaced by NaN (the project's own writer
+/// refuses non-finite images, so this goes through the EXR crate directly).
+fn write_exr_with_nan(path: &std::path::Path, img: &RgbBuf, poison: impl Fn(usize, usize) -> bool + Sync) {
+    let e = img.extent();
+    exr::prelude::write_rgb_file(path, e.width(), e.height(), |x, y| {
+        let [r, g, b] = img.get(x, y);
+        if poison(x, y) { (f32::NAN, g, b) } else { (r, g, b) }
+    })
+    .unwrap();
+}
+
+/// NaN samples used to be left out silently (SSIM 1.000000, RMSE 0, exit 0); they are an
+/// error unless `--exclude-nonfinite` says to compare the rest, and an image with nothing
+/// comparable is an error either way.
+#[test]
+fn ssim_fails_on_non_finite_samples_unless_told_to_exclude_them() {
+    let dir = temp_dir("ssim-nan");
+    let (a, b, all) = (dir.join("a.exr"), dir.join("b.exr"), dir.join("all-nan.exr"));
+    let img = gradient(96, 80, 1.0);
+    write_exr(&a, &img).unwrap();
+    write_exr_with_nan(&b, &img, |x, y| x < 64 && y < 64);
+    write_exr_with_nan(&all, &img, |_, _| true);
+    let (a, b, all) = (a.to_str().unwrap(), b.to_str().unwrap(), all.to_str().unwrap());
+    assert_refused(&stereotrace(&["ssim", a, b]), &["4096 of 23040 samples", "--exclude-nonfinite"]);
+    let out = stereotrace(&["ssim", a, b, "--exclude-nonfinite"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("4096 non-finite or out-of-range samples were excluded"));
+    for flag in [None, Some("--exclude-nonfinite")] {
+        let args: Vec<&str> = ["ssim", a, all].into_iter().chain(flag).collect();
+        assert_refused(&stereotrace(&args), &["all-nan.exr"]);
+    }
+    let out = stereotrace(&["ssim", a, all, "--exclude-nonfinite"]);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("nothing to compare"));
+}
+
+/// A header claiming 65536×65536 pixels (a file of a few hundred bytes) used to abort the
+/// process allocating 51 GB.
+#[test]
+fn ssim_refuses_an_exr_claiming_billions_of_pixels() {
+    let dir = temp_dir("ssim-huge");
+    let huge = dir.join("huge.exr");
+    common::exr_claiming(&huge, 65536);
+    let huge = huge.to_str().unwrap();
+    assert_refused(&stereotrace(&["ssim", huge, huge]), &["huge.exr", "too large"]);
 }
 
 #[test]
@@ -135,7 +183,7 @@ fn eval_refuses_bad_options_with_a_message() {
     assert_refused(&run(&["--modes", "spatial"]), &["unknown mode 'spatial'", "stereo-blend"]);
     assert_refused(&run(&["--scenes", "no-such-scene"]), &["no-such-scene"]);
     assert_refused(&run(&["--frames", "5", "--warmup", "5"]), &["warm-up"]);
-    assert_refused(&run(&["--spp", "0"]), &["input spp"]);
+    assert_refused(&run(&["--spp", "0"]), &["--spp", "1..=1048576"]);
     assert_refused(&run(&["--scenes", "cornell", "--frames", "500"]), &["500 frames"]);
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -26,7 +26,7 @@ fn render(renderer: &Renderer, eye: Eye, frame: u32, spp: u32, seed: u64, e: Ext
 
 fn mean(img: &RgbBuf) -> [f64; 3] {
     let n = img.extent().pixels() as f64;
-    [&img.r, &img.g, &img.b].map(|p| p.as_slice().iter().map(|&v| f64::from(v)).sum::<f64>() / n)
+    img.planes().map(|p| p.as_slice().iter().map(|&v| f64::from(v)).sum::<f64>() / n)
 }
 
 /// The inside of a closed polyhedron (an icosphere wound inwards) whose every triangle emits
@@ -68,7 +68,7 @@ fn furnace_matches_the_two_bounce_closed_form() {
     }
     // Each 64-sample pixel is close too. The per-sample distribution has a tail (next-event
     // estimates near the polyhedron's edges, up to ~3.5), so allow a few of those per pixel.
-    for &v in img.r.as_slice() {
+    for &v in img.r().as_slice() {
         assert!((f64::from(v) - expected).abs() < 0.25, "pixel {v}, expected {expected}");
     }
 }
@@ -81,7 +81,7 @@ fn error_falls_as_one_over_sqrt_spp() {
     let expected = furnace_answer();
     let rmse = |spp: u32| {
         let img = render(&renderer, Eye::Left, 0, spp, 3, e, false);
-        let d: f64 = img.r.as_slice().iter().map(|&v| (f64::from(v) - expected).powi(2)).sum();
+        let d: f64 = img.r().as_slice().iter().map(|&v| (f64::from(v) - expected).powi(2)).sum();
         (d / e.pixels() as f64).sqrt()
     };
     let errors: Vec<f64> = [1, 4, 16, 64].into_iter().map(rmse).collect();
@@ -95,14 +95,14 @@ fn error_falls_as_one_over_sqrt_spp() {
     let renderer = Renderer::new(resolve("cornell").unwrap()).unwrap();
     let e = extent(40, 24);
     let reference = render(&renderer, Eye::Right, 3, 1024, 99, e, false);
-    let keep: Vec<bool> = reference.g.as_slice().iter().map(|&v| v < 2.0).collect();
+    let keep: Vec<bool> = reference.g().as_slice().iter().map(|&v| v < 2.0).collect();
     let mse = |spp: u32| {
         (1..=4)
             .map(|seed| {
                 let img = render(&renderer, Eye::Right, 3, spp, seed, e, false);
                 let d: f64 = (0..e.pixels())
                     .filter(|&i| keep[i])
-                    .map(|i| f64::from(img.g.as_slice()[i] - reference.g.as_slice()[i]).powi(2))
+                    .map(|i| f64::from(img.g().as_slice()[i] - reference.g().as_slice()[i]).powi(2))
                     .sum();
                 d / keep.iter().filter(|&&k| k).count() as f64
             })
@@ -156,7 +156,7 @@ fn samples_can_be_added_in_batches() {
     };
     let all = run(0, 8);
     let (a, b) = (run(0, 4), run(4, 4));
-    for (x, (p, q)) in all.r.as_slice().iter().zip(a.r.as_slice().iter().zip(b.r.as_slice())) {
+    for (x, (p, q)) in all.r().as_slice().iter().zip(a.r().as_slice().iter().zip(b.r().as_slice())) {
         assert!((x - 0.5 * (p + q)).abs() <= 1e-5 * x.abs().max(1.0));
     }
 }
@@ -175,9 +175,9 @@ fn pixel_masks_trace_only_the_selected_pixels() {
     let full = render(&renderer, Eye::Left, 0, 2, 1, e, false);
     for i in 0..e.pixels() {
         if i % 3 == 0 {
-            assert_eq!(img.r.as_slice()[i], full.r.as_slice()[i]);
+            assert_eq!(img.r().as_slice()[i], full.r().as_slice()[i]);
         } else {
-            assert_eq!(img.r.as_slice()[i], -5.0);
+            assert_eq!(img.r().as_slice()[i], -5.0);
         }
     }
 }

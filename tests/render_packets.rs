@@ -77,7 +77,11 @@ fn packet_loop_with_masks_and_row_ranges() {
             .unwrap();
         for y in (0..e.height()).filter(|y| !rows.contains(y)) {
             let row = y * e.width()..(y + 1) * e.width();
-            assert_eq!(tiled.r.as_slice()[row.clone()], before.r.as_slice()[row], "row {y} outside {rows:?} changed");
+            assert_eq!(
+                tiled.r().as_slice()[row.clone()],
+                before.r().as_slice()[row],
+                "row {y} outside {rows:?} changed"
+            );
         }
     }
     assert_eq!(tiled, whole);
@@ -125,7 +129,7 @@ fn packet_loop_with_cut_outs() {
         img
     };
     let (a, b) = (render(&renderer), render(&opaque));
-    let changed = (0..e.pixels()).filter(|&i| a.g.as_slice()[i] != b.g.as_slice()[i]).count();
+    let changed = (0..e.pixels()).filter(|&i| a.g().as_slice()[i] != b.g().as_slice()[i]).count();
     assert!(changed > e.pixels() / 20, "only {changed} pixels changed");
     assert_loops_agree(&renderer, "cut-outs (general)", e, PixelSelection::All, true);
 }
@@ -148,5 +152,5 @@ fn rays_the_bvh_rejects_miss_in_both_loops() {
     assert_eq!(a, b);
     assert_eq!(a.rays, e.pixels() as u64, "only the primary rays are cast");
     assert_eq!(packets, single);
-    assert!(packets.r.as_slice().iter().all(|v| v.is_finite() && *v > 0.0), "the sky is seen everywhere");
+    assert!(packets.r().as_slice().iter().all(|v| v.is_finite() && *v > 0.0), "the sky is seen everywhere");
 }

@@ -1151,3 +1151,33 @@ fn lights_too_bright_for_f32_are_refused_naming_the_light() {
     dir.write("lights.json", r#"[{"type": "point", "position": [0, 1.5, 0], "intensity": [1e15, 1e15, 1e15]}]"#);
     assert!(load_folder(&dir.0, &FolderOptions::default()).is_ok());
 }
+
+mod common;
+
+/// Hostile counts and sizes are refused with the bound in the message, before anything the
+/// size of the claim is allocated (each used to abort the process allocating gigabytes).
+#[test]
+fn huge_claims_in_scene_inputs_are_refused_before_allocating() {
+    let dir = TempDir::new("huge-claims");
+    room(&dir);
+    // 4·10⁹ frames: the camera path would have built every pose (208 GB).
+    let m = dir.write("frames.toml", "mesh = \"room.obj\"\nframes = 4000000000\n");
+    let e = load_manifest(&m).unwrap_err().to_string();
+    assert!(e.contains("frames.toml") && e.contains("frames") && e.contains("100000"), "{e}");
+    // frames = 0 is the manifest's field, not camera.json's.
+    let m = dir.write("zero.toml", "mesh = \"room.obj\"\nframes = 0\n");
+    let e = load_manifest(&m).unwrap_err().to_string();
+    assert!(e.contains("zero.toml") && e.contains("frames") && !e.contains("camera.json"), "{e}");
+    // A field of view of 1e-30 degrees is refused at load, naming the manifest and the camera.
+    let m = dir.write(
+        "vfov.toml",
+        "mesh = \"room.obj\"\n[camera]\nvfov_deg = 1e-30\nkeys = [ { frame = 0, eye = [0, 1, 1.5], target = [0, 1, -1] } ]\n",
+    );
+    let e = load_manifest(&m).unwrap_err().to_string();
+    assert!(e.contains("vfov.toml") && e.contains("camera") && e.contains("field of view"), "{e}");
+    // An environment map whose 28-byte-window header claims 65536×65536 pixels (51 GB).
+    let exr = dir.0.join("huge.exr");
+    common::exr_claiming(&exr, 65536);
+    let e = EnvMap::load_exr(&exr, 1.0, Mat3::IDENTITY).unwrap_err().to_string();
+    assert!(e.contains("huge.exr") && e.contains("too large"), "{e}");
+}

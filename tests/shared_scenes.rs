@@ -45,10 +45,10 @@ fn every_shared_scene_renders_a_small_stereo_frame() {
             let stats = renderer.trace(&lights, &camera, &request, PixelSelection::All, &mut img, false).unwrap();
             assert_eq!(stats.samples, 2 * e.pixels() as u64, "{name}");
             assert_eq!(stats.non_finite, 0, "{name} {eye:?}: non-finite samples");
-            let values = || [&img.r, &img.g, &img.b].into_iter().flat_map(|p| p.as_slice().iter().copied());
+            let values = || img.planes().into_iter().flat_map(|p| p.as_slice().iter().copied());
             assert!(values().all(|v| v.is_finite() && v >= 0.0), "{name} {eye:?}: non-finite or negative radiance");
-            let lit =
-                (0..e.pixels()).filter(|&i| img.r.as_slice()[i] + img.g.as_slice()[i] + img.b.as_slice()[i] > 0.0);
+            let lit = (0..e.pixels())
+                .filter(|&i| img.r().as_slice()[i] + img.g().as_slice()[i] + img.b().as_slice()[i] > 0.0);
             let lit = lit.count();
             assert!(lit > e.pixels() / 50, "{name} {eye:?}: only {lit} of {} pixels receive light", e.pixels());
 

@@ -373,7 +373,7 @@ where
     F: for<'r> Fn(&EmaInput<'_>, usize, &mut EmaRow<'r>, &mut Option<&'r mut [f32]>, &mut AccumulateStats) + Sync,
 {
     let height = state.accum.extent().height();
-    let RgbPlanesMut { r, g, b } = state.accum;
+    let [r, g, b] = state.accum.into_channels();
     let acc = [r, g, b].map(SharedRows::new);
     let len = state.history_len.map(SharedRows::new);
     for_each_band(
@@ -539,7 +539,7 @@ where
     F: for<'r> Fn(usize, &mut EmaRow<'r>, &mut AccumulateStats) + Sync,
 {
     let height = out.extent().height();
-    let RgbPlanesMut { r, g, b } = out;
+    let [r, g, b] = out.into_channels();
     let rows = [r, g, b].map(SharedRows::new);
     for_each_band(
         height,

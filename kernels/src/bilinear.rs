@@ -305,7 +305,7 @@ where
     F: Fn(&ResampleInput<'_>, usize, [&mut [f32]; 3], &mut [f32]) + Sync,
 {
     let height = out.weight.height();
-    let colour = [out.colour.r, out.colour.g, out.colour.b].map(SharedRows::new);
+    let colour = out.colour.into_channels().map(SharedRows::new);
     let weight = SharedRows::new(out.weight);
     for_each_band(
         height,

@@ -321,12 +321,32 @@ impl<'a, T: Copy + Send> PlaneMut<'a, T> {
     }
 }
 
-/// The three colour planes of a linear RGB image. All three share one extent.
+/// The three colour planes of a linear RGB image. All three share one extent: the fields
+/// are private so that only [`RgbPlanes::new`] (which checks) and the owned buffers (whose
+/// planes share an extent by construction) make one, and the kernels may load any channel
+/// where they checked one.
+///
+/// Planes of different sizes cannot be combined by hand (this once let safe code make the
+/// reprojection read past a small green plane):
+///
+/// ```compile_fail
+/// use stereotrace_kernels::frame::{Plane, RgbPlanes};
+/// let (big, small) = (vec![0.0f32; 64], vec![0.0f32; 1]);
+/// let (big, small) = (Plane::packed(&big, 8, 8).unwrap(), Plane::packed(&small, 1, 1).unwrap());
+/// let _ = RgbPlanes { r: big, g: small, b: big };
+/// ```
+///
+/// ```
+/// use stereotrace_kernels::frame::{Plane, RgbPlanes};
+/// let (big, small) = (vec![0.0f32; 64], vec![0.0f32; 1]);
+/// let (big, small) = (Plane::packed(&big, 8, 8).unwrap(), Plane::packed(&small, 1, 1).unwrap());
+/// assert!(RgbPlanes::new(big, small, big).is_err());
+/// ```
 #[derive(Clone, Copy)]
 pub struct RgbPlanes<'a> {
-    pub r: Plane<'a>,
-    pub g: Plane<'a>,
-    pub b: Plane<'a>,
+    r: Plane<'a>,
+    g: Plane<'a>,
+    b: Plane<'a>,
 }
 
 impl<'a> RgbPlanes<'a> {
@@ -347,6 +367,21 @@ impl<'a> RgbPlanes<'a> {
         [self.r, self.g, self.b]
     }
 
+    #[inline]
+    pub fn r(&self) -> Plane<'a> {
+        self.r
+    }
+
+    #[inline]
+    pub fn g(&self) -> Plane<'a> {
+        self.g
+    }
+
+    #[inline]
+    pub fn b(&self) -> Plane<'a> {
+        self.b
+    }
+
     /// The pixel at `(x, y)` as `[r, g, b]`.
     #[inline]
     pub fn get(&self, x: usize, y: usize) -> [f32; 3] {
@@ -354,11 +389,11 @@ impl<'a> RgbPlanes<'a> {
     }
 }
 
-/// Three mutable colour planes sharing one extent.
+/// Three mutable colour planes sharing one extent (private fields, as [`RgbPlanes`]).
 pub struct RgbPlanesMut<'a> {
-    pub r: PlaneMut<'a>,
-    pub g: PlaneMut<'a>,
-    pub b: PlaneMut<'a>,
+    r: PlaneMut<'a>,
+    g: PlaneMut<'a>,
+    b: PlaneMut<'a>,
 }
 
 impl<'a> RgbPlanesMut<'a> {
@@ -382,6 +417,12 @@ impl<'a> RgbPlanesMut<'a> {
     #[inline]
     pub fn reborrow(&mut self) -> RgbPlanesMut<'_> {
         RgbPlanesMut { r: self.r.reborrow(), g: self.g.reborrow(), b: self.b.reborrow() }
+    }
+
+    /// The three planes, one extent.
+    #[inline]
+    pub fn into_channels(self) -> [PlaneMut<'a>; 3] {
+        [self.r, self.g, self.b]
     }
 
     /// Horizontal bands of `rows` rows, as [`PlaneMut::into_bands`].
@@ -453,18 +494,84 @@ impl<T: Copy + Send + Sync> PlaneBuf<T> {
     }
 }
 
-/// An owned linear RGB image: three packed f32 planes.
+/// An owned linear RGB image: three packed f32 planes of one extent. The fields are private
+/// (a plane of another size must not be swapped in: the views it gives are trusted); the
+/// values are read through [`RgbBuf::r`] and friends and written through the slices of
+/// [`RgbBuf::r_mut`] and friends, which cannot change a plane's size.
+///
+/// ```compile_fail
+/// use stereotrace_kernels::frame::{Extent, PlaneBuf, RgbBuf};
+/// let mut img = RgbBuf::new(Extent::new(8, 8).unwrap(), 0.0);
+/// img.g = PlaneBuf::new(Extent::new(1, 1).unwrap(), 0.0);
+/// ```
 #[derive(Clone, Debug, PartialEq)]
 pub struct RgbBuf {
-    pub r: PlaneBuf,
-    pub g: PlaneBuf,
-    pub b: PlaneBuf,
+    r: PlaneBuf,
+    g: PlaneBuf,
+    b: PlaneBuf,
 }
 
 impl RgbBuf {
     /// An image of `extent` filled with `value` in every channel.
     pub fn new(extent: Extent, value: f32) -> Self {
         Self { r: PlaneBuf::new(extent, value), g: PlaneBuf::new(extent, value), b: PlaneBuf::new(extent, value) }
+    }
+
+    /// Combines three planes, checking that their extents agree.
+    pub fn from_planes(r: PlaneBuf, g: PlaneBuf, b: PlaneBuf) -> Result<Self, FrameError> {
+        same_extent("green plane", r.extent(), g.extent())?;
+        same_extent("blue plane", r.extent(), b.extent())?;
+        Ok(Self { r, g, b })
+    }
+
+    /// The three planes (one extent), for the caller to keep.
+    pub fn into_planes(self) -> [PlaneBuf; 3] {
+        [self.r, self.g, self.b]
+    }
+
+    #[inline]
+    pub fn r(&self) -> &PlaneBuf {
+        &self.r
+    }
+
+    #[inline]
+    pub fn g(&self) -> &PlaneBuf {
+        &self.g
+    }
+
+    #[inline]
+    pub fn b(&self) -> &PlaneBuf {
+        &self.b
+    }
+
+    /// The three planes in channel order.
+    #[inline]
+    pub fn planes(&self) -> [&PlaneBuf; 3] {
+        [&self.r, &self.g, &self.b]
+    }
+
+    /// The red values, packed row by row, to write in place.
+    #[inline]
+    pub fn r_mut(&mut self) -> &mut [f32] {
+        self.r.as_mut_slice()
+    }
+
+    /// The green values, as [`RgbBuf::r_mut`].
+    #[inline]
+    pub fn g_mut(&mut self) -> &mut [f32] {
+        self.g.as_mut_slice()
+    }
+
+    /// The blue values, as [`RgbBuf::r_mut`].
+    #[inline]
+    pub fn b_mut(&mut self) -> &mut [f32] {
+        self.b.as_mut_slice()
+    }
+
+    /// The values of the three channels, packed row by row, to write in place.
+    #[inline]
+    pub fn slices_mut(&mut self) -> [&mut [f32]; 3] {
+        [self.r.as_mut_slice(), self.g.as_mut_slice(), self.b.as_mut_slice()]
     }
 
     #[inline]

@@ -94,9 +94,9 @@ fn apply_edits(bytes: &mut Bytes<'_>, frame: &mut SynthFrame) {
             1..=3 => frame.position[usize::from(plane - 1)].as_mut_slice()[index] = value,
             4..=6 => frame.normal[usize::from(plane - 4)].as_mut_slice()[index] = value,
             7 => frame.normal_oct.as_mut_slice()[index] = value.to_bits(),
-            8 => frame.colour.r.as_mut_slice()[index] = value,
-            9 => frame.colour.g.as_mut_slice()[index] = value,
-            _ => frame.colour.b.as_mut_slice()[index] = value,
+            8 => frame.colour.r_mut()[index] = value,
+            9 => frame.colour.g_mut()[index] = value,
+            _ => frame.colour.b_mut()[index] = value,
         }
     }
 }
@@ -148,7 +148,7 @@ pub fn reproject(data: &[u8]) {
     let edit_source = bytes.u8() % 2 == 0;
     apply_edits(&mut bytes, if edit_source { &mut source } else { &mut target });
 
-    let source_finite = [&source.colour.r, &source.colour.g, &source.colour.b].into_iter().all(all_finite);
+    let source_finite = source.colour.planes().into_iter().all(all_finite);
     let extra = PlaneBuf::from_vec((0..source_extent.pixels()).map(|i| (i % 7) as f32).collect(), source_extent)
         .expect("extent matches");
     let (target, source) = (Strided::new(&target, pad), Strided::new(&source, pad));
@@ -189,7 +189,7 @@ impl Strided {
             position: frame.position.each_ref().map(f),
             normal: frame.normal.each_ref().map(f),
             normal_oct: padded(&frame.normal_oct, stride, u32::MAX),
-            colour: [&frame.colour.r, &frame.colour.g, &frame.colour.b].map(f),
+            colour: frame.colour.planes().map(f),
             frame: frame.clone(),
         }
     }
@@ -269,7 +269,7 @@ fn check_reprojection<L: SurfaceLayout>(
     let (counts_ref, colour_ref, extra_ref, reason_ref, weight_ref) = run(false);
     assert_eq!(counts, counts_ref, "reason counts");
     assert_eq!(reason, reason_ref, "reason codes");
-    for (a, b) in [(&colour.r, &colour_ref.r), (&colour.g, &colour_ref.g), (&colour.b, &colour_ref.b)] {
+    for (a, b) in [(colour.r(), colour_ref.r()), (colour.g(), colour_ref.g()), (colour.b(), colour_ref.b())] {
         assert_bits("colour", a, b);
     }
     if extra.is_some() {
@@ -285,7 +285,7 @@ fn check_reprojection<L: SurfaceLayout>(
         if on(i) {
             assert!((0.0..=1.0).contains(&weight.as_slice()[i]), "weights in [0, 1]");
             if source_finite {
-                for p in [&colour.r, &colour.g, &colour.b] {
+                for p in colour.planes() {
                     assert!(p.as_slice()[i].is_finite(), "non-finite output from finite source samples");
                 }
             }
@@ -303,7 +303,7 @@ pub fn bilinear(data: &[u8]) {
     let source_extent = extent_from(&mut bytes);
     let target_extent = extent_from(&mut bytes);
     let mut source = RgbBuf::new(source_extent, 0.0);
-    for (i, v) in source.r.as_mut_slice().iter_mut().enumerate() {
+    for (i, v) in source.r_mut().iter_mut().enumerate() {
         *v = i as f32 * 0.25;
     }
     let mut map_x = PlaneBuf::new(target_extent, 0.0f32);
@@ -322,16 +322,16 @@ pub fn bilinear(data: &[u8]) {
         match which {
             0 => map_x.as_mut_slice()[index % target_extent.pixels()] = value,
             1 => map_y.as_mut_slice()[index % target_extent.pixels()] = value,
-            2 => source.r.as_mut_slice()[index % source_extent.pixels()] = value,
-            3 => source.g.as_mut_slice()[index % source_extent.pixels()] = value,
-            4 => source.b.as_mut_slice()[index % source_extent.pixels()] = value,
+            2 => source.r_mut()[index % source_extent.pixels()] = value,
+            3 => source.g_mut()[index % source_extent.pixels()] = value,
+            4 => source.b_mut()[index % source_extent.pixels()] = value,
             _ => valid.as_mut_slice()[index % source_extent.pixels()] = value.to_bits() as u8 & 1,
         }
     }
-    let source_finite = [&source.r, &source.g, &source.b].into_iter().all(all_finite);
+    let source_finite = source.planes().into_iter().all(all_finite);
     // Every input plane with `pad` elements of NaN (or 0 for the mask) after each row.
     let (sw, tw) = (source_extent.width() + pad, target_extent.width() + pad);
-    let src = [&source.r, &source.g, &source.b].map(|p| padded(p, sw, f32::NAN));
+    let src = source.planes().map(|p| padded(p, sw, f32::NAN));
     let (mx, my, mask) = (padded(&map_x, tw, f32::NAN), padded(&map_y, tw, f32::NAN), padded(&valid, sw, 0u8));
     fn view(d: &[f32], e: Extent, stride: usize) -> crate::frame::Plane<'_> {
         crate::frame::Plane::new(d, e.width(), e.height(), stride).expect("padded")
@@ -359,13 +359,13 @@ pub fn bilinear(data: &[u8]) {
     };
     let (colour, weight) = run(true);
     let (colour_ref, weight_ref) = run(false);
-    for (a, b) in [(&colour.r, &colour_ref.r), (&colour.g, &colour_ref.g), (&colour.b, &colour_ref.b)] {
+    for (a, b) in [(colour.r(), colour_ref.r()), (colour.g(), colour_ref.g()), (colour.b(), colour_ref.b())] {
         assert_bits("resampled colour", a, b);
     }
     assert_bits("resample weight", &weight, &weight_ref);
     assert!(weight.as_slice().iter().all(|w| (0.0..=1.0).contains(w)), "weights in [0, 1]");
     if source_finite {
-        for p in [&colour.r, &colour.g, &colour.b] {
+        for p in colour.planes() {
             assert!(all_finite(p), "non-finite output from finite source samples");
         }
     }
@@ -387,17 +387,17 @@ pub fn accumulate(data: &[u8]) {
         let index = usize::from(u16::from_le_bytes([bytes.u8(), bytes.u8()])) % e.pixels();
         let value = bytes.f32();
         match which {
-            0 => new.r.as_mut_slice()[index] = value,
-            1 => new.g.as_mut_slice()[index] = value,
-            2 => new.b.as_mut_slice()[index] = value,
-            3 => history.r.as_mut_slice()[index] = value,
-            4 => history.g.as_mut_slice()[index] = value,
-            5 => history.b.as_mut_slice()[index] = value,
+            0 => new.r_mut()[index] = value,
+            1 => new.g_mut()[index] = value,
+            2 => new.b_mut()[index] = value,
+            3 => history.r_mut()[index] = value,
+            4 => history.g_mut()[index] = value,
+            5 => history.b_mut()[index] = value,
             6 => len.as_mut_slice()[index] = value,
             _ => reason.as_mut_slice()[index] = value.to_bits() as u8 % 6,
         }
     }
-    let history_finite = [&history.r, &history.g, &history.b].into_iter().all(all_finite);
+    let history_finite = history.planes().into_iter().all(all_finite);
     let params = EmaParams { alpha, ramp, band_rows: 2 };
     let input = EmaInput { new: new.view(), reason: reason.view(), has_new: None };
     let run = |simd: bool| {
@@ -410,11 +410,11 @@ pub fn accumulate(data: &[u8]) {
     let (stats, acc, n) = run(true);
     let (stats_ref, acc_ref, n_ref) = run(false);
     assert_eq!(stats, stats_ref);
-    for (a, b) in [(&acc.r, &acc_ref.r), (&acc.g, &acc_ref.g), (&acc.b, &acc_ref.b), (&n, &n_ref)] {
+    for (a, b) in [(acc.r(), acc_ref.r()), (acc.g(), acc_ref.g()), (acc.b(), acc_ref.b()), (&n, &n_ref)] {
         assert_bits("EMA", a, b);
     }
     if history_finite {
-        for p in [&acc.r, &acc.g, &acc.b] {
+        for p in acc.planes() {
             assert!(all_finite(p), "a non-finite sample entered the history");
         }
     }
@@ -428,7 +428,7 @@ pub fn accumulate(data: &[u8]) {
     let (stats, out) = run(true);
     let (stats_ref, out_ref) = run(false);
     assert_eq!(stats, stats_ref);
-    for (a, b) in [(&out.r, &out_ref.r), (&out.g, &out_ref.g), (&out.b, &out_ref.b)] {
+    for (a, b) in [(out.r(), out_ref.r()), (out.g(), out_ref.g()), (out.b(), out_ref.b())] {
         assert_bits("blend", a, b);
     }
 }

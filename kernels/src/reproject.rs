@@ -291,7 +291,7 @@ fn prepare<'a, L: SurfaceLayout>(
         target: input.target,
         source: input.source,
         camera: input.source_camera,
-        channels: [c.r, c.g, c.b, input.extra.unwrap_or(c.r)],
+        channels: [c.r(), c.g(), c.b(), input.extra.unwrap_or(c.r())],
         channel_count: if input.extra.is_some() { 4 } else { 3 },
         pixel_mask: input.pixel_mask,
         source_extent: source,
@@ -347,7 +347,7 @@ struct RowOut<'r> {
 impl<'a> Rows<'a> {
     fn new(out: ReprojectOutput<'a>) -> Self {
         let ReprojectOutput { colour, extra, reason, weight } = out;
-        let RgbPlanesMut { r, g, b } = colour;
+        let [r, g, b] = colour.into_channels();
         Self {
             channels: [Some(r), Some(g), Some(b), extra].map(|p| p.map(SharedRows::new)),
             reason: SharedRows::new(reason),
@@ -500,7 +500,7 @@ fn check_against_scalar<L: SurfaceLayout>(
         PlaneBuf::from_vec(data, extent).expect("same extent")
     };
     let [r, g, b] = out.colour.as_planes().channels();
-    let mut colour = RgbBuf { r: copy(r), g: copy(g), b: copy(b) };
+    let mut colour = RgbBuf::from_planes(copy(r), copy(g), copy(b)).expect("one extent");
     let mut extra = out.extra.as_ref().map(|p| copy(p.as_plane()));
     let mut reason = PlaneBuf::new(extent, 0u8);
     let mut weight = out.weight.as_ref().map(|p| copy(p.as_plane()));

@@ -90,7 +90,7 @@ fn second_frame_allocates_nothing() {
             ResampleInput { source: right.colour.view(), source_valid: None, map_x: map_x.view(), map_y: map_y.view() };
         bilinear::resample(&input, ResampleOutput { colour: reprojected.view_mut(), weight: weight.view_mut() })
             .unwrap();
-        let capacities = (reprojected.r.capacity(), history.r.capacity(), reason.capacity());
+        let capacities = (reprojected.r().capacity(), history.r().capacity(), reason.capacity());
         history_len.as_mut_slice().copy_from_slice(len_out.as_slice());
         capacities
     };

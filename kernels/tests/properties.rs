@@ -23,7 +23,7 @@ fn extent(w: usize, h: usize) -> Extent {
 fn rgb(e: Extent, values: &[f32]) -> RgbBuf {
     let n = e.pixels();
     let plane = |c: usize| PlaneBuf::from_vec(values[c * n..(c + 1) * n].to_vec(), e).expect("sized");
-    RgbBuf { r: plane(0), g: plane(1), b: plane(2) }
+    RgbBuf::from_planes(plane(0), plane(1), plane(2)).expect("one extent")
 }
 
 fn same_bits(a: &PlaneBuf, b: &PlaneBuf) -> bool {
@@ -75,7 +75,7 @@ proptest! {
         let params = EmaParams { alpha, ramp, band_rows: 1 };
         let (a, la) = run_ema(&new, &history, &reason, &len, &params, true);
         let (b, lb) = run_ema(&new, &history, &reason, &len, &params, false);
-        for (pa, pb) in [(&a.r, &b.r), (&a.g, &b.g), (&a.b, &b.b), (&la, &lb)] {
+        for (pa, pb) in [(a.r(), b.r()), (a.g(), b.g()), (a.b(), b.b()), (&la, &lb)] {
             prop_assert!(same_bits(pa, pb));
         }
     }
@@ -93,7 +93,7 @@ proptest! {
         let reason = PlaneBuf::new(e, Reason::Reprojected as u8);
         let params = EmaParams { alpha, ramp: false, band_rows: 1 };
         let (acc, _) = run_ema(&new, &history, &reason, &len, &params, true);
-        for (out, (hist, sample)) in [(&acc.r, (&history.r, &new.r)), (&acc.g, (&history.g, &new.g)), (&acc.b, (&history.b, &new.b))] {
+        for (out, (hist, sample)) in [(acc.r(), (history.r(), new.r())), (acc.g(), (history.g(), new.g())), (acc.b(), (history.b(), new.b()))] {
             for ((&o, &hv), &s) in out.as_slice().iter().zip(hist.as_slice()).zip(sample.as_slice()) {
                 let (lo, hi) = (hv.min(s), hv.max(s));
                 // `a + t·(b − a)` rounds `b − a` and the product: allow a few ulps of the span
@@ -129,11 +129,11 @@ proptest! {
         };
         let (ca, wa) = run(true);
         let (cb, wb) = run(false);
-        for (pa, pb) in [(&ca.r, &cb.r), (&ca.g, &cb.g), (&ca.b, &cb.b), (&wa, &wb)] {
+        for (pa, pb) in [(ca.r(), cb.r()), (ca.g(), cb.g()), (ca.b(), cb.b()), (&wa, &wb)] {
             prop_assert!(same_bits(pa, pb));
         }
         prop_assert!(wa.as_slice().iter().all(|w| (0.0..=1.0).contains(w)));
-        prop_assert!(ca.r.as_slice().iter().chain(ca.g.as_slice()).chain(ca.b.as_slice()).all(|v| v.is_finite()));
+        prop_assert!(ca.r().as_slice().iter().chain(ca.g().as_slice()).chain(ca.b().as_slice()).all(|v| v.is_finite()));
     }
 
     #[test]

@@ -59,9 +59,9 @@ fn assert_same_planes(what: &str, a: &PlaneBuf, b: &PlaneBuf) {
 fn assert_same(a: &Reprojected, b: &Reprojected) {
     assert_eq!(a.counts, b.counts);
     assert_eq!(a.reason, b.reason);
-    assert_same_planes("red", &a.colour.r, &b.colour.r);
-    assert_same_planes("green", &a.colour.g, &b.colour.g);
-    assert_same_planes("blue", &a.colour.b, &b.colour.b);
+    assert_same_planes("red", a.colour.r(), b.colour.r());
+    assert_same_planes("green", a.colour.g(), b.colour.g());
+    assert_same_planes("blue", a.colour.b(), b.colour.b());
     assert_same_planes("extra", &a.extra, &b.extra);
     assert_same_planes("weight", &a.weight, &b.weight);
 }
@@ -148,9 +148,9 @@ fn pixel_mask_reprojects_only_the_chosen_pixels() {
                 for i in 0..e.pixels() {
                     let on = mask.as_slice()[i] != 0;
                     let planes = [
-                        (&a.colour.r, &all.colour.r),
-                        (&a.colour.g, &all.colour.g),
-                        (&a.colour.b, &all.colour.b),
+                        (a.colour.r(), all.colour.r()),
+                        (a.colour.g(), all.colour.g()),
+                        (a.colour.b(), all.colour.b()),
                         (&a.extra, &all.extra),
                         (&a.weight, &all.weight),
                     ];
@@ -173,12 +173,12 @@ fn pixel_mask_reprojects_only_the_chosen_pixels() {
 
 /// Replaces a random share of every G-buffer and colour value with edge values.
 fn corrupt(frame: &mut SynthFrame, rng: &mut Rng, share: f32) {
-    let mut planes: Vec<&mut PlaneBuf> = vec![&mut frame.depth];
-    planes.extend(frame.position.iter_mut());
-    planes.extend(frame.normal.iter_mut());
-    planes.extend([&mut frame.colour.r, &mut frame.colour.g, &mut frame.colour.b]);
+    let mut planes: Vec<&mut [f32]> = vec![frame.depth.as_mut_slice()];
+    planes.extend(frame.position.iter_mut().map(PlaneBuf::as_mut_slice));
+    planes.extend(frame.normal.iter_mut().map(PlaneBuf::as_mut_slice));
+    planes.extend(frame.colour.slices_mut());
     for plane in planes {
-        for v in plane.as_mut_slice() {
+        for v in plane {
             if rng.next_f32() < share {
                 *v = EDGE_VALUES[rng.below(EDGE_VALUES.len())];
             }
@@ -226,7 +226,7 @@ fn simd_equals_scalar_with_edge_values_and_random_cameras() {
             let input = input_for(&tf, &sf, &source, None);
             assert_same(&run_reprojection(&input, &p, true).unwrap(), &run_reprojection(&input, &p, false).unwrap());
             let (tc, sc) = (target.compact(), source.compact());
-            let input = input_for(&tc, &sc, &source, Some(source.colour.g.view()));
+            let input = input_for(&tc, &sc, &source, Some(source.colour.g().view()));
             assert_same(&run_reprojection(&input, &p, true).unwrap(), &run_reprojection(&input, &p, false).unwrap());
         }
     }
@@ -239,13 +239,13 @@ fn outputs_are_finite_and_weights_in_unit_range_for_finite_sources() {
         let e = extent(1 + rng.below(30), 1 + rng.below(10));
         let (mut left, mut right) = stereo_room(e, rng.range(0.0, 1.0));
         // Huge but finite colours must not overflow to infinity when summed.
-        for v in right.colour.r.as_mut_slice() {
+        for v in right.colour.r_mut() {
             *v = if rng.next_f32() < 0.5 { f32::MAX } else { -f32::MAX };
         }
         corrupt(&mut left, &mut rng, 0.05);
         let (tf, sf) = (left.gbuffer(), right.gbuffer());
         let r = run_reprojection(&input_for(&tf, &sf, &right, None), &params(TapPolicy::Renormalize), true).unwrap();
-        for c in [&r.colour.r, &r.colour.g, &r.colour.b] {
+        for c in r.colour.planes() {
             assert!(c.as_slice().iter().all(|v| v.is_finite()));
         }
         assert!(r.weight.as_slice().iter().all(|w| (0.0..=1.0).contains(w)));
@@ -274,9 +274,9 @@ fn identity_camera_copies_the_source_exactly() {
                     continue;
                 }
                 assert_eq!(r.reason.as_slice()[i], Reason::Reprojected as u8, "pixel {i}");
-                assert_eq!(r.colour.r.as_slice()[i], frame.colour.r.as_slice()[i]);
-                assert_eq!(r.colour.g.as_slice()[i], frame.colour.g.as_slice()[i]);
-                assert_eq!(r.colour.b.as_slice()[i], frame.colour.b.as_slice()[i]);
+                assert_eq!(r.colour.r().as_slice()[i], frame.colour.r().as_slice()[i]);
+                assert_eq!(r.colour.g().as_slice()[i], frame.colour.g().as_slice()[i]);
+                assert_eq!(r.colour.b().as_slice()[i], frame.colour.b().as_slice()[i]);
                 assert_eq!(r.weight.as_slice()[i], 1.0);
             }
         }
@@ -359,7 +359,7 @@ fn parallel_cameras_on_a_textured_plane_give_disparity_f_b_over_z() {
     // The right image's red channel records each pixel's own x centre, a linear function that
     // bilinear interpolation reproduces exactly: the reprojected red value *is* the source
     // position the kernel computed.
-    for (i, v) in right.colour.r.as_mut_slice().iter_mut().enumerate() {
+    for (i, v) in right.colour.r_mut().iter_mut().enumerate() {
         *v = (i % e.width()) as f32 + 0.5;
     }
     let (tg, sg) = (left.gbuffer(), right.gbuffer());
@@ -370,11 +370,11 @@ fn parallel_cameras_on_a_textured_plane_give_disparity_f_b_over_z() {
             let i = y * e.width() + x;
             assert_eq!(r.reason.as_slice()[i], Reason::Reprojected as u8);
             // Disparity: the source position is the target position minus f·b/z.
-            let measured = (x as f64 + 0.5) - f64::from(r.colour.r.as_slice()[i]);
+            let measured = (x as f64 + 0.5) - f64::from(r.colour.r().as_slice()[i]);
             assert!((measured - disparity).abs() < 2e-3, "disparity {measured} vs f·b/z = {disparity} at ({x}, {y})");
             // The image: bilinear of the right image at (x + 0.5 − d, y + 0.5).
             let sx = x as f64 + 0.5 - disparity;
-            for (plane, got) in [(&right.colour.g, &r.colour.g), (&right.colour.b, &r.colour.b)] {
+            for (plane, got) in [(right.colour.g(), r.colour.g()), (right.colour.b(), r.colour.b())] {
                 let want = bilinear_f64(plane, sx, y as f64 + 0.5).unwrap();
                 let got = f64::from(got.as_slice()[i]);
                 assert!((got - want).abs() < 1e-3, "({x}, {y}): {got} vs {want}");
@@ -480,7 +480,7 @@ fn background_and_nan_targets_get_their_own_reasons() {
     assert_eq!(r.reason.as_slice()[5], Reason::Background as u8);
     for i in [9, 10, 11] {
         assert_eq!(r.reason.as_slice()[i], Reason::Invalid as u8);
-        assert_eq!(r.colour.r.as_slice()[i], 0.0);
+        assert_eq!(r.colour.r().as_slice()[i], 0.0);
         assert_eq!(r.weight.as_slice()[i], 0.0);
     }
 }
@@ -489,14 +489,14 @@ fn background_and_nan_targets_get_their_own_reasons() {
 fn source_samples_that_are_not_finite_are_never_used() {
     let e = extent(32, 8);
     let (left, mut right) = stereo_room(e, 0.065);
-    for (i, v) in right.colour.g.as_mut_slice().iter_mut().enumerate() {
+    for (i, v) in right.colour.g_mut().iter_mut().enumerate() {
         if i % 2 == 0 {
             *v = f32::NAN;
         }
     }
     let (tg, sg) = (left.gbuffer(), right.gbuffer());
     let r = run_reprojection(&input_for(&tg, &sg, &right, None), &params(TapPolicy::Renormalize), true).unwrap();
-    assert!(r.colour.g.as_slice().iter().all(|v| v.is_finite()));
+    assert!(r.colour.g().as_slice().iter().all(|v| v.is_finite()));
 }
 
 #[test]
@@ -529,7 +529,7 @@ fn bad_inputs_are_refused_with_named_errors() {
     assert!(err.to_string().contains("output colour"), "{err}");
     // Extra channel on one side only.
     let mut colour = RgbBuf::new(extent(16, 8), 0.0);
-    let input = input_for(&tg, &sg, &right, Some(right.colour.r.view()));
+    let input = input_for(&tg, &sg, &right, Some(right.colour.r().view()));
     let out = ReprojectOutput { colour: colour.view_mut(), extra: None, reason: reason.view_mut(), weight: None };
     assert!(matches!(
         reproject::reproject(&input, out, &params(TapPolicy::Strict)),
@@ -582,7 +582,7 @@ fn strided_views_give_the_same_result_as_packed_ones() {
     assert_eq!(counts, b.counts);
     for y in 0..e.height() {
         for x in 0..e.width() {
-            assert!(same_bits(out_planes[1][y * stride + x], b.colour.g.as_slice()[y * e.width() + x]));
+            assert!(same_bits(out_planes[1][y * stride + x], b.colour.g().as_slice()[y * e.width() + x]));
             assert_eq!(reason[y * stride + x], b.reason.as_slice()[y * e.width() + x]);
         }
     }
@@ -628,7 +628,7 @@ fn bilinear_simd_equals_scalar_on_edge_values_and_random_maps() {
         let valid = PlaneBuf::from_vec((0..se.pixels()).map(|_| (rng.next_f32() < 0.8) as u8).collect(), se).unwrap();
         for mask in [None, Some(&valid)] {
             let [(ca, wa), (cb, wb)] = resample_both(&src, mask, &mx, &my);
-            for (a, b) in [(&ca.r, &cb.r), (&ca.g, &cb.g), (&ca.b, &cb.b), (&wa, &wb)] {
+            for (a, b) in [(ca.r(), cb.r()), (ca.g(), cb.g()), (ca.b(), cb.b()), (&wa, &wb)] {
                 assert_same_planes("resample", a, b);
             }
             assert!(wa.as_slice().iter().all(|w| (0.0..=1.0).contains(w)));
@@ -658,7 +658,7 @@ fn bilinear_simd_equals_scalar_on_coherent_shifted_maps() {
         let valid = PlaneBuf::from_vec((0..se.pixels()).map(|_| (rng.next_f32() < 0.85) as u8).collect(), se).unwrap();
         for mask in [None, Some(&valid)] {
             let [(ca, wa), (cb, wb)] = resample_both(&src, mask, &mx, &my);
-            for (a, b) in [(&ca.r, &cb.r), (&ca.g, &cb.g), (&ca.b, &cb.b), (&wa, &wb)] {
+            for (a, b) in [(ca.r(), cb.r()), (ca.g(), cb.g()), (ca.b(), cb.b()), (&wa, &wb)] {
                 assert_same_planes("coherent resample", a, b);
             }
         }
@@ -669,7 +669,7 @@ fn bilinear_simd_equals_scalar_on_coherent_shifted_maps() {
 fn bilinear_interpolates_a_linear_ramp_exactly_enough() {
     let se = extent(16, 8);
     let ramp = PlaneBuf::from_vec((0..se.pixels()).map(|i| (i % 16) as f32 + 0.5).collect(), se).unwrap();
-    let src = RgbBuf { r: ramp.clone(), g: ramp.clone(), b: ramp };
+    let src = RgbBuf::from_planes(ramp.clone(), ramp.clone(), ramp).unwrap();
     let te = extent(9, 1);
     let xs = [0.5f32, 1.0, 1.25, 3.75, 8.0, 10.3, 15.5, 0.0, 16.0];
     let mx = PlaneBuf::from_vec(xs.to_vec(), te).unwrap();
@@ -678,7 +678,7 @@ fn bilinear_interpolates_a_linear_ramp_exactly_enough() {
     for (i, &x) in xs.iter().enumerate() {
         // At the border (x < 0.5 or x > 15.5) renormalisation keeps the only in-frame column.
         let want = x.clamp(0.5, 15.5);
-        assert!((c.r.as_slice()[i] - want).abs() < 1e-5, "{x}: {}", c.r.as_slice()[i]);
+        assert!((c.r().as_slice()[i] - want).abs() < 1e-5, "{x}: {}", c.r().as_slice()[i]);
         assert!(w.as_slice()[i] > 0.0);
     }
 }
@@ -692,8 +692,8 @@ fn random_rgb(e: Extent, rng: &mut Rng, edge_share: f32) -> RgbBuf {
 /// An RGB image of values in `range`, with a share `edge_share` of edge values.
 fn random_rgb_in(e: Extent, rng: &mut Rng, edge_share: f32, (lo, hi): (f32, f32)) -> RgbBuf {
     let mut img = RgbBuf::new(e, 0.0);
-    for p in [&mut img.r, &mut img.g, &mut img.b] {
-        for v in p.as_mut_slice() {
+    for p in img.slices_mut() {
+        for v in p {
             *v =
                 if rng.next_f32() < edge_share { EDGE_VALUES[rng.below(EDGE_VALUES.len())] } else { rng.range(lo, hi) };
         }
@@ -733,12 +733,12 @@ fn ema_simd_equals_scalar_on_edge_values() {
         let (sa, aa, na) = run(true);
         let (sb, ab, nb) = run(false);
         assert_eq!(sa, sb);
-        for (a, b) in [(&aa.r, &ab.r), (&aa.g, &ab.g), (&aa.b, &ab.b), (&na, &nb)] {
+        for (a, b) in [(aa.r(), ab.r()), (aa.g(), ab.g()), (aa.b(), ab.b()), (&na, &nb)] {
             assert_same_planes("ema", a, b);
         }
         // Nothing non-finite enters the history unless it was already there.
-        for (i, v) in aa.r.as_slice().iter().enumerate() {
-            if history.r.as_slice()[i].is_finite() {
+        for (i, v) in aa.r().as_slice().iter().enumerate() {
+            if history.r().as_slice()[i].is_finite() {
                 assert!(v.is_finite(), "{v}");
             }
             assert!(v.is_nan() || *v == 0.0 || v.abs() >= f32::MIN_POSITIVE, "subnormal {v}");
@@ -784,18 +784,18 @@ fn ema_converges_to_the_mean_and_resets_where_history_was_discarded() {
         mean += f64::from(v) / frames as f64;
         let stats = ema_step(&mut acc, &RgbBuf::new(e, v), &reason, &EmaParams::default());
         assert_eq!(stats.resets, 1);
-        assert_eq!(acc.r.as_slice()[4], v, "discarded history resets to the new sample");
+        assert_eq!(acc.r().as_slice()[4], v, "discarded history resets to the new sample");
     }
-    assert!((f64::from(acc.r.as_slice()[0]) - mean).abs() < 0.5, "{} vs {mean}", acc.r.as_slice()[0]);
+    assert!((f64::from(acc.r().as_slice()[0]) - mean).abs() < 0.5, "{} vs {mean}", acc.r().as_slice()[0]);
 }
 
 #[test]
 fn non_finite_samples_fall_back_to_history_or_become_holes() {
     let e = extent(10, 1);
     let mut new = RgbBuf::new(e, 1.0);
-    new.g.as_mut_slice()[1] = f32::NAN;
-    new.b.as_mut_slice()[2] = f32::INFINITY;
-    new.r.as_mut_slice()[9] = f32::NEG_INFINITY;
+    new.g_mut()[1] = f32::NAN;
+    new.b_mut()[2] = f32::INFINITY;
+    new.r_mut()[9] = f32::NEG_INFINITY;
     let mut reason = PlaneBuf::new(e, Reason::Reprojected as u8);
     reason.as_mut_slice()[2] = Reason::OutOfFrame as u8;
     let mut acc = RgbBuf::new(e, 5.0);
@@ -834,7 +834,7 @@ fn blend_simd_equals_scalar_and_is_a_50_50_mix_where_valid() {
         let (sa, a) = run(true);
         let (sb, b) = run(false);
         assert_eq!(sa, sb);
-        for (x, y) in [(&a.r, &b.r), (&a.g, &b.g), (&a.b, &b.b)] {
+        for (x, y) in [(a.r(), b.r()), (a.g(), b.g()), (a.b(), b.b())] {
             assert_same_planes("blend", x, y);
         }
     }
@@ -843,7 +843,7 @@ fn blend_simd_equals_scalar_and_is_a_50_50_mix_where_valid() {
     let mut other = RgbBuf::new(e, 3.0);
     let reason = PlaneBuf::from_vec(vec![0, 1, 0], e).unwrap();
     accumulate::blend(&own.view(), other.view_mut(), &reason.view(), &BlendParams::default()).unwrap();
-    assert_eq!(other.r.as_slice(), &[2.0, 1.0, 2.0]);
+    assert_eq!(other.r().as_slice(), &[2.0, 1.0, 2.0]);
 }
 
 #[test]

@@ -73,6 +73,14 @@ pub fn run(opts: &RenderOptions) -> Result<String, String> {
             scene.frame_count()
         )
     })?;
+    let diagonal = scene.bounds().extent().length();
+    if opts.separation > diagonal {
+        eprintln!(
+            "warning: the eye separation of {} m is wider than the scene ({diagonal:.3} m across): the eyes may see \
+             little or nothing of it",
+            opts.separation
+        );
+    }
     let name = scene.name.clone();
     let mut renderer = Renderer::new(scene).map_err(|e| e.to_string())?;
     renderer.set_bounces(opts.bounces).map_err(|e| e.to_string())?;
@@ -117,7 +125,8 @@ pub fn run(opts: &RenderOptions) -> Result<String, String> {
         eprintln!("warning: {} samples were not finite and were dropped", stats.non_finite);
     }
     Ok(format!(
-        "wrote {jobs} images ({}x{}, {} spp) to {} in {secs:.2} s ({:.2} Mrays/s)",
+        "wrote {jobs} image{} ({}x{}, {} spp) to {} in {secs:.2} s ({:.2} Mrays/s)",
+        if jobs == 1 { "" } else { "s" },
         opts.extent.width(),
         opts.extent.height(),
         opts.spp,

@@ -149,7 +149,7 @@ pub fn run(opts: &ThroughputOptions) -> Result<ThroughputReport, String> {
     config.order = opts.order;
     config.layout = opts.layout;
     config.gbuffer = opts.gbuffer;
-    config.budget = opts.budget_ms.map(|b| Duration::from_secs_f64(b / 1e3));
+    config.budget = opts.budget_ms.map(super::budget_duration).transpose()?;
     let stats = pool.install(|| run_frames(&renderer, config, opts.extent, opts.frames, false))?;
     let frame_ms = |s: &[FrameStats]| Spread::of(s.iter().map(|f| ms(f.times.total)).collect());
     let baseline = if opts.baseline && opts.mode != Mode::PathTraced {

@@ -266,7 +266,7 @@ fn measure_setting(
     config.ramp = setting.ramp;
     config.layout = setting.layout;
     config.gbuffer = setting.gbuffer;
-    config.budget = budget_ms.map(|b| Duration::from_secs_f64(b / 1e3));
+    config.budget = budget_ms.map(super::budget_duration).transpose()?;
     let rig = StereoRig::new(spec.eye_separation)?;
     let mut pipeline = Pipeline::new(renderer, config, rig, extent).map_err(|e| e.to_string())?;
     let variant = spec.ssim.kernel();

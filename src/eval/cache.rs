@@ -308,7 +308,7 @@ pub fn encode_image(img: &RgbBuf, out: &mut Vec<u8>) {
     let e = img.extent();
     out.extend_from_slice(&(e.width() as u32).to_le_bytes());
     out.extend_from_slice(&(e.height() as u32).to_le_bytes());
-    for p in [&img.r, &img.g, &img.b] {
+    for p in img.planes() {
         for v in p.as_slice() {
             out.extend_from_slice(&v.to_le_bytes());
         }
@@ -321,7 +321,8 @@ pub fn decode_image(r: &mut Reader<'_>) -> Result<RgbBuf, String> {
     let e = Extent::new(w, h).map_err(|e| e.to_string())?;
     let mut plane =
         || -> Result<PlaneBuf, String> { PlaneBuf::from_vec(r.f32s(e.pixels())?, e).map_err(|e| e.to_string()) };
-    Ok(RgbBuf { r: plane()?, g: plane()?, b: plane()? })
+    let (r, g, b) = (plane()?, plane()?, plane()?);
+    RgbBuf::from_planes(r, g, b).map_err(|e| e.to_string())
 }
 
 /// Appends `width`, `height` and the f64 sample sums (little-endian).

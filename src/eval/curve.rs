@@ -108,7 +108,7 @@ impl Progressive {
         let stats = renderer
             .trace(&view.lights, &view.camera, &request, PixelSelection::All, &mut self.pass, general)
             .map_err(|e| e.to_string())?;
-        for (c, plane) in [&self.pass.r, &self.pass.g, &self.pass.b].into_iter().enumerate() {
+        for (c, plane) in self.pass.planes().into_iter().enumerate() {
             for (i, &v) in plane.as_slice().iter().enumerate() {
                 self.sum.rgb[3 * i + c] += f64::from(v);
             }
@@ -120,8 +120,8 @@ impl Progressive {
     /// The mean of the samples so far: what one `samples()`-spp render gives.
     pub fn mean(&mut self) -> &RgbBuf {
         let n = f64::from(self.samples.max(1));
-        for (c, plane) in [&mut self.mean.r, &mut self.mean.g, &mut self.mean.b].into_iter().enumerate() {
-            for (i, m) in plane.as_mut_slice().iter_mut().enumerate() {
+        for (c, plane) in self.mean.slices_mut().into_iter().enumerate() {
+            for (i, m) in plane.iter_mut().enumerate() {
                 *m = (self.sum.rgb[3 * i + c] / n) as f32;
             }
         }

@@ -256,7 +256,7 @@ struct BitHash(Vec<u8>);
 
 impl BitHash {
     fn image(&mut self, img: &RgbBuf) {
-        for p in [&img.r, &img.g, &img.b] {
+        for p in img.planes() {
             for v in p.as_slice() {
                 self.0.extend_from_slice(&v.to_bits().to_le_bytes());
             }

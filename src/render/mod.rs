@@ -897,12 +897,8 @@ where
 {
     let width = out.extent().width();
     let span = rows.start * width..rows.end * width;
-    let RgbBuf { r, g, b } = out;
-    (
-        r.as_mut_slice()[span.clone()].par_chunks_mut(width),
-        g.as_mut_slice()[span.clone()].par_chunks_mut(width),
-        b.as_mut_slice()[span].par_chunks_mut(width),
-    )
+    let [r, g, b] = out.slices_mut();
+    (r[span.clone()].par_chunks_mut(width), g[span.clone()].par_chunks_mut(width), b[span].par_chunks_mut(width))
         .into_par_iter()
         .enumerate()
         .map(|(i, (rr, gr, br))| {

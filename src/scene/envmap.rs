@@ -96,6 +96,9 @@ impl EnvMap {
         if !path.is_file() {
             return Err(SceneError::io(path, std::io::Error::new(std::io::ErrorKind::NotFound, "file not found")));
         }
+        // The size first, so that a header claiming billions of pixels is refused before the
+        // decoder allocates them.
+        crate::image_io::exr_extent(path).map_err(|e| img_err(e.message))?;
         let image = read_first_rgba_layer_from_file(
             path,
             |res: exr::math::Vec2<usize>, _| (res.width(), vec![0f32; res.width() * res.height() * 3]),

@@ -67,7 +67,7 @@ use super::folder::{load_parts, path_around, robust_size};
 use super::light::{Environment, MovingLight, MovingShape, PointLight, SkyGradient, SunLight};
 use super::material::{Material, MaterialKind};
 use super::obj::GlassMode;
-use super::path::{CameraKey, CameraPath, DEFAULT_FRAMES, TransformKey, TransformPath};
+use super::path::{CameraKey, CameraPath, DEFAULT_FRAMES, MAX_FRAMES, TransformKey, TransformPath};
 use super::{Scene, SceneSource, SceneTolerances};
 
 #[derive(Debug, Deserialize)]
@@ -315,6 +315,10 @@ pub fn load_manifest(path: &Path) -> Result<Scene, SceneError> {
     let textures = parts.obj.textures;
     let mut lights = parts.lights;
     let frames = m.frames.unwrap_or(DEFAULT_FRAMES);
+    // Checked here so that the message names the manifest's field, not camera.json.
+    if frames == 0 || frames > MAX_FRAMES {
+        return Err(bad("frames", format!("must be in 1..={MAX_FRAMES}, not {frames}")));
+    }
     let size = robust_size(&mesh);
 
     // Camera.

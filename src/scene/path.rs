@@ -16,6 +16,14 @@ use serde::{Deserialize, Serialize};
 /// Default number of frames of a scene's camera path (the paper renders 60).
 pub const DEFAULT_FRAMES: u32 = 60;
 
+/// The most frames a camera path may have (every pose is computed when asked for all of them,
+/// so a count of billions would allocate hundreds of gigabytes).
+pub const MAX_FRAMES: u32 = 100_000;
+
+/// The narrowest vertical field of view accepted, in degrees: narrower views make a camera
+/// whose pixels are smaller than f32 resolves at scene scale.
+pub const MIN_VFOV_DEG: f32 = 1e-3;
+
 /// Evaluates the Catmull-Rom/Hermite spline through `(times[i], values[i])` at `t`.
 /// `times` must be strictly increasing; an empty slice gives zero, one key a constant.
 pub fn spline<const N: usize>(times: &[f32], values: &[[f32; N]], t: f32) -> [f32; N] {
@@ -184,11 +192,11 @@ impl CameraPath {
     /// frame count and the field of view.
     pub fn validate(&self) -> Result<(), String> {
         check_times(self.keys.iter().map(|k| k.frame))?;
-        if self.frames == 0 {
-            return Err("a camera path needs at least one frame".into());
+        if self.frames == 0 || self.frames > MAX_FRAMES {
+            return Err(format!("a camera path has 1..={MAX_FRAMES} frames, not {}", self.frames));
         }
-        if !(self.vfov_deg > 0.0 && self.vfov_deg < 179.0) {
-            return Err(format!("vertical field of view {} deg is outside (0, 179)", self.vfov_deg));
+        if !(self.vfov_deg >= MIN_VFOV_DEG && self.vfov_deg < 179.0) {
+            return Err(format!("vertical field of view {} deg is outside [{MIN_VFOV_DEG}, 179)", self.vfov_deg));
         }
         for k in &self.keys {
             let (e, t, u) = (Vec3::from(k.eye), Vec3::from(k.target), Vec3::from(k.up));

@@ -479,7 +479,7 @@ fn prefetch(p: *const f32) {
 fn segment<'s>(ctx: &Ctx<'s>, seg: &'s mut [[[f32; SEG]; 3]; 2], c0: usize, y: usize) -> [[&'s [f32; SEG]; 3]; 2] {
     // (Written out: `[_; N].map` here was not inlined and cost 4%.)
     let (a, b) = (&ctx.a, &ctx.b);
-    let rows = [[a.r.row(y), a.g.row(y), a.b.row(y)], [b.r.row(y), b.g.row(y), b.b.row(y)]];
+    let rows = [[a.r().row(y), a.g().row(y), a.b().row(y)], [b.r().row(y), b.g().row(y), b.b().row(y)]];
     if c0 >= PAD && c0 - PAD + SEG <= ctx.width {
         let cut =
             |i: usize, c: usize| -> &'s [f32; SEG] { rows[i][c][c0 - PAD..][..SEG].try_into().expect("SEG elements") };

@@ -1,0 +1,20 @@
+//! Helpers shared by the integration tests that build hostile inputs.
+
+use std::path::Path;
+
+use stereotrace::kernels::{Extent, RgbBuf};
+
+/// Writes a valid 4×4 EXR at `path`, then rewrites its data and display windows to claim
+/// `side`×`side` pixels: a file of a few hundred bytes whose header asks a reader to allocate
+/// `side²` pixels.
+pub fn exr_claiming(path: &Path, side: i32) {
+    stereotrace::image_io::write_exr(path, &RgbBuf::new(Extent::new(4, 4).unwrap(), 0.5)).unwrap();
+    let mut bytes = std::fs::read(path).unwrap();
+    for name in [&b"dataWindow\0box2i\0"[..], &b"displayWindow\0box2i\0"[..]] {
+        let at = bytes.windows(name.len()).position(|w| w == name).expect("attribute in the header") + name.len();
+        // The attribute's byte size (16), then xmin, ymin, xmax, ymax as little-endian i32.
+        bytes[at + 12..at + 16].copy_from_slice(&(side - 1).to_le_bytes());
+        bytes[at + 16..at + 20].copy_from_slice(&(side - 1).to_le_bytes());
+    }
+    std::fs::write(path, bytes).unwrap();
+}
