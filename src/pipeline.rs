@@ -635,14 +635,15 @@ impl<'r> Pipeline<'r> {
 
     /// Reprojects `eye`'s previous history into this frame (`history`, `len`,
     /// `temporal_reason`); on the first frame every pixel is marked invalid. With
-    /// `only_stereo_discarded`, only the pixels whose stereo reprojection was discarded are
-    /// reprojected (the kernel's pixel mask, in `wanted`); the others are marked invalid,
-    /// keep stale history (the EMA restarts them from the stereo sample) and are not counted.
+    /// `only_wanted`, only the pixels `wanted` marks are reprojected (the kernel's pixel mask;
+    /// [`Pipeline::stereo_fill_left`] marks the stereo-discarded ones); the others are marked
+    /// invalid, keep stale history (the EMA restarts them from the stereo sample) and are not
+    /// counted.
     fn reproject_history(
         &mut self,
         eye: Eye,
         has_history: bool,
-        only_stereo_discarded: bool,
+        only_wanted: bool,
     ) -> Result<ReasonCounts, PipelineError> {
         let params = self.reproject_params();
         let ramp = self.config.ramp;
@@ -652,12 +653,7 @@ impl<'r> Pipeline<'r> {
             s.temporal_reason.as_mut_slice().fill(Reason::Invalid as u8);
             return Ok(ReasonCounts::default());
         };
-        if only_stereo_discarded {
-            for (w, &stereo) in s.wanted.as_mut_slice().iter_mut().zip(s.stereo_reason.as_slice()) {
-                *w = u8::from(!is_reprojected(stereo));
-            }
-        }
-        let pixel_mask = only_stereo_discarded.then(|| s.wanted.view());
+        let pixel_mask = only_wanted.then(|| s.wanted.view());
         let target_depth = s.gbuffer.depth.view();
         let (history, len, reason) = (&mut s.history, &mut s.len, &mut s.temporal_reason);
         let out = ReprojectOutput {
@@ -755,21 +751,20 @@ impl<'r> Pipeline<'r> {
     ) -> Result<(), PipelineError> {
         let t = Instant::now();
         stats.stereo_reasons[L] = self.stereo_into(Eye::Left, source)?;
+        // Wanted (traced, and the left history reprojected): where stereo was discarded.
+        let s = &mut self.eyes[L];
+        for (wanted, &stereo) in s.wanted.as_mut_slice().iter_mut().zip(s.stereo_reason.as_slice()) {
+            *wanted = u8::from(!is_reprojected(stereo));
+        }
         if self.left_history_on_demand() && self.config.mode.temporal() {
             stats.temporal_reasons[L] = self.reproject_history(Eye::Left, self.frames_done > 0, true)?;
         }
         stats.times.reprojection += t.elapsed();
         let s = &mut self.eyes[L];
         let temporal_valid = self.config.mode.temporal() && self.frames_done > 0;
-        for (((wanted, urgent), &stereo), &temporal) in s
-            .wanted
-            .as_mut_slice()
-            .iter_mut()
-            .zip(s.urgent.as_mut_slice())
-            .zip(s.stereo_reason.as_slice())
-            .zip(s.temporal_reason.as_slice())
+        for ((urgent, &stereo), &temporal) in
+            s.urgent.as_mut_slice().iter_mut().zip(s.stereo_reason.as_slice()).zip(s.temporal_reason.as_slice())
         {
-            *wanted = u8::from(!is_reprojected(stereo));
             // Urgent: neither a stereo sample nor a temporal history to fall back on.
             *urgent = u8::from(!(is_reprojected(stereo) || (temporal_valid && is_reprojected(temporal))));
         }

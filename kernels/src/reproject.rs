@@ -433,46 +433,37 @@ fn simd_row<L: SurfaceLayout, const C: usize>(p: &Prepared<'_, L>, y: usize, row
             continue;
         }
         let lanes = reproject_lanes::<L, C>(p, x, y, &mut cache);
-        if wanted == ALL_LANES {
-            for c in 0..C {
-                store(row.channels[c], x, lanes.channels[c]);
-            }
-            if let Some(w) = row.weight.as_deref_mut() {
-                store(w, x, lanes.weight);
-            }
-        } else {
-            let keep = |dst: &mut [f32], v: F32s| {
+        // Lanes outside the mask keep what the output held.
+        let put = |dst: &mut [f32], v: F32s| {
+            if wanted == ALL_LANES {
+                store(dst, x, v);
+            } else {
                 for (i, (d, v)) in dst[x..x + LANES].iter_mut().zip(v.to_array()).enumerate() {
                     if wanted & (1 << i) != 0 {
                         *d = v;
                     }
                 }
-            };
-            for c in 0..C {
-                keep(row.channels[c], lanes.channels[c]);
             }
-            if let Some(w) = row.weight.as_deref_mut() {
-                keep(w, lanes.weight);
-            }
-            let reasons = &mut row.reason[x..x + LANES];
-            for (i, (dst, code)) in reasons.iter_mut().zip(lanes.reason.to_array()).enumerate() {
-                *dst = if wanted & (1 << i) != 0 { code as u8 } else { Reason::Invalid as u8 };
-                if wanted & (1 << i) != 0 {
-                    counts.0[usize::from(*dst)] += 1;
-                }
-            }
-            x += LANES;
-            continue;
+        };
+        for c in 0..C {
+            put(row.channels[c], lanes.channels[c]);
+        }
+        if let Some(w) = row.weight.as_deref_mut() {
+            put(w, lanes.weight);
         }
         let reasons = &mut row.reason[x..x + LANES];
-        if lanes.ok_bits == ALL_LANES {
+        if wanted == ALL_LANES && lanes.ok_bits == ALL_LANES {
             // The common case: every lane reprojected (code 0).
             reasons.fill(Reason::Reprojected as u8);
             counts.0[Reason::Reprojected as usize] += LANES as u64;
         } else {
-            for (dst, code) in reasons.iter_mut().zip(lanes.reason.to_array()) {
-                *dst = code as u8;
-                counts.0[usize::from(*dst)] += 1;
+            for (i, (dst, code)) in reasons.iter_mut().zip(lanes.reason.to_array()).enumerate() {
+                if wanted & (1 << i) != 0 {
+                    *dst = code as u8;
+                    counts.0[usize::from(*dst)] += 1;
+                } else {
+                    *dst = Reason::Invalid as u8;
+                }
             }
         }
         x += LANES;
