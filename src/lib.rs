@@ -1,17 +1,14 @@
 //! # stereotrace
 //!
 //! Real-time stereoscopic path tracing with spatiotemporal sample reprojection, after
-//! Mäkitalo, Kivi and Jääskeläinen (IEEE Access 2020): scenes, BVH and tracing, the per-frame
-//! pipelines, the evaluation harness and the CLI. The hand-vectorized kernels live in the
-//! `stereotrace-kernels` crate, re-exported as [`kernels`].
+//! Mäkitalo, Kivi and Jääskeläinen (IEEE Access 2020): the CLI's commands and the
+//! evaluation harness. They sit on two crates an engine can take alone:
+//! `stereotrace-kernels` (the hand-vectorized kernels, re-exported as [`kernels`]) and
+//! `stereotrace-runtime` (scenes, tracing, G-buffers and the frame pipeline, whose modules
+//! are re-exported here under their own names). Imports flow one way:
+//! kernels ← runtime ← harness ← CLI.
 
-pub use stereotrace_kernels as kernels;
+pub use stereotrace_runtime::{camera, cpu, image_io, kernels, pipeline, render, scene};
 
-pub mod camera;
 pub mod commands;
-pub mod cpu;
 pub mod eval;
-pub mod image_io;
-pub mod pipeline;
-pub mod render;
-pub mod scene;

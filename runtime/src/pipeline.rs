@@ -55,7 +55,8 @@ use crate::render::{GBufferBuf, PixelSelection, RenderError, Renderer, TraceRequ
 use crate::scene::CameraPose;
 
 /// What the pipeline computes (see the module table).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum Mode {
     PathTraced,
@@ -110,7 +111,8 @@ impl std::fmt::Display for Mode {
 }
 
 /// Which reprojection comes first in the spatiotemporal modes.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum Order {
     /// The paper's: temporal accumulation of the source, then stereo reprojection.
@@ -130,7 +132,8 @@ impl Order {
 }
 
 /// How each frame's G-buffers are made.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum GBufferPass {
     /// Both eyes rasterised in one pass over the triangles, then resolved with the tracer's
@@ -152,7 +155,8 @@ impl GBufferPass {
 }
 
 /// Which G-buffer layout the reprojection kernels read.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum Layout {
     /// Depth + octahedral normals, positions rebuilt from depth (8 B/px).
