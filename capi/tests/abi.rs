@@ -1,0 +1,255 @@
+//! The C ABI gives exactly what the kernels give when Rust calls them directly (bit for bit,
+//! on a scene with depth discontinuities and background), and refuses what it must refuse
+//! without writing anything.
+
+use glam::{Mat4, Vec3};
+use stereotrace_capi::*;
+use stereotrace_kernels::accumulate::{self, EmaInput, EmaParams, EmaState};
+use stereotrace_kernels::reproject::{self, ReprojectInput, ReprojectOutput, ReprojectParams};
+use stereotrace_kernels::ssim::{self, SsimParams};
+use stereotrace_kernels::synth::{AnalyticScene, SynthFrame};
+use stereotrace_kernels::{CameraModel, Extent, PlaneBuf, RgbBuf};
+
+const W: usize = 77;
+const H: usize = 41;
+
+fn view_proj(eye: Vec3) -> Mat4 {
+    let extent = Extent::new(W, H).unwrap();
+    stereotrace_kernels::camera::look_at_perspective(eye, eye - Vec3::Z, Vec3::Y, 60f32.to_radians(), extent)
+}
+
+struct Eye {
+    frame: SynthFrame,
+    c_camera: StCamera,
+}
+
+fn eye(x: f32) -> Eye {
+    let vp = view_proj(Vec3::new(x, 0.0, 0.0));
+    let camera = CameraModel::new(vp, Extent::new(W, H).unwrap()).unwrap();
+    let frame = AnalyticScene::room(6.0).render(&camera, [0.1, 0.2, 0.3]);
+    Eye { frame, c_camera: StCamera { view_proj: vp.as_dmat4().to_cols_array(), width: W as u32, height: H as u32 } }
+}
+
+fn plane(p: &PlaneBuf) -> StPlaneF32 {
+    StPlaneF32 { data: p.as_slice().as_ptr(), width: W as u32, height: H as u32, stride: W as u32 }
+}
+
+fn plane_mut(p: &mut PlaneBuf) -> StPlaneMutF32 {
+    StPlaneMutF32 { data: p.as_mut_slice().as_mut_ptr(), width: W as u32, height: H as u32, stride: W as u32 }
+}
+
+fn rgb(b: &RgbBuf) -> StRgb {
+    StRgb { r: plane(b.r()), g: plane(b.g()), b: plane(b.b()) }
+}
+
+fn rgb_mut(b: &mut RgbBuf) -> StRgbMut {
+    let [r, g, bl] = b.slices_mut();
+    let p = |s: &mut [f32]| StPlaneMutF32 { data: s.as_mut_ptr(), width: W as u32, height: H as u32, stride: W as u32 };
+    StRgbMut { r: p(r), g: p(g), b: p(bl) }
+}
+
+fn gbuffer(e: &Eye, layout: StLayout) -> StGBuffer {
+    let f = &e.frame;
+    StGBuffer {
+        layout: layout as u32,
+        depth: plane(&f.depth),
+        position: [0, 1, 2].map(|c| plane(&f.position[c])),
+        normal: [0, 1, 2].map(|c| plane(&f.normal[c])),
+        normal_octahedral: StPlaneU32 {
+            data: f.normal_oct.as_slice().as_ptr(),
+            width: W as u32,
+            height: H as u32,
+            stride: W as u32,
+        },
+        camera: e.c_camera,
+    }
+}
+
+fn context() -> *mut StContext {
+    let mut ctx = std::ptr::null_mut();
+    assert_eq!(unsafe { stereotrace_context_create(2, &mut ctx) }, StStatus::Ok);
+    ctx
+}
+
+fn extent() -> Extent {
+    Extent::new(W, H).unwrap()
+}
+
+/// What one reprojection wrote.
+#[derive(PartialEq, Debug)]
+struct Written {
+    colour: RgbBuf,
+    extra: PlaneBuf,
+    reason: PlaneBuf<u8>,
+    weight: PlaneBuf,
+    counts: [u64; ST_REASON_COUNT],
+}
+
+fn fresh() -> Written {
+    Written {
+        colour: RgbBuf::new(extent(), -7.0),
+        extra: PlaneBuf::new(extent(), -7.0),
+        reason: PlaneBuf::new(extent(), 99),
+        weight: PlaneBuf::new(extent(), -7.0),
+        counts: [0; ST_REASON_COUNT],
+    }
+}
+
+/// A pixel mask that skips every third pixel, and an extra channel to carry.
+fn mask_and_extra() -> (PlaneBuf<u8>, PlaneBuf) {
+    let mask = PlaneBuf::from_vec((0..W * H).map(|i| u8::from(i % 3 != 0)).collect(), extent()).unwrap();
+    let extra = PlaneBuf::from_vec((0..W * H).map(|i| (i % 17) as f32).collect(), extent()).unwrap();
+    (mask, extra)
+}
+
+fn through_c(target: &Eye, source: &Eye, layout: StLayout) -> Written {
+    let ctx = context();
+    let (mask, extra) = mask_and_extra();
+    let mut w = fresh();
+    let (extra_in, mask_in) = (
+        plane(&extra),
+        StPlaneU8 { data: mask.as_slice().as_ptr(), width: W as u32, height: H as u32, stride: W as u32 },
+    );
+    let input = StReprojectInput { colour: rgb(&source.frame.colour), extra: &extra_in, pixel_mask: &mask_in };
+    let (extra_out, weight_out) = (plane_mut(&mut w.extra), plane_mut(&mut w.weight));
+    let output = StReprojectOutput {
+        colour: rgb_mut(&mut w.colour),
+        extra: &extra_out,
+        reason: StPlaneMutU8 {
+            data: w.reason.as_mut_slice().as_mut_ptr(),
+            width: W as u32,
+            height: H as u32,
+            stride: W as u32,
+        },
+        weight: &weight_out,
+    };
+    let mut counts = StReasonCounts::default();
+    let (t, s) = (gbuffer(target, layout), gbuffer(source, layout));
+    let status = unsafe { stereotrace_reproject(ctx, &t, &s, &input, &output, std::ptr::null(), &mut counts) };
+    assert_eq!(status, StStatus::Ok, "{:?}", unsafe { std::ffi::CStr::from_ptr(stereotrace_last_error()) });
+    unsafe { stereotrace_context_destroy(ctx) };
+    w.counts = counts.pixels;
+    w
+}
+
+fn direct<L: stereotrace_kernels::SurfaceLayout>(target: &L, source: &L, source_eye: &Eye) -> Written {
+    let (mask, extra) = mask_and_extra();
+    let mut w = fresh();
+    let input = ReprojectInput {
+        target,
+        source,
+        source_camera: &source_eye.frame.camera,
+        colour: source_eye.frame.colour.view(),
+        extra: Some(extra.view()),
+        pixel_mask: Some(mask.view()),
+    };
+    let output = ReprojectOutput {
+        colour: w.colour.view_mut(),
+        extra: Some(w.extra.view_mut()),
+        reason: w.reason.view_mut(),
+        weight: Some(w.weight.view_mut()),
+    };
+    w.counts = reproject::reproject(&input, output, &ReprojectParams::default()).unwrap().0;
+    w
+}
+
+#[test]
+fn reprojection_through_the_c_abi_is_the_kernel_bit_for_bit() {
+    let (left, right) = (eye(-0.03), eye(0.03));
+    let full = through_c(&left, &right, StLayout::Full);
+    assert_eq!(full, direct(&left.frame.gbuffer(), &right.frame.gbuffer(), &right));
+    let compact = through_c(&left, &right, StLayout::Compact);
+    assert_eq!(compact, direct(&left.frame.compact(), &right.frame.compact(), &right));
+    // Not a trivial case: pixels both reprojected and discarded, and the mask skipped a
+    // third of them (skipped pixels are not counted).
+    assert!(full.counts[0] > 0 && full.counts[1] > 0, "{:?}", full.counts);
+    assert_eq!(full.counts.iter().sum::<u64>(), (W * H - (W * H).div_ceil(3)) as u64);
+}
+
+#[test]
+fn ema_and_ssim_through_the_c_abi_are_the_kernels() {
+    let (left, right) = (eye(-0.03), eye(0.03));
+    let reason = PlaneBuf::from_vec((0..W * H).map(|i| (i % 6) as u8).collect(), extent()).unwrap();
+    let ctx = context();
+
+    let mut via_c = right.frame.colour.clone();
+    let mut stats = StAccumulateStats::default();
+    let reason_c = StPlaneU8 { data: reason.as_slice().as_ptr(), width: W as u32, height: H as u32, stride: W as u32 };
+    let (new_c, accum_c) = (rgb(&left.frame.colour), rgb_mut(&mut via_c));
+    let status = unsafe {
+        stereotrace_ema(
+            ctx,
+            &new_c,
+            &reason_c,
+            std::ptr::null(),
+            &accum_c,
+            std::ptr::null(),
+            std::ptr::null(),
+            &mut stats,
+        )
+    };
+    assert_eq!(status, StStatus::Ok);
+    let mut direct = right.frame.colour.clone();
+    let input = EmaInput { new: left.frame.colour.view(), reason: reason.view(), has_new: None };
+    let want = accumulate::ema(&input, EmaState { accum: direct.view_mut(), history_len: None }, &EmaParams::default())
+        .unwrap();
+    assert_eq!(via_c, direct);
+    assert_eq!((stats.non_finite, stats.holes, stats.resets), (want.non_finite, want.holes, want.resets));
+
+    let mut result = StSsimResult::default();
+    let (a, b) = (rgb(&left.frame.colour), rgb(&right.frame.colour));
+    assert_eq!(unsafe { stereotrace_ssim(ctx, &a, &b, StSsimVariant::Volume as u32, &mut result) }, StStatus::Ok);
+    let want = ssim::ssim(&left.frame.colour.view(), &right.frame.colour.view(), &SsimParams::default()).unwrap();
+    assert_eq!((result.ssim, result.rmse, result.voxels), (want.ssim, want.rmse, want.voxels));
+    assert!(result.ssim < 1.0, "two different views are not identical");
+    unsafe { stereotrace_context_destroy(ctx) };
+}
+
+#[test]
+fn refused_calls_write_nothing_and_say_why() {
+    let (left, right) = (eye(-0.03), eye(0.03));
+    let ctx = context();
+    let mut w = fresh();
+    let before = fresh();
+    let reason_out = StPlaneMutU8 {
+        data: w.reason.as_mut_slice().as_mut_ptr(),
+        width: W as u32,
+        height: H as u32,
+        stride: W as u32,
+    };
+    let colour_out = rgb_mut(&mut w.colour);
+    let (t, s) = (gbuffer(&left, StLayout::Full), gbuffer(&right, StLayout::Full));
+    let run = |input: &StReprojectInput, output: &StReprojectOutput, t: &StGBuffer| unsafe {
+        let status = stereotrace_reproject(ctx, t, &s, input, output, std::ptr::null(), std::ptr::null_mut());
+        (status, std::ffi::CStr::from_ptr(stereotrace_last_error()).to_string_lossy().into_owned())
+    };
+    let input =
+        StReprojectInput { colour: rgb(&right.frame.colour), extra: std::ptr::null(), pixel_mask: std::ptr::null() };
+    let output =
+        StReprojectOutput { colour: colour_out, extra: std::ptr::null(), reason: reason_out, weight: std::ptr::null() };
+
+    // An output that starts inside an input plane (a partial overlap, not the same pointer).
+    let mut inside = output;
+    inside.reason.data = unsafe { right.frame.depth.as_slice().as_ptr().add(10).cast::<u8>().cast_mut() };
+    let (status, message) = run(&input, &inside, &t);
+    assert_eq!(status, StStatus::Aliasing, "{message}");
+    assert!(message.contains("output.reason overlaps source.depth"), "{message}");
+
+    // The extra channel must be present on both sides or neither.
+    let extra = plane(&right.frame.depth);
+    let with_extra = StReprojectInput { extra: &extra, ..input };
+    let (status, message) = run(&with_extra, &output, &t);
+    assert_eq!(status, StStatus::InvalidArgument, "{message}");
+
+    // A plane claiming more rows than a frame may have.
+    let mut huge = t;
+    huge.depth.height = u32::MAX;
+    let (status, message) = run(&input, &output, &huge);
+    assert_eq!(status, StStatus::InvalidArgument, "{message}");
+    assert!(message.contains("too large"), "{message}");
+
+    assert_eq!(w, before, "a refused call wrote to its outputs");
+    let (status, message) = run(&input, &output, &t);
+    assert_eq!((status, message.as_str()), (StStatus::Ok, ""), "a good call clears the last error");
+    unsafe { stereotrace_context_destroy(ctx) };
+}
