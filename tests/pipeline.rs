@@ -5,7 +5,7 @@ use stereotrace::camera::{Eye, StereoRig};
 use stereotrace::kernels::accumulate;
 use stereotrace::kernels::reproject::{self, Reason, ReprojectInput, ReprojectOutput, ReprojectParams};
 use stereotrace::kernels::{Extent, PlaneBuf, RgbBuf};
-use stereotrace::pipeline::{Mode, Order, Pipeline, PipelineConfig};
+use stereotrace::pipeline::{Mode, Order, Pipeline, PipelineConfig, RendererPipeline};
 use stereotrace::render::{GBufferBuf, PixelSelection, Renderer, TraceRequest};
 use stereotrace::scene::resolve;
 
@@ -34,7 +34,7 @@ fn traced(r: &Renderer, eye: Eye, frame: u32, spp: u32, seed: u64) -> RgbBuf {
     img
 }
 
-fn run(p: &mut Pipeline<'_>, r: &Renderer, frames: std::ops::Range<u32>) {
+fn run(p: &mut RendererPipeline<'_>, r: &Renderer, frames: std::ops::Range<u32>) {
     for f in frames {
         p.render_frame(f, &r.scene().camera.pose_at(f as f32)).unwrap();
     }

@@ -16,3 +16,4 @@ pub mod image_io;
 pub mod pipeline;
 pub mod render;
 pub mod scene;
+pub mod source;

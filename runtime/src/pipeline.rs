@@ -49,10 +49,10 @@ use crate::kernels::reproject::{
     self, Reason, ReasonCounts, ReprojectInput, ReprojectOutput, ReprojectParams, TapPolicy, Tolerances,
 };
 use crate::kernels::{CameraModel, Extent, FrameError, PlaneBuf, RgbBuf};
-use crate::render::lights::FrameLights;
-use crate::render::raster::{GBufferPlanes, RasterGBuffers, RasterPassStats};
+use crate::render::raster::RasterPassStats;
 use crate::render::{GBufferBuf, PixelSelection, RenderError, Renderer, TraceRequest, TraceStats};
 use crate::scene::CameraPose;
+use crate::source::{FrameSource, RendererSource};
 
 /// What the pipeline computes (see the module table).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
@@ -328,19 +328,22 @@ impl EyeState {
     }
 }
 
-/// The per-frame pipeline.
-pub struct Pipeline<'r> {
-    renderer: &'r Renderer,
+/// The per-frame pipeline over a [`FrameSource`] (this crate's renderer by default, see
+/// [`Pipeline::new`]; any other with [`Pipeline::with_source`]).
+pub struct Pipeline<S: FrameSource> {
+    source: S,
     config: PipelineConfig,
-    rig: StereoRig,
+    /// Turns a head pose into eye cameras for [`Pipeline::render_frame`]; a pipeline made
+    /// with [`Pipeline::with_source`] has none and takes eye cameras.
+    rig: Option<StereoRig>,
     extent: Extent,
-    lights: FrameLights,
     eyes: [EyeState; 2],
-    /// The rasterised G-buffer pass's buffers (with [`GBufferPass::Raster`]).
-    raster: Option<RasterGBuffers>,
     frames_done: u32,
     planner: BudgetPlanner,
 }
+
+/// The pipeline over this crate's renderer.
+pub type RendererPipeline<'r> = Pipeline<RendererSource<'r>>;
 
 /// Budgeted loops a frame may run (one per traced eye).
 const MAX_LOOPS: usize = 2;
@@ -398,8 +401,9 @@ fn is_reprojected(code: u8) -> bool {
     code == Reason::Reprojected as u8
 }
 
-impl<'r> Pipeline<'r> {
-    /// Allocates every buffer for frames of `extent`.
+impl<'r> Pipeline<RendererSource<'r>> {
+    /// A pipeline over this crate's renderer, with every buffer allocated for frames of
+    /// `extent`; `rig` turns the scene's head poses into eye cameras.
     pub fn new(
         renderer: &'r Renderer,
         config: PipelineConfig,
@@ -408,24 +412,35 @@ impl<'r> Pipeline<'r> {
     ) -> Result<Self, PipelineError> {
         config.validate().map_err(PipelineError::Config)?;
         let head = renderer.scene().camera.pose_at(0.0);
-        let camera = |eye| rig.eye_camera(&head, eye, extent);
+        let cameras = [rig.eye_camera(&head, Eye::Left, extent)?, rig.eye_camera(&head, Eye::Right, extent)?];
+        let mut pipeline = Self::with_source(RendererSource::new(renderer, &config, extent), config, cameras)?;
+        pipeline.rig = Some(rig);
+        Ok(pipeline)
+    }
+}
+
+impl<S: FrameSource> Pipeline<S> {
+    /// A pipeline over any [`FrameSource`], with every buffer allocated for frames of the
+    /// cameras' extent (`cameras` = `[left, right]`, used only until the first frame gives
+    /// its own). Frames are rendered with [`Pipeline::render_frame_at`].
+    pub fn with_source(source: S, config: PipelineConfig, cameras: [CameraModel; 2]) -> Result<Self, PipelineError> {
+        config.validate().map_err(PipelineError::Config)?;
+        let extent = cameras[0].extent;
+        crate::kernels::frame::same_extent("right eye camera", extent, cameras[1].extent)?;
         Ok(Self {
-            renderer,
+            source,
             config,
-            rig,
+            rig: None,
             extent,
-            lights: renderer.frame_lights(0),
-            eyes: [EyeState::new(camera(Eye::Left)?), EyeState::new(camera(Eye::Right)?)],
-            raster: (config.gbuffer == GBufferPass::Raster).then(|| {
-                let mut raster = RasterGBuffers::new(extent);
-                if config.layout == Layout::Compact {
-                    raster.planes = GBufferPlanes::Compact;
-                }
-                raster
-            }),
+            eyes: cameras.map(EyeState::new),
             frames_done: 0,
             planner: BudgetPlanner::default(),
         })
+    }
+
+    /// The frame source.
+    pub fn source(&self) -> &S {
+        &self.source
     }
 
     pub fn config(&self) -> &PipelineConfig {
@@ -478,6 +493,32 @@ impl<'r> Pipeline<'r> {
     /// Renders frame `frame` (the index keys the random numbers and places moving lights)
     /// seen from `head`.
     pub fn render_frame(&mut self, frame: u32, head: &CameraPose) -> Result<FrameStats, PipelineError> {
+        let cameras = self.eye_cameras(head, Eye::BOTH)?;
+        self.render_frame_at(frame, cameras)
+    }
+
+    /// The cameras of `eyes` for a head pose, through the pipeline's stereo rig.
+    fn eye_cameras<const N: usize>(
+        &self,
+        head: &CameraPose,
+        eyes: [Eye; N],
+    ) -> Result<[CameraModel; N], PipelineError> {
+        let rig = self.rig.as_ref().ok_or_else(|| {
+            PipelineError::Config("this pipeline has no stereo rig: give eye cameras to render_frame_at".into())
+        })?;
+        let mut cameras = [None; N];
+        for (c, eye) in cameras.iter_mut().zip(eyes) {
+            *c = Some(rig.eye_camera(head, eye, self.extent)?);
+        }
+        Ok(cameras.map(|c| c.expect("every eye's camera was made")))
+    }
+
+    /// [`Pipeline::render_frame`] with the eye cameras given (`[left, right]`, of the
+    /// pipeline's extent) instead of a head pose: what an engine with its own cameras calls.
+    pub fn render_frame_at(&mut self, frame: u32, cameras: [CameraModel; 2]) -> Result<FrameStats, PipelineError> {
+        for camera in &cameras {
+            crate::kernels::frame::same_extent("eye camera", self.extent, camera.extent)?;
+        }
         let start = Instant::now();
         let mut stats = FrameStats { frame, budget: self.config.budget, ..FrameStats::default() };
         let has_history = self.frames_done > 0;
@@ -485,9 +526,8 @@ impl<'r> Pipeline<'r> {
 
         // G-buffers of both eyes (last frame's become the temporal source).
         let t0 = Instant::now();
-        self.lights.update(self.renderer.scene(), frame);
-        for eye in Eye::BOTH {
-            let camera = self.rig.eye_camera(head, eye, self.extent)?;
+        self.source.begin_frame(frame);
+        for (eye, camera) in Eye::BOTH.into_iter().zip(cameras) {
             let s = &mut self.eyes[eye as usize];
             std::mem::swap(&mut s.gbuffer, &mut s.prev_gbuffer);
             std::mem::swap(&mut s.history, &mut s.prev_history);
@@ -496,18 +536,8 @@ impl<'r> Pipeline<'r> {
             s.camera = camera;
             s.gbuffer.camera = camera;
         }
-        match &mut self.raster {
-            Some(raster) => {
-                let [left, right] = &mut self.eyes;
-                let pass = [&mut left.gbuffer, &mut right.gbuffer];
-                stats.raster = Some(self.renderer.render_gbuffers_raster(&self.lights, pass, raster)?);
-            }
-            None => {
-                for s in &mut self.eyes {
-                    self.renderer.render_gbuffer(&self.lights, &mut s.gbuffer);
-                }
-            }
-        }
+        let [left, right] = &mut self.eyes;
+        stats.raster = self.source.fill_gbuffers([&mut left.gbuffer, &mut right.gbuffer], self.config.layout)?;
         stats.times.gbuffer = t0.elapsed();
 
         let mode = self.config.mode;
@@ -604,22 +634,21 @@ impl<'r> Pipeline<'r> {
     /// [`Pipeline::render_frame`] rewrites; call [`Pipeline::reset`] before going back to
     /// stereo frames on the same pipeline.
     pub fn render_mono_frame(&mut self, frame: u32, head: &CameraPose) -> Result<FrameStats, PipelineError> {
+        let [camera] = self.eye_cameras(head, [Eye::Right])?;
+        self.render_mono_frame_at(frame, camera)
+    }
+
+    /// [`Pipeline::render_mono_frame`] with the right eye's camera given.
+    pub fn render_mono_frame_at(&mut self, frame: u32, camera: CameraModel) -> Result<FrameStats, PipelineError> {
+        crate::kernels::frame::same_extent("eye camera", self.extent, camera.extent)?;
         let start = Instant::now();
         let mut stats = FrameStats { frame, budget: None, ..FrameStats::default() };
-        self.lights.update(self.renderer.scene(), frame);
-        let camera = self.rig.eye_camera(head, Eye::Right, self.extent)?;
+        self.source.begin_frame(frame);
         let config = self.config;
         let request = TraceRequest { eye: Eye::Right, frame, spp: config.spp, seed: config.seed, first_sample: 0 };
         let s = &mut self.eyes[Eye::Right as usize];
-        stats.trace = self.renderer.trace_rows(
-            &self.lights,
-            &camera,
-            &request,
-            PixelSelection::All,
-            0..self.extent.height(),
-            &mut s.traced,
-            config.general_integrator,
-        )?;
+        stats.trace =
+            self.source.trace(&camera, &request, PixelSelection::All, 0..self.extent.height(), &mut s.traced)?;
         stats.traced_pixels[Eye::Right as usize] = self.extent.pixels() as u64;
         stats.times.tracing = start.elapsed();
         stats.times.total = start.elapsed();
@@ -835,15 +864,7 @@ impl<'r> Pipeline<'r> {
         let height = self.extent.height();
         match config.budget {
             None => {
-                let trace = self.renderer.trace_rows(
-                    &self.lights,
-                    &s.camera,
-                    &request,
-                    PixelSelection::Mask(&s.wanted),
-                    0..height,
-                    out,
-                    config.general_integrator,
-                )?;
+                let trace = self.source.trace(&s.camera, &request, PixelSelection::Mask(&s.wanted), 0..height, out)?;
                 stats.trace = stats.trace + trace;
                 s.has_new.as_mut_slice().copy_from_slice(s.wanted.as_slice());
                 stats.traced_pixels[eye as usize] += wanted_count;
@@ -856,15 +877,7 @@ impl<'r> Pipeline<'r> {
                     *has = w & u;
                 }
                 let urgent_count = s.has_new.as_slice().iter().filter(|&&h| h != 0).count() as u64;
-                let trace = self.renderer.trace_rows(
-                    &self.lights,
-                    &s.camera,
-                    &request,
-                    PixelSelection::Mask(&s.has_new),
-                    0..height,
-                    out,
-                    config.general_integrator,
-                )?;
+                let trace = self.source.trace(&s.camera, &request, PixelSelection::Mask(&s.has_new), 0..height, out)?;
                 stats.trace = stats.trace + trace;
                 stats.traced_pixels[eye as usize] += urgent_count;
                 // The rest: `wanted` minus `urgent`, as a mask in `urgent` (reused).
@@ -878,15 +891,8 @@ impl<'r> Pipeline<'r> {
                 while y0 < height && self.planner.fits(eye, start.elapsed(), tile, budget) {
                     let rows = y0..(y0 + tile).min(height);
                     let tile_start = Instant::now();
-                    let trace = self.renderer.trace_rows(
-                        &self.lights,
-                        &s.camera,
-                        &request,
-                        PixelSelection::Mask(&s.urgent),
-                        rows.clone(),
-                        out,
-                        config.general_integrator,
-                    )?;
+                    let trace =
+                        self.source.trace(&s.camera, &request, PixelSelection::Mask(&s.urgent), rows.clone(), out)?;
                     stats.trace = stats.trace + trace;
                     let w = self.extent.width();
                     let span = rows.start * w..rows.end * w;

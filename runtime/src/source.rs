@@ -1,0 +1,122 @@
+//! The seam between the frame pipeline and whatever makes G-buffers and samples.
+//!
+//! [`crate::pipeline::Pipeline`] owns every buffer and runs reprojection, accumulation, the
+//! budget planner and the schedule of a mode; it asks a [`FrameSource`] for two things
+//! only: both eyes' G-buffers for this frame's cameras, and path-traced samples for a
+//! chosen set of pixels. [`RendererSource`] is this crate's renderer behind the seam
+//! (rasterised or traced G-buffers, the paper's path tracer); an engine implements the
+//! trait over its own rasteriser and tracer and gets the same pipeline.
+//!
+//! Why the seam is here: everything above it is defined on buffers (the paper's
+//! reprojection, EMA and blend, the budget), everything below it on a scene. A source never
+//! sees the pipeline's history, and the pipeline never sees a scene, a BVH or a light.
+
+use std::ops::Range;
+
+use crate::kernels::{CameraModel, Extent, RgbBuf};
+use crate::pipeline::{GBufferPass, Layout, PipelineConfig, PipelineError};
+use crate::render::lights::FrameLights;
+use crate::render::raster::{GBufferPlanes, RasterGBuffers, RasterPassStats};
+use crate::render::{GBufferBuf, PixelSelection, Renderer, TraceRequest, TraceStats};
+
+/// What makes a frame's G-buffers and samples for [`crate::pipeline::Pipeline`].
+///
+/// Calls come in this order each frame: [`FrameSource::begin_frame`], then
+/// [`FrameSource::fill_gbuffers`] once, then [`FrameSource::trace`] any number of times
+/// (once per eye without a budget; per tile of rows under one). Nothing may allocate per
+/// frame in a real-time source.
+pub trait FrameSource {
+    /// A new frame starts (scene time `frame`): update what moves with time (lights).
+    fn begin_frame(&mut self, frame: u32);
+
+    /// Fills both eyes' G-buffers (`[left, right]`) for the cameras already stored in
+    /// their `camera` fields: per pixel, the surface the pixel-centre ray hits (depth
+    /// `+inf` for none), in the planes `layout` reads (compact: depth, octahedral normal,
+    /// material; full: every plane). Returns the rasterised pass's statistics if it has
+    /// any.
+    fn fill_gbuffers(
+        &mut self,
+        gbuffers: [&mut GBufferBuf; 2],
+        layout: Layout,
+    ) -> Result<Option<RasterPassStats>, PipelineError>;
+
+    /// Path traces the pixels of `rows` that `selection` selects, for `camera` at
+    /// `request` (eye, frame, spp, seed), into `out`; other pixels of `out` keep their
+    /// values.
+    fn trace(
+        &self,
+        camera: &CameraModel,
+        request: &TraceRequest,
+        selection: PixelSelection<'_>,
+        rows: Range<usize>,
+        out: &mut RgbBuf,
+    ) -> Result<TraceStats, PipelineError>;
+}
+
+/// This crate's renderer as a [`FrameSource`]: the per-frame light table, the rasterised or
+/// traced G-buffer pass the configuration names, and the specialised or general path
+/// tracer.
+pub struct RendererSource<'r> {
+    renderer: &'r Renderer,
+    lights: FrameLights,
+    /// The rasterised G-buffer pass's buffers (with [`GBufferPass::Raster`]).
+    raster: Option<RasterGBuffers>,
+    general_integrator: bool,
+}
+
+impl<'r> RendererSource<'r> {
+    /// The renderer configured as `config` asks, for frames of `extent`.
+    pub fn new(renderer: &'r Renderer, config: &PipelineConfig, extent: Extent) -> Self {
+        Self {
+            renderer,
+            lights: renderer.frame_lights(0),
+            raster: (config.gbuffer == GBufferPass::Raster).then(|| {
+                let mut raster = RasterGBuffers::new(extent);
+                if config.layout == Layout::Compact {
+                    raster.planes = GBufferPlanes::Compact;
+                }
+                raster
+            }),
+            general_integrator: config.general_integrator,
+        }
+    }
+
+    pub fn renderer(&self) -> &'r Renderer {
+        self.renderer
+    }
+}
+
+impl FrameSource for RendererSource<'_> {
+    fn begin_frame(&mut self, frame: u32) {
+        self.lights.update(self.renderer.scene(), frame);
+    }
+
+    fn fill_gbuffers(
+        &mut self,
+        gbuffers: [&mut GBufferBuf; 2],
+        _layout: Layout,
+    ) -> Result<Option<RasterPassStats>, PipelineError> {
+        // The layout was fixed at construction (the raster pass's planes).
+        match &mut self.raster {
+            Some(raster) => Ok(Some(self.renderer.render_gbuffers_raster(&self.lights, gbuffers, raster)?)),
+            None => {
+                for g in gbuffers {
+                    self.renderer.render_gbuffer(&self.lights, g);
+                }
+                Ok(None)
+            }
+        }
+    }
+
+    fn trace(
+        &self,
+        camera: &CameraModel,
+        request: &TraceRequest,
+        selection: PixelSelection<'_>,
+        rows: Range<usize>,
+        out: &mut RgbBuf,
+    ) -> Result<TraceStats, PipelineError> {
+        let general = self.general_integrator;
+        Ok(self.renderer.trace_rows(&self.lights, camera, request, selection, rows, out, general)?)
+    }
+}
