@@ -53,7 +53,7 @@
 //! (hit or miss, `t` bit for bit, `u`, `v`) is the same for single rays, packets and brute
 //! force.
 //!
-//! A hit also needs `t` above the bound on its own rounding error ([`t_rounding_bound`],
+//! A hit also needs `t` above the bound on its own rounding error (`t_rounding_bound`,
 //! pbrt-v4's conservative test), so a ray leaving a surface never finds that surface again
 //! however far the scene sits from the origin.
 //!

@@ -5,7 +5,7 @@
 //! 1. **Setup** (parallel over fixed chunks of triangles): each triangle's vertices are moved
 //!    into the left eye's camera frame once (camera-relative and in f64, so the projection
 //!    is exact to ~1e-9 px wherever the scene sits), projected, clipped against a near plane `w > near` (a triangle
-//!    crossing it becomes a quad), and turned into one [`Record`] that holds both eyes:
+//!    crossing it becomes a quad), and turned into one `Record` that holds both eyes:
 //!    the parallel rig's eyes differ only by a constant offset of clip-space `x`, so the
 //!    right eye's screen `x` is the left eye's plus `Δ/w`. Triangles whose pixel-centre
 //!    bounding box is empty in both eyes (behind the camera, off screen, sub-pixel between
@@ -14,7 +14,7 @@
 //!    a prefix sum lays out one index list per band in triangle order. Fixed chunks keep
 //!    the order independent of the thread count.
 //! 3. **Fragments** (parallel over bands of both eyes): each record of a band is walked in
-//!    blocks of 8 pixel columns ([`simd`], the scalar reference in [`scalar`]); edge
+//!    blocks of 8 pixel columns (`simd`, the scalar reference in `scalar`); edge
 //!    functions and `q = 1/w` are evaluated in f32 at pixel centres `(x + 0.5, y + 0.5)`,
 //!    relative to the record's first pixel (so their rounding scales with the triangle's
 //!    size, not the screen's), and depth-tested (larger `q` is nearer).
@@ -24,7 +24,7 @@
 //! rounding, while the tracer decides it with its own f32 ray, which itself deviates from
 //! the exact pixel centre by up to a few 1e-4 px. No fill rule (top-left or otherwise) can
 //! make those decisions agree. So every test here has an **error band**, computed per
-//! triangle from the magnitudes involved ([`Record::band`], [`Record::q_err`]):
+//! triangle from the magnitudes involved (`Record::band`, `Record::q_err`):
 //!
 //! * a pixel is *inside* when every edge function exceeds its band, *outside* when one is
 //!   below minus its band, and *uncertain* otherwise;

@@ -4,7 +4,7 @@
 //!
 //! The resolve intersects the pixel's own centre ray (the ray the traced pass would trace)
 //! with the one triangle the raster found, with the same watertight test, and writes the
-//! texel through the same function as the traced pass ([`Renderer::gbuffer_texel`]): where
+//! texel through the same function as the traced pass (`Renderer::gbuffer_texel`): where
 //! both see the same triangle, depth, position, normals and material are identical bit for
 //! bit. Which triangle is seen agrees with the traced pass everywhere except exact depth
 //! ties (the kernel's notes say why); `tests/raster.rs` checks both on every scene.

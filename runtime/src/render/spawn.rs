@@ -6,7 +6,7 @@
 //! its rounding error ([`barycentric_point`]); a ray leaving it starts at the point pushed along the geometric
 //! normal by that bound, rounded one more ulp away ([`offset_origin`]); and the triangle test
 //! rejects hits whose `t` lies within its own rounding error
-//! ([`crate::kernels::bvh::t_rounding_bound`]). A shadow ray to a point on an area light
+//! (`stereotrace_kernels::bvh::t_rounding_bound`, private). A shadow ray to a point on an area light
 //! offsets that end too, towards the shading point, and stops a relative
 //! [`SHADOW_EPSILON`] short of it ([`shadow_ray`]).
 //!
