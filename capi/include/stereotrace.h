@@ -102,8 +102,35 @@ typedef enum StSsimVariant {
   ST_SSIM_VARIANT_PER_CHANNEL = 1,
 } StSsimVariant;
 
+// The pipeline's modes (the paper's Section IV): the values of [`StPipelineConfig::mode`].
+typedef enum StMode {
+  // Both eyes fully path traced.
+  ST_MODE_PATH_TRACED = 0,
+  // The left eye reprojected from the right, traced where discarded.
+  ST_MODE_STEREO = 1,
+  // Each eye accumulates its own reprojected history.
+  ST_MODE_TEMPORAL = 2,
+  // Stereo and temporal reprojection combined.
+  ST_MODE_SPATIOTEMPORAL = 3,
+  // Each eye blends its own samples with the other's reprojection.
+  ST_MODE_STEREO_BLEND = 4,
+  // The blend over accumulated histories.
+  ST_MODE_SPATIOTEMPORAL_BLEND = 5,
+} StMode;
+
+// Order of stereo and temporal reprojection: the values of [`StPipelineConfig::order`].
+typedef enum StOrder {
+  // The paper's: temporal accumulation first, then stereo reprojection of the history.
+  ST_ORDER_PAPER = 0,
+  // Stereo reprojection of this frame's samples first, then accumulation.
+  ST_ORDER_STEREO_FIRST = 1,
+} StOrder;
+
 // What the kernels run on: a pool of worker threads. Opaque to C.
 typedef struct StContext StContext;
+
+// A frame pipeline (opaque to C).
+typedef struct StPipeline StPipeline;
 
 // Discard tests and schedule of one reprojection (see
 // [`stereotrace_reproject_params_default`]).
@@ -281,6 +308,97 @@ typedef struct StSsimResult {
   uint64_t non_finite;
 } StSsimResult;
 
+// Settings of a pipeline (see [`stereotrace_pipeline_config_default`]).
+typedef struct StPipelineConfig {
+  // A `StMode` value.
+  uint32_t mode;
+  // A `StOrder` value.
+  uint32_t order;
+  // A `StLayout` value: the G-buffer planes reprojection reads (and a callback source
+  // must fill).
+  uint32_t layout;
+  // Samples per traced pixel, 1 ..= 2^20.
+  uint32_t spp;
+  // Frame size per eye.
+  uint32_t width;
+  uint32_t height;
+  // Worker threads (0: one per logical CPU).
+  uint32_t threads;
+  // Time budget per stereo frame in milliseconds, 0 for none (trace everything).
+  double budget_ms;
+  // Seed of the path tracer's random numbers.
+  uint64_t seed;
+  // Reprojection tolerances and tap policy; null for the scene's own tolerances (scene
+  // pipelines) or the room-scale defaults of `stereotrace_reproject_params_default`
+  // (callback pipelines).
+  const struct StReprojectParams *reprojection;
+} StPipelineConfig;
+
+// A writable plane of `uint32_t`.
+typedef struct StPlaneMutU32 {
+  // Pixel `(0, 0)`; pixel `(x, y)` is `data[y * stride + x]`.
+  uint32_t *data;
+  uint32_t width;
+  uint32_t height;
+  // Elements from one row's start to the next (at least `width`).
+  uint32_t stride;
+} StPlaneMutU32;
+
+// One eye's G-buffer for a callback source to fill (packed planes: stride = width). With
+// `ST_LAYOUT_COMPACT` the pipeline reads `depth` and `normal_octahedral` only; with
+// `ST_LAYOUT_FULL`, `depth`, `position` and `normal`. `material` is the source's own (kept,
+// not read by the pipeline). Depth is `+INFINITY` where the pixel sees no surface.
+typedef struct StGBufferMut {
+  struct StPlaneMutF32 depth;
+  struct StPlaneMutF32 position[3];
+  struct StPlaneMutF32 normal[3];
+  struct StPlaneMutU32 normal_octahedral;
+  struct StPlaneMutU32 material;
+  // The camera this frame's G-buffer is for (the one given to
+  // `stereotrace_pipeline_render_frame_at`).
+  struct StCamera camera;
+} StGBufferMut;
+
+// An engine's renderer as the pipeline's frame source. The callbacks are called on one of
+// the pipeline's worker threads, one at a time, while `stereotrace_pipeline_render_frame_at`
+// runs (the calling thread waits), so `user` must be usable from another thread.
+typedef struct StFrameSourceCallbacks {
+  // Passed to both callbacks as is.
+  void *user;
+  // Fills both eyes' G-buffers for frame `frame`; returns 0 on success, anything else to
+  // fail the frame.
+  int32_t (*fill_gbuffers)(void *user,
+                           uint32_t frame,
+                           const struct StGBufferMut *left,
+                           const struct StGBufferMut *right);
+  // Path traces `spp` samples per pixel of eye `eye` (0 left, 1 right) at frame `frame`,
+  // for the pixels of rows `row_start .. row_end` where `mask` is non-zero (a null `mask`:
+  // every pixel of those rows), into `out`, leaving other pixels as they are; returns 0 on
+  // success.
+  int32_t (*trace)(void *user,
+                   uint32_t eye,
+                   uint32_t frame,
+                   uint32_t spp,
+                   const struct StCamera *camera,
+                   const struct StPlaneU8 *mask,
+                   uint32_t row_start,
+                   uint32_t row_end,
+                   const struct StRgbMut *out);
+} StFrameSourceCallbacks;
+
+// What one frame did.
+typedef struct StFrameStats {
+  double total_ms;
+  double gbuffer_ms;
+  double reprojection_ms;
+  double tracing_ms;
+  double accumulation_ms;
+  // Pixels path traced per eye (left, right).
+  uint64_t traced_pixels[2];
+  // 1 when there was no budget or the frame kept it, 0 when it went over.
+  uint32_t budget_met;
+} StFrameStats;
+
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
@@ -383,6 +501,70 @@ enum StStatus stereotrace_ssim(const struct StContext *context,
                                const struct StRgb *b,
                                uint32_t variant,
                                struct StSsimResult *result);
+
+// Spatiotemporal mode in the paper's order, compact G-buffers, 1 spp, 1280×720, one
+// thread per CPU, no budget, seed 1.
+struct StPipelineConfig stereotrace_pipeline_config_default(void);
+
+// Creates a pipeline over this project's renderer on `scene`: a built-in scene name
+// ("cornell", "atrium", ...), a TOML manifest or a scene folder (UTF-8 path). Reprojection
+// tolerances are the scene's, scaled to the frame height. Destroy it with
+// [`stereotrace_pipeline_destroy`].
+//
+// # Safety
+// `scene` must be null or a NUL-terminated string; `config` null or valid; `out` null or
+// writable.
+enum StStatus stereotrace_pipeline_create_scene(const char *scene,
+                                                const struct StPipelineConfig *config,
+                                                struct StPipeline **out);
+
+// Creates a pipeline over an engine's own G-buffers and tracer (`callbacks`, both
+// required), for frames of `config`'s size; `cameras` points to the two eye cameras
+// (left, right) of the first frame. Reprojection uses the default tolerances (room scale,
+// in metres). Frames are rendered with [`stereotrace_pipeline_render_frame_at`].
+//
+// # Safety
+// As [`stereotrace_pipeline_create_scene`]; `cameras` null or two valid cameras; the
+// callbacks keep the contract of [`StFrameSourceCallbacks`] for the pipeline's life.
+enum StStatus stereotrace_pipeline_create_callbacks(const struct StFrameSourceCallbacks *callbacks,
+                                                    const struct StPipelineConfig *config,
+                                                    const struct StCamera *cameras,
+                                                    struct StPipeline **out);
+
+// Renders frame `frame` of a scene pipeline, the head walking the scene's camera path
+// forward and back (so any frame number is on it). `stats` may be null.
+//
+// # Safety
+// `pipeline` null or a live pipeline not in use by another thread; `stats` null or writable.
+enum StStatus stereotrace_pipeline_render_frame(struct StPipeline *pipeline,
+                                                uint32_t frame,
+                                                struct StFrameStats *stats);
+
+// Renders frame `frame` with the two eye cameras `cameras` (left, right; the pipeline's
+// size). For a callback pipeline the callbacks run during this call. `stats` may be null.
+//
+// # Safety
+// As [`stereotrace_pipeline_render_frame`]; `cameras` null or two valid cameras.
+enum StStatus stereotrace_pipeline_render_frame_at(struct StPipeline *pipeline,
+                                                   uint32_t frame,
+                                                   const struct StCamera *cameras,
+                                                   struct StFrameStats *stats);
+
+// Copies the image eye `eye` (0 left, 1 right) shows after the last frame into the
+// caller's planes `out` (the pipeline's size, any stride).
+//
+// # Safety
+// `pipeline` null or a live pipeline; `out` null or valid, its planes writable.
+enum StStatus stereotrace_pipeline_output(const struct StPipeline *pipeline,
+                                          uint32_t eye,
+                                          const struct StRgbMut *out);
+
+// Destroys a pipeline (null is ignored).
+//
+// # Safety
+// `pipeline` null or from a `stereotrace_pipeline_create_*` call, not yet destroyed and not
+// in use.
+void stereotrace_pipeline_destroy(struct StPipeline *pipeline);
 
 #ifdef __cplusplus
 }  // extern "C"

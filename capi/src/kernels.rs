@@ -175,7 +175,7 @@ pub extern "C" fn stereotrace_reproject_params_default() -> StReprojectParams {
 }
 
 impl StReprojectParams {
-    fn kernel(&self) -> Result<ReprojectParams, Failure> {
+    pub(crate) fn kernel(&self) -> Result<ReprojectParams, Failure> {
         if self.band_rows == 0 {
             return Err(Failure::invalid("band_rows must be at least 1"));
         }

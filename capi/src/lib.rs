@@ -1,8 +1,9 @@
 //! # stereotrace-capi
 //!
-//! The C ABI of stereotrace's kernels on caller-owned buffers: stereo and temporal backward
-//! reprojection (full and compact G-buffer layouts), EMA accumulation, the stereo blend and
-//! SSIM. `include/stereotrace.h` is generated from this crate by cbindgen (the `header`
+//! The C ABI of stereotrace: the kernels on caller-owned buffers (stereo and temporal
+//! backward reprojection in full and compact G-buffer layouts, EMA accumulation, the stereo
+//! blend, SSIM) and the frame pipeline, over this project's renderer on a scene or over an
+//! engine's own G-buffers and tracer given as callbacks. `include/stereotrace.h` is generated from this crate by cbindgen (the `header`
 //! test regenerates it and fails on a difference; `STEREOTRACE_BLESS=1` rewrites it).
 //!
 //! Rules every function keeps (the header repeats them):
@@ -17,12 +18,14 @@
 
 mod boundary;
 mod kernels;
+mod pipeline;
 mod views;
 
 use std::ffi::c_char;
 
 pub use boundary::{StStatus, stereotrace_last_error};
 pub use kernels::*;
+pub use pipeline::*;
 pub use views::{StPlaneF32, StPlaneMutF32, StPlaneMutU8, StPlaneU8, StPlaneU32, StRgb, StRgbMut};
 
 use boundary::{Failure, guard};

@@ -253,3 +253,39 @@ fn refused_calls_write_nothing_and_say_why() {
     assert_eq!((status, message.as_str()), (StStatus::Ok, ""), "a good call clears the last error");
     unsafe { stereotrace_context_destroy(ctx) };
 }
+
+#[test]
+fn a_scene_pipeline_through_the_c_abi_renders_what_the_rust_pipeline_renders() {
+    use stereotrace_runtime::camera::{Eye, StereoRig};
+    use stereotrace_runtime::pipeline::{Pipeline, PipelineConfig};
+    use stereotrace_runtime::render::Renderer;
+
+    let (w, h) = (64u32, 36u32);
+    let mut config = stereotrace_pipeline_config_default();
+    (config.width, config.height, config.threads, config.spp) = (w, h, 2, 2);
+    let mut p = std::ptr::null_mut();
+    let scene = c"cornell";
+    assert_eq!(unsafe { stereotrace_pipeline_create_scene(scene.as_ptr(), &config, &mut p) }, StStatus::Ok);
+
+    let renderer = Renderer::new(stereotrace_runtime::scene::resolve("cornell").unwrap()).unwrap();
+    let e = Extent::new(w as usize, h as usize).unwrap();
+    let rust_config = PipelineConfig::paper(
+        stereotrace_runtime::pipeline::Mode::Spatiotemporal,
+        2,
+        renderer.scene().tolerances.at_height(h as usize),
+    );
+    let mut rust = Pipeline::new(&renderer, rust_config, StereoRig::default(), e).unwrap();
+    for frame in 0..3 {
+        assert_eq!(unsafe { stereotrace_pipeline_render_frame(p, frame, std::ptr::null_mut()) }, StStatus::Ok);
+        rust.render_frame(frame, &renderer.scene().camera.pose_back_and_forth(frame)).unwrap();
+    }
+    for eye in Eye::BOTH {
+        let mut via_c = RgbBuf::new(e, -1.0);
+        let [r, g, b] =
+            via_c.slices_mut().map(|s| StPlaneMutF32 { data: s.as_mut_ptr(), width: w, height: h, stride: w });
+        let out = StRgbMut { r, g, b };
+        assert_eq!(unsafe { stereotrace_pipeline_output(p, eye as u32, &out) }, StStatus::Ok);
+        assert_eq!(&via_c, rust.output(eye), "{eye:?}");
+    }
+    unsafe { stereotrace_pipeline_destroy(p) };
+}

@@ -25,9 +25,10 @@
 #include <string.h>
 
 #include "stereotrace.h"
+#include "wall.h"
 
 enum { W = 101, H = 37, STRIDE = W + 3, N = STRIDE * H };
-static const double DEPTH = 5.0, HALF_BASELINE = 0.3, VFOV = 1.0;
+static const double HALF_BASELINE = 0.3;
 
 static int failures = 0;
 #define CHECK(cond, ...)                                                                       \
@@ -48,43 +49,22 @@ typedef struct {
     uint32_t *oct;
 } Eye;
 
-/* OpenGL-style right-handed perspective times a view that only translates along x. */
-static StCamera camera_at(double centre_x) {
-    double f = 1.0 / tan(VFOV / 2.0), aspect = (double)W / H, n = 0.01, fa = 1000.0;
-    double m[4][4] = {{f / aspect, 0, 0, -centre_x * f / aspect},
-                      {0, f, 0, 0},
-                      {0, 0, (fa + n) / (n - fa), 2 * fa * n / (n - fa)},
-                      {0, 0, -1, 0}};
-    StCamera c = {.width = W, .height = H};
-    for (int row = 0; row < 4; row++)
-        for (int col = 0; col < 4; col++) c.view_proj[4 * col + row] = m[row][col];
-    return c;
-}
-
-static void colour_of(const float x[3], float rgb[3]) {
-    rgb[0] = 0.5f + 0.1f * x[0];
-    rgb[1] = 0.5f + 0.1f * x[1];
-    rgb[2] = 0.25f;
-}
-
 static float *plane_f32(void) { return calloc(N, sizeof(float)); }
 
 /* The engine's G-buffer pass: the pixel-centre ray of every pixel hits the wall. */
 static void render_eye(Eye *e, double centre_x) {
-    double f = 1.0 / tan(VFOV / 2.0), aspect = (double)W / H;
     e->centre_x = centre_x;
-    e->camera = camera_at(centre_x);
+    e->camera = wall_camera(centre_x, W, H);
     e->depth = plane_f32();
     e->oct = calloc(N, sizeof(uint32_t));
     for (int c = 0; c < 3; c++) e->pos[c] = plane_f32(), e->nrm[c] = plane_f32(), e->rgb[c] = plane_f32();
     for (int y = 0; y < H; y++) {
         for (int x = 0; x < W; x++) {
             int i = y * STRIDE + x;
-            double ndc_x = (x + 0.5) / W * 2 - 1, ndc_y = 1 - (y + 0.5) / H * 2;
-            float p[3] = {(float)(centre_x + DEPTH * ndc_x * aspect / f), (float)(DEPTH * ndc_y / f), (float)-DEPTH};
-            float rgb[3];
-            colour_of(p, rgb);
-            e->depth[i] = (float)DEPTH;
+            float p[3], rgb[3];
+            wall_surface(centre_x, W, H, x, y, p);
+            wall_colour(p, rgb);
+            e->depth[i] = (float)WALL_DEPTH;
             for (int c = 0; c < 3; c++) e->pos[c][i] = p[c], e->rgb[c][i] = rgb[c];
             e->nrm[0][i] = 0, e->nrm[1][i] = 0, e->nrm[2][i] = 1;
             e->oct[i] = stereotrace_encode_normal(0, 0, 1);
@@ -139,8 +119,7 @@ static StReasonCounts reproject_and_check(StContext *ctx, Eye *left, Eye *right,
      * columns have no footprint in it (out of frame), the next one only part of one (its
      * accepted weight is below 1 and its colour the in-frame taps' average). Everywhere else
      * the four taps bracket the point and give back the linear colour. */
-    double f = 1.0 / tan(VFOV / 2.0), aspect = (double)W / H;
-    double shift = 2 * HALF_BASELINE / (2 * DEPTH * aspect / f / W);
+    double shift = wall_shift_pixels(2 * HALF_BASELINE, W, H);
     int border = (int)ceil(shift + 0.5);
     double worst = 0;
     for (int y = 0; y < H; y++) {
@@ -155,7 +134,7 @@ static StReasonCounts reproject_and_check(StContext *ctx, Eye *left, Eye *right,
                 continue;
             }
             float truth[3], p[3] = {left->pos[0][i], left->pos[1][i], left->pos[2][i]};
-            colour_of(p, truth);
+            wall_colour(p, truth);
             for (int c = 0; c < 3; c++) worst = fmax(worst, fabs(out[c][i] - truth[c]));
         }
     }

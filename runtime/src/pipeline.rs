@@ -40,6 +40,7 @@
 //! report it. Work that always runs is never skipped: a budget below the G-buffers,
 //! reprojection, accumulation and the urgent pixels is overrun by that much.
 
+use std::borrow::Borrow;
 use std::time::{Duration, Instant};
 
 use crate::camera::{Eye, StereoRig};
@@ -241,6 +242,9 @@ pub enum PipelineError {
     Frame(#[from] FrameError),
     #[error(transparent)]
     Render(#[from] RenderError),
+    /// A [`FrameSource`] other than the renderer failed (its own message).
+    #[error("frame source: {0}")]
+    Source(String),
 }
 
 /// Time per stage of one frame.
@@ -343,7 +347,7 @@ pub struct Pipeline<S: FrameSource> {
 }
 
 /// The pipeline over this crate's renderer.
-pub type RendererPipeline<'r> = Pipeline<RendererSource<'r>>;
+pub type RendererPipeline<'r> = Pipeline<RendererSource<&'r Renderer>>;
 
 /// Budgeted loops a frame may run (one per traced eye).
 const MAX_LOOPS: usize = 2;
@@ -401,17 +405,13 @@ fn is_reprojected(code: u8) -> bool {
     code == Reason::Reprojected as u8
 }
 
-impl<'r> Pipeline<RendererSource<'r>> {
-    /// A pipeline over this crate's renderer, with every buffer allocated for frames of
-    /// `extent`; `rig` turns the scene's head poses into eye cameras.
-    pub fn new(
-        renderer: &'r Renderer,
-        config: PipelineConfig,
-        rig: StereoRig,
-        extent: Extent,
-    ) -> Result<Self, PipelineError> {
+impl<R: Borrow<Renderer>> Pipeline<RendererSource<R>> {
+    /// A pipeline over this crate's renderer (borrowed, owned or shared: see
+    /// [`RendererSource`]), with every buffer allocated for frames of `extent`; `rig` turns
+    /// the scene's head poses into eye cameras.
+    pub fn new(renderer: R, config: PipelineConfig, rig: StereoRig, extent: Extent) -> Result<Self, PipelineError> {
         config.validate().map_err(PipelineError::Config)?;
-        let head = renderer.scene().camera.pose_at(0.0);
+        let head = renderer.borrow().scene().camera.pose_at(0.0);
         let cameras = [rig.eye_camera(&head, Eye::Left, extent)?, rig.eye_camera(&head, Eye::Right, extent)?];
         let mut pipeline = Self::with_source(RendererSource::new(renderer, &config, extent), config, cameras)?;
         pipeline.rig = Some(rig);
@@ -441,6 +441,11 @@ impl<S: FrameSource> Pipeline<S> {
     /// The frame source.
     pub fn source(&self) -> &S {
         &self.source
+    }
+
+    /// The frame source, to change between frames (an engine's source updating its scene).
+    pub fn source_mut(&mut self) -> &mut S {
+        &mut self.source
     }
 
     pub fn config(&self) -> &PipelineConfig {

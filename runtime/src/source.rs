@@ -11,6 +11,7 @@
 //! reprojection, EMA and blend, the budget), everything below it on a scene. A source never
 //! sees the pipeline's history, and the pipeline never sees a scene, a BVH or a light.
 
+use std::borrow::Borrow;
 use std::ops::Range;
 
 use crate::kernels::{CameraModel, Extent, RgbBuf};
@@ -55,21 +56,23 @@ pub trait FrameSource {
 
 /// This crate's renderer as a [`FrameSource`]: the per-frame light table, the rasterised or
 /// traced G-buffer pass the configuration names, and the specialised or general path
-/// tracer.
-pub struct RendererSource<'r> {
-    renderer: &'r Renderer,
+/// tracer. `R` is how the renderer is held: borrowed (`&Renderer`, what
+/// [`crate::pipeline::Pipeline::new`] is usually given) or owned/shared (`Renderer`,
+/// `Arc<Renderer>`: a pipeline that must outlive its caller's stack, as behind the C ABI).
+pub struct RendererSource<R: Borrow<Renderer>> {
+    renderer: R,
     lights: FrameLights,
     /// The rasterised G-buffer pass's buffers (with [`GBufferPass::Raster`]).
     raster: Option<RasterGBuffers>,
     general_integrator: bool,
 }
 
-impl<'r> RendererSource<'r> {
+impl<R: Borrow<Renderer>> RendererSource<R> {
     /// The renderer configured as `config` asks, for frames of `extent`.
-    pub fn new(renderer: &'r Renderer, config: &PipelineConfig, extent: Extent) -> Self {
+    pub fn new(renderer: R, config: &PipelineConfig, extent: Extent) -> Self {
         Self {
+            lights: renderer.borrow().frame_lights(0),
             renderer,
-            lights: renderer.frame_lights(0),
             raster: (config.gbuffer == GBufferPass::Raster).then(|| {
                 let mut raster = RasterGBuffers::new(extent);
                 if config.layout == Layout::Compact {
@@ -81,14 +84,14 @@ impl<'r> RendererSource<'r> {
         }
     }
 
-    pub fn renderer(&self) -> &'r Renderer {
-        self.renderer
+    pub fn renderer(&self) -> &Renderer {
+        self.renderer.borrow()
     }
 }
 
-impl FrameSource for RendererSource<'_> {
+impl<R: Borrow<Renderer>> FrameSource for RendererSource<R> {
     fn begin_frame(&mut self, frame: u32) {
-        self.lights.update(self.renderer.scene(), frame);
+        self.lights.update(self.renderer.borrow().scene(), frame);
     }
 
     fn fill_gbuffers(
@@ -98,10 +101,10 @@ impl FrameSource for RendererSource<'_> {
     ) -> Result<Option<RasterPassStats>, PipelineError> {
         // The layout was fixed at construction (the raster pass's planes).
         match &mut self.raster {
-            Some(raster) => Ok(Some(self.renderer.render_gbuffers_raster(&self.lights, gbuffers, raster)?)),
+            Some(raster) => Ok(Some(self.renderer.borrow().render_gbuffers_raster(&self.lights, gbuffers, raster)?)),
             None => {
                 for g in gbuffers {
-                    self.renderer.render_gbuffer(&self.lights, g);
+                    self.renderer.borrow().render_gbuffer(&self.lights, g);
                 }
                 Ok(None)
             }
@@ -117,6 +120,6 @@ impl FrameSource for RendererSource<'_> {
         out: &mut RgbBuf,
     ) -> Result<TraceStats, PipelineError> {
         let general = self.general_integrator;
-        Ok(self.renderer.trace_rows(&self.lights, camera, request, selection, rows, out, general)?)
+        Ok(self.renderer.borrow().trace_rows(&self.lights, camera, request, selection, rows, out, general)?)
     }
 }

@@ -115,12 +115,7 @@ fn run_frames(
     let path = &renderer.scene().camera;
     let mut stats = Vec::with_capacity(frames as usize);
     for i in 0..=frames {
-        // Walk the camera path forward and back so any number of frames stays on it.
-        let n = path.frames.max(2);
-        let period = 2 * (n - 1);
-        let k = i % period;
-        let frame = if k < n { k } else { period - k };
-        let head = path.pose(frame);
+        let head = path.pose_back_and_forth(i);
         let s = if mono { pipeline.render_mono_frame(i, &head) } else { pipeline.render_frame(i, &head) };
         if i > 0 {
             stats.push(s.map_err(|e| e.to_string())?);

@@ -229,6 +229,16 @@ impl CameraPath {
         self.pose_at(frame as f32)
     }
 
+    /// The pose of the `i`-th frame of a walk forward and back along the path (frames
+    /// `0, 1, …, n−1, n−2, …, 1, 0, 1, …`), so any number of frames stays on it and the
+    /// camera keeps moving: what the real-time driver and the C ABI render.
+    pub fn pose_back_and_forth(&self, i: u32) -> CameraPose {
+        let n = self.frames.max(2);
+        let period = 2 * (n - 1);
+        let k = i % period;
+        self.pose(if k < n { k } else { period - k })
+    }
+
     /// Every frame's pose.
     pub fn poses(&self) -> Vec<CameraPose> {
         (0..self.frames).map(|f| self.pose(f)).collect()

@@ -1,0 +1,585 @@
+//! The frame pipeline behind the C ABI: over this project's renderer on a scene
+//! ([`stereotrace_pipeline_create_scene`]), or over an engine's own G-buffers and tracer
+//! given as C callbacks ([`stereotrace_pipeline_create_callbacks`]). Either way the pipeline
+//! owns its buffers and worker threads; the caller reads images out with
+//! [`stereotrace_pipeline_output`].
+
+use std::ffi::{CStr, c_char, c_void};
+use std::time::Duration;
+
+use glam::DMat4;
+use stereotrace_kernels::frame::same_extent;
+use stereotrace_kernels::reproject::Tolerances;
+use stereotrace_kernels::{CameraModel, Extent, PlaneBuf, RgbBuf};
+use stereotrace_runtime::camera::{Eye, StereoRig};
+use stereotrace_runtime::pipeline::{FrameStats, Layout, Mode, Order, Pipeline, PipelineConfig, PipelineError};
+use stereotrace_runtime::render::raster::RasterPassStats;
+use stereotrace_runtime::render::{GBufferBuf, PixelSelection, Renderer, TraceRequest, TraceStats};
+use stereotrace_runtime::source::{FrameSource, RendererSource};
+
+use crate::StStatus;
+use crate::boundary::{Context, Failure, guard};
+use crate::kernels::{StCamera, StLayout, StReprojectParams};
+use crate::views::{Borrows, StPlaneMutF32, StPlaneU8, StRgbMut, required};
+
+/// The pipeline's modes (the paper's Section IV): the values of [`StPipelineConfig::mode`].
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StMode {
+    /// Both eyes fully path traced.
+    PathTraced = 0,
+    /// The left eye reprojected from the right, traced where discarded.
+    Stereo = 1,
+    /// Each eye accumulates its own reprojected history.
+    Temporal = 2,
+    /// Stereo and temporal reprojection combined.
+    Spatiotemporal = 3,
+    /// Each eye blends its own samples with the other's reprojection.
+    StereoBlend = 4,
+    /// The blend over accumulated histories.
+    SpatiotemporalBlend = 5,
+}
+
+/// Order of stereo and temporal reprojection: the values of [`StPipelineConfig::order`].
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StOrder {
+    /// The paper's: temporal accumulation first, then stereo reprojection of the history.
+    Paper = 0,
+    /// Stereo reprojection of this frame's samples first, then accumulation.
+    StereoFirst = 1,
+}
+
+/// Settings of a pipeline (see [`stereotrace_pipeline_config_default`]).
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct StPipelineConfig {
+    /// A `StMode` value.
+    pub mode: u32,
+    /// A `StOrder` value.
+    pub order: u32,
+    /// A `StLayout` value: the G-buffer planes reprojection reads (and a callback source
+    /// must fill).
+    pub layout: u32,
+    /// Samples per traced pixel, 1 ..= 2^20.
+    pub spp: u32,
+    /// Frame size per eye.
+    pub width: u32,
+    pub height: u32,
+    /// Worker threads (0: one per logical CPU).
+    pub threads: u32,
+    /// Time budget per stereo frame in milliseconds, 0 for none (trace everything).
+    pub budget_ms: f64,
+    /// Seed of the path tracer's random numbers.
+    pub seed: u64,
+    /// Reprojection tolerances and tap policy; null for the scene's own tolerances (scene
+    /// pipelines) or the room-scale defaults of `stereotrace_reproject_params_default`
+    /// (callback pipelines).
+    pub reprojection: *const StReprojectParams,
+}
+
+/// Spatiotemporal mode in the paper's order, compact G-buffers, 1 spp, 1280×720, one
+/// thread per CPU, no budget, seed 1.
+#[unsafe(no_mangle)]
+pub extern "C" fn stereotrace_pipeline_config_default() -> StPipelineConfig {
+    StPipelineConfig {
+        mode: StMode::Spatiotemporal as u32,
+        order: StOrder::Paper as u32,
+        layout: StLayout::Compact as u32,
+        spp: 1,
+        width: 1280,
+        height: 720,
+        threads: 0,
+        budget_ms: 0.0,
+        seed: 1,
+        reprojection: std::ptr::null(),
+    }
+}
+
+/// The most samples per pixel a pipeline takes (the CLI's bound).
+const MAX_SPP: u32 = 1 << 20;
+/// The longest budget a pipeline takes, in milliseconds.
+const MAX_BUDGET_MS: f64 = 1e6;
+
+impl StPipelineConfig {
+    fn extent(&self) -> Result<Extent, Failure> {
+        Extent::new(self.width as usize, self.height as usize).about("config size")
+    }
+
+    /// The runtime's configuration, with `tolerances` unless the caller gave its own.
+    ///
+    /// # Safety
+    /// `self.reprojection` null or valid.
+    unsafe fn runtime(&self, tolerances: Tolerances) -> Result<PipelineConfig, Failure> {
+        let mode = match self.mode {
+            0 => Mode::PathTraced,
+            1 => Mode::Stereo,
+            2 => Mode::Temporal,
+            3 => Mode::Spatiotemporal,
+            4 => Mode::StereoBlend,
+            5 => Mode::SpatiotemporalBlend,
+            other => return Err(Failure::invalid(format!("config.mode {other} is not a StMode (0 ..= 5)"))),
+        };
+        if !(1..=MAX_SPP).contains(&self.spp) {
+            return Err(Failure::invalid(format!("config.spp must be in 1 ..= {MAX_SPP}, got {}", self.spp)));
+        }
+        if !(self.budget_ms >= 0.0 && self.budget_ms <= MAX_BUDGET_MS) {
+            return Err(Failure::invalid(format!(
+                "config.budget_ms must be 0 (none) or a positive number of milliseconds up to {MAX_BUDGET_MS}, got {}",
+                self.budget_ms
+            )));
+        }
+        let mut c = PipelineConfig::paper(mode, self.spp, tolerances);
+        c.order = match self.order {
+            0 => Order::Paper,
+            1 => Order::StereoFirst,
+            other => return Err(Failure::invalid(format!("config.order {other} is not a StOrder (0 or 1)"))),
+        };
+        c.layout = match self.layout {
+            0 => Layout::Full,
+            1 => Layout::Compact,
+            other => return Err(Failure::invalid(format!("config.layout {other} is not a StLayout (0 or 1)"))),
+        };
+        c.seed = self.seed;
+        // SAFETY: the caller's contract.
+        if let Some(r) = unsafe { self.reprojection.as_ref() } {
+            let r = r.kernel()?;
+            (c.tolerances, c.policy) = (r.tolerances, r.policy);
+        }
+        c.budget = (self.budget_ms > 0.0).then(|| Duration::from_secs_f64(self.budget_ms / 1e3));
+        Ok(c)
+    }
+
+    fn pool(&self) -> Result<rayon::ThreadPool, Failure> {
+        if self.threads > 1024 {
+            return Err(Failure::invalid(format!("config.threads must be at most 1024, got {}", self.threads)));
+        }
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(self.threads as usize)
+            .thread_name(|i| format!("stereotrace-pipeline-{i}"))
+            .build()
+            .map_err(|e| Failure::invalid(format!("could not start {} worker threads: {e}", self.threads)))
+    }
+}
+
+/// A writable plane of `uint32_t`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct StPlaneMutU32 {
+    /// Pixel `(0, 0)`; pixel `(x, y)` is `data[y * stride + x]`.
+    pub data: *mut u32,
+    pub width: u32,
+    pub height: u32,
+    /// Elements from one row's start to the next (at least `width`).
+    pub stride: u32,
+}
+
+/// One eye's G-buffer for a callback source to fill (packed planes: stride = width). With
+/// `ST_LAYOUT_COMPACT` the pipeline reads `depth` and `normal_octahedral` only; with
+/// `ST_LAYOUT_FULL`, `depth`, `position` and `normal`. `material` is the source's own (kept,
+/// not read by the pipeline). Depth is `+INFINITY` where the pixel sees no surface.
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct StGBufferMut {
+    pub depth: StPlaneMutF32,
+    pub position: [StPlaneMutF32; 3],
+    pub normal: [StPlaneMutF32; 3],
+    pub normal_octahedral: StPlaneMutU32,
+    pub material: StPlaneMutU32,
+    /// The camera this frame's G-buffer is for (the one given to
+    /// `stereotrace_pipeline_render_frame_at`).
+    pub camera: StCamera,
+}
+
+/// The callback types of [`StFrameSourceCallbacks`] (spelled out there for the header).
+type StFillGBuffers =
+    unsafe extern "C" fn(user: *mut c_void, frame: u32, left: *const StGBufferMut, right: *const StGBufferMut) -> i32;
+
+type StTrace = unsafe extern "C" fn(
+    user: *mut c_void,
+    eye: u32,
+    frame: u32,
+    spp: u32,
+    camera: *const StCamera,
+    mask: *const StPlaneU8,
+    row_start: u32,
+    row_end: u32,
+    out: *const StRgbMut,
+) -> i32;
+
+/// An engine's renderer as the pipeline's frame source. The callbacks are called on one of
+/// the pipeline's worker threads, one at a time, while `stereotrace_pipeline_render_frame_at`
+/// runs (the calling thread waits), so `user` must be usable from another thread.
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct StFrameSourceCallbacks {
+    /// Passed to both callbacks as is.
+    pub user: *mut c_void,
+    /// Fills both eyes' G-buffers for frame `frame`; returns 0 on success, anything else to
+    /// fail the frame.
+    pub fill_gbuffers: Option<
+        unsafe extern "C" fn(
+            user: *mut c_void,
+            frame: u32,
+            left: *const StGBufferMut,
+            right: *const StGBufferMut,
+        ) -> i32,
+    >,
+    /// Path traces `spp` samples per pixel of eye `eye` (0 left, 1 right) at frame `frame`,
+    /// for the pixels of rows `row_start .. row_end` where `mask` is non-zero (a null `mask`:
+    /// every pixel of those rows), into `out`, leaving other pixels as they are; returns 0 on
+    /// success.
+    #[allow(clippy::type_complexity)]
+    pub trace: Option<
+        unsafe extern "C" fn(
+            user: *mut c_void,
+            eye: u32,
+            frame: u32,
+            spp: u32,
+            camera: *const StCamera,
+            mask: *const StPlaneU8,
+            row_start: u32,
+            row_end: u32,
+            out: *const StRgbMut,
+        ) -> i32,
+    >,
+}
+
+/// [`StFrameSourceCallbacks`] as a [`FrameSource`].
+struct CallbackSource {
+    callbacks: StFrameSourceCallbacks,
+    fill_gbuffers: StFillGBuffers,
+    trace: StTrace,
+    frame: u32,
+    /// This frame's cameras as the caller gave them (f64, not the kernels' f32 rows).
+    cameras: [StCamera; 2],
+}
+
+// SAFETY: `user` and the callbacks are only used while a render call runs, one call at a
+// time, and the header states that they are called from a worker thread.
+unsafe impl Send for CallbackSource {}
+
+fn packed<T: Copy + Send + Sync>(buf: &mut PlaneBuf<T>) -> (*mut T, u32, u32) {
+    let e = buf.extent();
+    (buf.as_mut_slice().as_mut_ptr(), e.width() as u32, e.height() as u32)
+}
+
+fn f32_plane(buf: &mut PlaneBuf) -> StPlaneMutF32 {
+    let (data, width, height) = packed(buf);
+    StPlaneMutF32 { data, width, height, stride: width }
+}
+
+fn u32_plane(buf: &mut PlaneBuf<u32>) -> StPlaneMutU32 {
+    let (data, width, height) = packed(buf);
+    StPlaneMutU32 { data, width, height, stride: width }
+}
+
+impl FrameSource for CallbackSource {
+    fn begin_frame(&mut self, frame: u32) {
+        self.frame = frame;
+    }
+
+    fn fill_gbuffers(
+        &mut self,
+        gbuffers: [&mut GBufferBuf; 2],
+        _layout: Layout,
+    ) -> Result<Option<RasterPassStats>, PipelineError> {
+        let [left, right] = gbuffers;
+        let view = |g: &mut GBufferBuf, camera: StCamera| StGBufferMut {
+            depth: f32_plane(&mut g.depth),
+            position: g.position.each_mut().map(f32_plane),
+            normal: g.normal.each_mut().map(f32_plane),
+            normal_octahedral: u32_plane(&mut g.normal_oct),
+            material: u32_plane(&mut g.material),
+            camera,
+        };
+        let (l, r) = (view(left, self.cameras[0]), view(right, self.cameras[1]));
+        // SAFETY: the views cover the pipeline's own buffers, alive and unaliased for the
+        // call; the callback's contract is the header's.
+        let code = unsafe { (self.fill_gbuffers)(self.callbacks.user, self.frame, &l, &r) };
+        if code != 0 {
+            return Err(PipelineError::Source(format!("fill_gbuffers callback returned {code}")));
+        }
+        Ok(None)
+    }
+
+    fn trace(
+        &self,
+        _camera: &CameraModel,
+        request: &TraceRequest,
+        selection: PixelSelection<'_>,
+        rows: std::ops::Range<usize>,
+        out: &mut RgbBuf,
+    ) -> Result<TraceStats, PipelineError> {
+        let e = out.extent();
+        let (w, h) = (e.width() as u32, e.height() as u32);
+        let mask = match selection {
+            PixelSelection::All => None,
+            PixelSelection::Mask(m) => Some(StPlaneU8 { data: m.as_slice().as_ptr(), width: w, height: h, stride: w }),
+        };
+        let [r, g, b] =
+            out.slices_mut().map(|s| StPlaneMutF32 { data: s.as_mut_ptr(), width: w, height: h, stride: w });
+        let out = StRgbMut { r, g, b };
+        let eye = request.eye as usize;
+        let mask_ptr = mask.as_ref().map_or(std::ptr::null(), |m| m as *const StPlaneU8);
+        // SAFETY: as in `fill_gbuffers`.
+        let code = unsafe {
+            (self.trace)(
+                self.callbacks.user,
+                eye as u32,
+                request.frame,
+                request.spp,
+                &self.cameras[eye],
+                mask_ptr,
+                rows.start as u32,
+                rows.end as u32,
+                &out,
+            )
+        };
+        if code != 0 {
+            return Err(PipelineError::Source(format!("trace callback returned {code}")));
+        }
+        Ok(TraceStats::default())
+    }
+}
+
+enum Inner {
+    Scene(Box<Pipeline<RendererSource<Box<Renderer>>>>),
+    Callbacks(Box<Pipeline<CallbackSource>>),
+}
+
+/// A frame pipeline (opaque to C).
+pub struct StPipeline {
+    pool: rayon::ThreadPool,
+    inner: Inner,
+}
+
+/// What one frame did.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default)]
+pub struct StFrameStats {
+    pub total_ms: f64,
+    pub gbuffer_ms: f64,
+    pub reprojection_ms: f64,
+    pub tracing_ms: f64,
+    pub accumulation_ms: f64,
+    /// Pixels path traced per eye (left, right).
+    pub traced_pixels: [u64; 2],
+    /// 1 when there was no budget or the frame kept it, 0 when it went over.
+    pub budget_met: u32,
+}
+
+impl From<&FrameStats> for StFrameStats {
+    fn from(s: &FrameStats) -> Self {
+        let ms = |d: Duration| d.as_secs_f64() * 1e3;
+        let t = &s.times;
+        Self {
+            total_ms: ms(t.total),
+            gbuffer_ms: ms(t.gbuffer),
+            reprojection_ms: ms(t.reprojection),
+            tracing_ms: ms(t.tracing),
+            accumulation_ms: ms(t.accumulation),
+            traced_pixels: s.traced_pixels,
+            budget_met: u32::from(s.budget_met),
+        }
+    }
+}
+
+fn pipeline_error(e: PipelineError) -> Failure {
+    Failure::invalid(e.to_string())
+}
+
+/// Creates a pipeline over this project's renderer on `scene`: a built-in scene name
+/// ("cornell", "atrium", ...), a TOML manifest or a scene folder (UTF-8 path). Reprojection
+/// tolerances are the scene's, scaled to the frame height. Destroy it with
+/// [`stereotrace_pipeline_destroy`].
+///
+/// # Safety
+/// `scene` must be null or a NUL-terminated string; `config` null or valid; `out` null or
+/// writable.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn stereotrace_pipeline_create_scene(
+    scene: *const c_char,
+    config: *const StPipelineConfig,
+    out: *mut *mut StPipeline,
+) -> StStatus {
+    guard(|| unsafe {
+        if out.is_null() {
+            return Err(Failure::null("out"));
+        }
+        if scene.is_null() {
+            return Err(Failure::null("scene"));
+        }
+        let config = required(config, "config")?;
+        let spec = CStr::from_ptr(scene).to_str().map_err(|_| Failure::invalid("scene is not UTF-8"))?;
+        let extent = config.extent()?;
+        let pool = config.pool()?;
+        let scene = stereotrace_runtime::scene::resolve(spec).map_err(|e| Failure::invalid(e.to_string()))?;
+        let renderer = Renderer::new(scene).map_err(|e| Failure::invalid(e.to_string()))?;
+        let runtime = config.runtime(renderer.scene().tolerances.at_height(extent.height()))?;
+        let pipeline =
+            Pipeline::new(Box::new(renderer), runtime, StereoRig::default(), extent).map_err(pipeline_error)?;
+        out.write(Box::into_raw(Box::new(StPipeline { pool, inner: Inner::Scene(Box::new(pipeline)) })));
+        Ok(())
+    })
+}
+
+/// Creates a pipeline over an engine's own G-buffers and tracer (`callbacks`, both
+/// required), for frames of `config`'s size; `cameras` points to the two eye cameras
+/// (left, right) of the first frame. Reprojection uses the default tolerances (room scale,
+/// in metres). Frames are rendered with [`stereotrace_pipeline_render_frame_at`].
+///
+/// # Safety
+/// As [`stereotrace_pipeline_create_scene`]; `cameras` null or two valid cameras; the
+/// callbacks keep the contract of [`StFrameSourceCallbacks`] for the pipeline's life.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn stereotrace_pipeline_create_callbacks(
+    callbacks: *const StFrameSourceCallbacks,
+    config: *const StPipelineConfig,
+    cameras: *const StCamera,
+    out: *mut *mut StPipeline,
+) -> StStatus {
+    guard(|| unsafe {
+        if out.is_null() {
+            return Err(Failure::null("out"));
+        }
+        let callbacks = *required(callbacks, "callbacks")?;
+        let fill_gbuffers = callbacks.fill_gbuffers.ok_or_else(|| Failure::null("callbacks.fill_gbuffers"))?;
+        let trace = callbacks.trace.ok_or_else(|| Failure::null("callbacks.trace"))?;
+        let config = required(config, "config")?;
+        let extent = config.extent()?;
+        let (given, models) = eye_cameras(cameras, extent)?;
+        let pool = config.pool()?;
+        let runtime = config.runtime(Tolerances::default())?;
+        let source = CallbackSource { callbacks, fill_gbuffers, trace, frame: 0, cameras: given };
+        let pipeline = Pipeline::with_source(source, runtime, models).map_err(pipeline_error)?;
+        out.write(Box::into_raw(Box::new(StPipeline { pool, inner: Inner::Callbacks(Box::new(pipeline)) })));
+        Ok(())
+    })
+}
+
+/// Two eye cameras from C, checked against the pipeline's extent.
+///
+/// # Safety
+/// `cameras` null or pointing to two cameras.
+unsafe fn eye_cameras(cameras: *const StCamera, extent: Extent) -> Result<([StCamera; 2], [CameraModel; 2]), Failure> {
+    if cameras.is_null() {
+        return Err(Failure::null("cameras"));
+    }
+    // SAFETY: the caller's contract: two cameras.
+    let given = unsafe { [*cameras, *cameras.add(1)] };
+    let model = |c: &StCamera, what: &str| -> Result<CameraModel, Failure> {
+        let e = Extent::new(c.width as usize, c.height as usize).about(what)?;
+        same_extent("camera size", extent, e).about(what)?;
+        CameraModel::from_f64(DMat4::from_cols_array(&c.view_proj), e).about(what)
+    };
+    Ok((given, [model(&given[0], "cameras[0]")?, model(&given[1], "cameras[1]")?]))
+}
+
+/// Renders frame `frame` of a scene pipeline, the head walking the scene's camera path
+/// forward and back (so any frame number is on it). `stats` may be null.
+///
+/// # Safety
+/// `pipeline` null or a live pipeline not in use by another thread; `stats` null or writable.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn stereotrace_pipeline_render_frame(
+    pipeline: *mut StPipeline,
+    frame: u32,
+    stats: *mut StFrameStats,
+) -> StStatus {
+    guard(|| unsafe {
+        let p = pipeline.as_mut().ok_or_else(|| Failure::null("pipeline"))?;
+        let Inner::Scene(inner) = &mut p.inner else {
+            return Err(Failure::invalid(
+                "this pipeline has no scene (made with callbacks): use stereotrace_pipeline_render_frame_at",
+            ));
+        };
+        let head = inner.source().renderer().scene().camera.pose_back_and_forth(frame);
+        let s = p.pool.install(|| inner.render_frame(frame, &head)).map_err(pipeline_error)?;
+        if let Some(out) = stats.as_mut() {
+            *out = (&s).into();
+        }
+        Ok(())
+    })
+}
+
+/// Renders frame `frame` with the two eye cameras `cameras` (left, right; the pipeline's
+/// size). For a callback pipeline the callbacks run during this call. `stats` may be null.
+///
+/// # Safety
+/// As [`stereotrace_pipeline_render_frame`]; `cameras` null or two valid cameras.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn stereotrace_pipeline_render_frame_at(
+    pipeline: *mut StPipeline,
+    frame: u32,
+    cameras: *const StCamera,
+    stats: *mut StFrameStats,
+) -> StStatus {
+    guard(|| unsafe {
+        let p = pipeline.as_mut().ok_or_else(|| Failure::null("pipeline"))?;
+        let pool = &p.pool;
+        let s = match &mut p.inner {
+            Inner::Scene(inner) => {
+                let (_, models) = eye_cameras(cameras, inner.extent())?;
+                pool.install(|| inner.render_frame_at(frame, models))
+            }
+            Inner::Callbacks(inner) => {
+                let (given, models) = eye_cameras(cameras, inner.extent())?;
+                inner.source_mut().cameras = given;
+                pool.install(|| inner.render_frame_at(frame, models))
+            }
+        }
+        .map_err(pipeline_error)?;
+        if let Some(out) = stats.as_mut() {
+            *out = (&s).into();
+        }
+        Ok(())
+    })
+}
+
+/// Copies the image eye `eye` (0 left, 1 right) shows after the last frame into the
+/// caller's planes `out` (the pipeline's size, any stride).
+///
+/// # Safety
+/// `pipeline` null or a live pipeline; `out` null or valid, its planes writable.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn stereotrace_pipeline_output(
+    pipeline: *const StPipeline,
+    eye: u32,
+    out: *const StRgbMut,
+) -> StStatus {
+    guard(|| unsafe {
+        let p = pipeline.as_ref().ok_or_else(|| Failure::null("pipeline"))?;
+        let eye = match eye {
+            0 => Eye::Left,
+            1 => Eye::Right,
+            other => return Err(Failure::invalid(format!("eye {other} is not 0 (left) or 1 (right)"))),
+        };
+        let image = match &p.inner {
+            Inner::Scene(inner) => inner.output(eye),
+            Inner::Callbacks(inner) => inner.output(eye),
+        };
+        let mut b = Borrows::new();
+        let out = required(out, "out")?.view(["out.r", "out.g", "out.b"], &mut b)?;
+        same_extent("out", image.extent(), out.extent()).about("out")?;
+        for (mut dst, src) in out.into_channels().into_iter().zip(image.planes()) {
+            for y in 0..image.extent().height() {
+                dst.row_mut(y).copy_from_slice(src.view().row(y));
+            }
+        }
+        Ok(())
+    })
+}
+
+/// Destroys a pipeline (null is ignored).
+///
+/// # Safety
+/// `pipeline` null or from a `stereotrace_pipeline_create_*` call, not yet destroyed and not
+/// in use.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn stereotrace_pipeline_destroy(pipeline: *mut StPipeline) {
+    if !pipeline.is_null() {
+        // SAFETY: the caller's contract: made by `Box::into_raw` in a create function.
+        drop(unsafe { Box::from_raw(pipeline) });
+    }
+}

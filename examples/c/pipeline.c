@@ -1,0 +1,253 @@
+/*
+ * The frame pipeline through the C ABI, two ways:
+ *
+ * 1. Over stereotrace's own renderer on the built-in Cornell box: a few spatiotemporal
+ *    frames at 160x90 on 2 threads, both eyes read back into the program's own (padded)
+ *    planes and checked to be finite, non-negative and lit.
+ * 2. Over the program's own "renderer" (callbacks): the wall of wall.h, whose G-buffers the
+ *    program fills and whose "path-traced" samples are the wall's exact colour. In stereo
+ *    mode the library reprojects the right eye into the left and asks the program to trace
+ *    only the left pixels whose reprojection was discarded; the program counts them and
+ *    checks the left image against the closed form.
+ *
+ * Then bad input: an unknown scene, a zero size, a NaN budget, unknown enum values, a
+ * missing callback, cameras of the wrong size, a failing callback. Each call must return
+ * its error code with a message. Built by examples/c/run.sh under AddressSanitizer; exits 0
+ * only if every check holds.
+ */
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "stereotrace.h"
+#include "wall.h"
+
+static int failures = 0;
+#define CHECK(cond, ...)                                                                       \
+    do {                                                                                       \
+        if (!(cond)) {                                                                         \
+            fprintf(stderr, "FAILED %s:%d: ", __FILE__, __LINE__);                             \
+            fprintf(stderr, __VA_ARGS__);                                                      \
+            fprintf(stderr, "\n");                                                             \
+            failures++;                                                                        \
+        }                                                                                      \
+    } while (0)
+
+static void expect(StStatus got, StStatus want, const char *what) {
+    const char *message = stereotrace_last_error();
+    CHECK(got == want, "%s: status %d, expected %d (%s)", what, got, want, message);
+    if (got == want && want != ST_STATUS_OK) printf("refused as expected: %-32s -> %s\n", what, message);
+}
+
+/* An RGB image of the program's own, rows padded to `stride`. */
+typedef struct {
+    uint32_t width, height, stride;
+    float *planes[3];
+} Image;
+
+static Image image_new(uint32_t width, uint32_t height) {
+    Image im = {width, height, width + 5, {NULL, NULL, NULL}};
+    for (int c = 0; c < 3; c++) im.planes[c] = calloc((size_t)im.stride * height, sizeof(float));
+    return im;
+}
+
+static StRgbMut image_view(Image *im) {
+    StRgbMut v;
+    StPlaneMutF32 *p[3] = {&v.r, &v.g, &v.b};
+    for (int c = 0; c < 3; c++) *p[c] = (StPlaneMutF32){im->planes[c], im->width, im->height, im->stride};
+    return v;
+}
+
+static void image_free(Image *im) {
+    for (int c = 0; c < 3; c++) free(im->planes[c]);
+}
+
+/* 1. Our renderer on a built-in scene. */
+static void scene_pipeline(void) {
+    StPipelineConfig config = stereotrace_pipeline_config_default();
+    config.width = 160, config.height = 90, config.threads = 2, config.spp = 2;
+    StPipeline *p = NULL;
+    expect(stereotrace_pipeline_create_scene("cornell", &config, &p), ST_STATUS_OK, "cornell pipeline");
+    if (p == NULL) return;
+    StFrameStats stats;
+    for (uint32_t frame = 0; frame < 3; frame++) {
+        expect(stereotrace_pipeline_render_frame(p, frame, &stats), ST_STATUS_OK, "render frame");
+        printf("cornell frame %u: %.1f ms (G-buffers %.1f, reprojection %.1f, tracing %.1f), traced %llu + %llu px\n",
+               frame, stats.total_ms, stats.gbuffer_ms, stats.reprojection_ms, stats.tracing_ms,
+               (unsigned long long)stats.traced_pixels[0], (unsigned long long)stats.traced_pixels[1]);
+    }
+    CHECK(stats.traced_pixels[1] == 160 * 90, "the right eye traced %llu pixels",
+          (unsigned long long)stats.traced_pixels[1]);
+    CHECK(stats.traced_pixels[0] < 160 * 90 / 4, "the left eye traced %llu pixels: stereo reprojection did little",
+          (unsigned long long)stats.traced_pixels[0]);
+    for (uint32_t eye = 0; eye < 2; eye++) {
+        Image im = image_new(160, 90);
+        StRgbMut view = image_view(&im);
+        expect(stereotrace_pipeline_output(p, eye, &view), ST_STATUS_OK, "output");
+        double sum = 0;
+        int bad = 0;
+        for (uint32_t y = 0; y < im.height; y++)
+            for (uint32_t x = 0; x < im.width; x++)
+                for (int c = 0; c < 3; c++) {
+                    float v = im.planes[c][y * im.stride + x];
+                    bad += !(v >= 0 && isfinite(v));
+                    sum += v;
+                }
+        CHECK(bad == 0, "eye %u: %d non-finite or negative samples", eye, bad);
+        CHECK(sum / (160 * 90 * 3) > 0.01, "eye %u is dark: mean %g", eye, sum / (160 * 90 * 3));
+        printf("cornell eye %u: mean %.4f\n", eye, sum / (160 * 90 * 3));
+        image_free(&im);
+    }
+    Image wrong = image_new(161, 90);
+    StRgbMut view = image_view(&wrong);
+    expect(stereotrace_pipeline_output(p, 0, &view), ST_STATUS_INVALID_ARGUMENT, "output of the wrong size");
+    expect(stereotrace_pipeline_output(p, 2, &view), ST_STATUS_INVALID_ARGUMENT, "eye 2");
+    image_free(&wrong);
+    stereotrace_pipeline_destroy(p);
+}
+
+/* 2. The program's own renderer behind callbacks. */
+enum { CW = 96, CH = 40 };
+static const double HALF_BASELINE = 0.3;
+
+typedef struct {
+    double centre_x[2];
+    uint64_t traced[2];
+    int fail_trace;
+} Engine;
+
+static int fill_gbuffers(void *user, uint32_t frame, const StGBufferMut *left, const StGBufferMut *right) {
+    Engine *e = user;
+    (void)frame;
+    const StGBufferMut *g[2] = {left, right};
+    for (int eye = 0; eye < 2; eye++) {
+        const StGBufferMut *b = g[eye];
+        if (b->depth.width != CW || b->depth.height != CH) return 1;
+        for (int y = 0; y < CH; y++) {
+            for (int x = 0; x < CW; x++) {
+                size_t i = (size_t)y * b->depth.stride + x;
+                float p[3];
+                wall_surface(e->centre_x[eye], CW, CH, x, y, p);
+                b->depth.data[i] = (float)WALL_DEPTH;
+                for (int c = 0; c < 3; c++) b->position[c].data[i] = p[c];
+                b->normal[0].data[i] = 0, b->normal[1].data[i] = 0, b->normal[2].data[i] = 1;
+                b->normal_octahedral.data[i] = stereotrace_encode_normal(0, 0, 1);
+            }
+        }
+    }
+    return 0;
+}
+
+static int trace(void *user, uint32_t eye, uint32_t frame, uint32_t spp, const StCamera *camera, const StPlaneU8 *mask,
+                 uint32_t row_start, uint32_t row_end, const StRgbMut *out) {
+    Engine *e = user;
+    (void)frame, (void)spp, (void)camera;
+    if (e->fail_trace) return 42;
+    for (uint32_t y = row_start; y < row_end; y++) {
+        for (uint32_t x = 0; x < CW; x++) {
+            if (mask && mask->data[y * mask->stride + x] == 0) continue;
+            float p[3], rgb[3];
+            wall_surface(e->centre_x[eye], CW, CH, (int)x, (int)y, p);
+            wall_colour(p, rgb);
+            size_t i = (size_t)y * out->r.stride + x;
+            out->r.data[i] = rgb[0], out->g.data[i] = rgb[1], out->b.data[i] = rgb[2];
+            e->traced[eye]++;
+        }
+    }
+    return 0;
+}
+
+static void callback_pipeline(void) {
+    Engine engine = {{-HALF_BASELINE, HALF_BASELINE}, {0, 0}, 0};
+    StFrameSourceCallbacks callbacks = {&engine, fill_gbuffers, trace};
+    StPipelineConfig config = stereotrace_pipeline_config_default();
+    config.mode = ST_MODE_STEREO, config.width = CW, config.height = CH, config.threads = 2;
+    /* Tolerances for this coarse view: a tap is a source pixel centre up to a pixel (~16 cm
+     * of wall) from the surface point, so the room-scale 5 cm default would discard all. */
+    StReprojectParams tolerances = stereotrace_reproject_params_default();
+    tolerances.position_tolerance = 0.5f;
+    config.reprojection = &tolerances;
+    StCamera cameras[2] = {wall_camera(-HALF_BASELINE, CW, CH), wall_camera(HALF_BASELINE, CW, CH)};
+    StPipeline *p = NULL;
+    expect(stereotrace_pipeline_create_callbacks(&callbacks, &config, cameras, &p), ST_STATUS_OK, "callback pipeline");
+    if (p == NULL) return;
+    StFrameStats stats;
+    expect(stereotrace_pipeline_render_frame_at(p, 0, cameras, &stats), ST_STATUS_OK, "callback frame");
+    /* The right eye is traced everywhere; the left only where reprojection was discarded:
+     * the columns the right eye cannot see (the wall shifts by `shift` pixels). */
+    double shift = wall_shift_pixels(2 * HALF_BASELINE, CW, CH);
+    CHECK(engine.traced[1] == (uint64_t)CW * CH, "right eye: %llu pixels traced", (unsigned long long)engine.traced[1]);
+    CHECK(engine.traced[0] > 0 && engine.traced[0] <= (uint64_t)ceil(shift + 0.5) * CH,
+          "left eye: %llu pixels traced for a %.2f px shift", (unsigned long long)engine.traced[0], shift);
+    CHECK(engine.traced[0] == stats.traced_pixels[0], "left eye: the engine traced %llu pixels, the library says %llu",
+          (unsigned long long)engine.traced[0], (unsigned long long)stats.traced_pixels[0]);
+    Image left = image_new(CW, CH);
+    StRgbMut view = image_view(&left);
+    expect(stereotrace_pipeline_output(p, 0, &view), ST_STATUS_OK, "left output");
+    double worst = 0;
+    int border = (int)ceil(shift + 0.5);
+    for (int y = 0; y < CH; y++) {
+        /* The border column next to the traced ones keeps part of its footprint: its
+         * colour is the in-frame taps' average, not the surface's. */
+        for (int x = border; x < CW; x++) {
+            float q[3], truth[3];
+            wall_surface(-HALF_BASELINE, CW, CH, x, y, q);
+            wall_colour(q, truth);
+            for (int c = 0; c < 3; c++) worst = fmax(worst, fabs(left.planes[c][y * left.stride + x] - truth[c]));
+        }
+    }
+    /* Reprojected pixels interpolate a linear colour: exact to float rounding. */
+    CHECK(worst < 2e-4, "left image off the closed form by %g", worst);
+    printf("callback stereo frame: right traced %llu px, left traced %llu px (shift %.2f px), worst error %.2e\n",
+           (unsigned long long)engine.traced[1], (unsigned long long)engine.traced[0], shift, worst);
+    image_free(&left);
+
+    StCamera small[2] = {wall_camera(-HALF_BASELINE, CW - 1, CH), wall_camera(HALF_BASELINE, CW - 1, CH)};
+    expect(stereotrace_pipeline_render_frame_at(p, 1, small, NULL), ST_STATUS_INVALID_ARGUMENT,
+           "cameras of another size");
+    expect(stereotrace_pipeline_render_frame(p, 1, NULL), ST_STATUS_INVALID_ARGUMENT, "frame without a scene");
+    engine.fail_trace = 1;
+    expect(stereotrace_pipeline_render_frame_at(p, 1, cameras, NULL), ST_STATUS_INVALID_ARGUMENT,
+           "a failing trace callback");
+    stereotrace_pipeline_destroy(p);
+
+    StFrameSourceCallbacks missing = {&engine, fill_gbuffers, NULL};
+    p = NULL;
+    expect(stereotrace_pipeline_create_callbacks(&missing, &config, cameras, &p), ST_STATUS_NULL_POINTER,
+           "missing trace callback");
+    CHECK(p == NULL, "a refused create wrote a pipeline");
+}
+
+static void bad_configs(void) {
+    StPipeline *p = NULL;
+    StPipelineConfig c = stereotrace_pipeline_config_default();
+    c.width = 64, c.height = 36;
+    expect(stereotrace_pipeline_create_scene("no-such-scene", &c, &p), ST_STATUS_INVALID_ARGUMENT, "unknown scene");
+    expect(stereotrace_pipeline_create_scene(NULL, &c, &p), ST_STATUS_NULL_POINTER, "null scene");
+    StPipelineConfig bad = c;
+    bad.width = 0;
+    expect(stereotrace_pipeline_create_scene("cornell", &bad, &p), ST_STATUS_INVALID_ARGUMENT, "zero width");
+    bad = c, bad.budget_ms = NAN;
+    expect(stereotrace_pipeline_create_scene("cornell", &bad, &p), ST_STATUS_INVALID_ARGUMENT, "NaN budget");
+    bad = c, bad.mode = 17;
+    expect(stereotrace_pipeline_create_scene("cornell", &bad, &p), ST_STATUS_INVALID_ARGUMENT, "unknown mode");
+    bad = c, bad.spp = 0;
+    expect(stereotrace_pipeline_create_scene("cornell", &bad, &p), ST_STATUS_INVALID_ARGUMENT, "zero spp");
+    expect(stereotrace_pipeline_render_frame(NULL, 0, NULL), ST_STATUS_NULL_POINTER, "null pipeline");
+    CHECK(p == NULL, "a refused create wrote a pipeline");
+    stereotrace_pipeline_destroy(NULL);
+}
+
+int main(void) {
+    scene_pipeline();
+    callback_pipeline();
+    bad_configs();
+    if (failures) {
+        fprintf(stderr, "%d check(s) failed\n", failures);
+        return 1;
+    }
+    printf("all checks passed\n");
+    return 0;
+}
