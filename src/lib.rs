@@ -8,7 +8,7 @@
 //! are re-exported here under their own names). Imports flow one way:
 //! kernels ← runtime ← harness ← CLI.
 
-pub use stereotrace_runtime::{camera, cpu, image_io, kernels, pipeline, render, scene};
+pub use stereotrace_runtime::{camera, cpu, image_io, kernels, pipeline, render, scene, source};
 
 pub mod commands;
 pub mod eval;
