@@ -557,73 +557,26 @@ impl<S: FrameSource> Pipeline<S> {
             stats.times.reprojection += t.elapsed();
         }
 
-        match (mode, self.config.order) {
-            (Mode::PathTraced, _) => {
-                for eye in Eye::BOTH {
-                    self.trace_all(eye, &mut stats, start)?;
+        for &step in plan(mode, self.config.order) {
+            match step {
+                Step::Trace(eye) => self.trace_all(eye, &mut stats, start)?,
+                Step::StereoFillLeft(source) => self.stereo_fill_left(source, &mut stats, start)?,
+                Step::StereoBlend(eye, source) => self.stereo_blend(eye, source, &mut stats)?,
+                Step::CombineLeftValidity => {
+                    // Stereo-valid pixels show the reprojected right-eye accumulation as is;
+                    // the rest accumulate their own path-traced samples with the left history.
+                    let s = &mut self.eyes[L];
+                    for ((ema, &stereo), &temporal) in s
+                        .ema_reason
+                        .as_mut_slice()
+                        .iter_mut()
+                        .zip(s.stereo_reason.as_slice())
+                        .zip(s.temporal_reason.as_slice())
+                    {
+                        *ema = if is_reprojected(stereo) { Reason::Invalid as u8 } else { temporal };
+                    }
                 }
-            }
-            (Mode::Stereo, _) => {
-                self.trace_all(Eye::Right, &mut stats, start)?;
-                self.stereo_fill_left(StereoSource::Traced, &mut stats, start)?;
-            }
-            (Mode::Temporal, _) => {
-                for eye in Eye::BOTH {
-                    self.trace_all(eye, &mut stats, start)?;
-                    self.accumulate(eye, Source::Traced, &mut stats)?;
-                }
-            }
-            (Mode::Spatiotemporal, Order::Paper) => {
-                self.trace_all(Eye::Right, &mut stats, start)?;
-                self.accumulate(Eye::Right, Source::Traced, &mut stats)?;
-                self.stereo_fill_left(StereoSource::History, &mut stats, start)?;
-                // Stereo-valid pixels show the reprojected right-eye accumulation as is; the
-                // rest accumulate their own path-traced samples with the left history.
-                let s = &mut self.eyes[L];
-                for ((ema, &stereo), &temporal) in s
-                    .ema_reason
-                    .as_mut_slice()
-                    .iter_mut()
-                    .zip(s.stereo_reason.as_slice())
-                    .zip(s.temporal_reason.as_slice())
-                {
-                    *ema = if is_reprojected(stereo) { Reason::Invalid as u8 } else { temporal };
-                }
-                self.accumulate(Eye::Left, Source::WorkCombined, &mut stats)?;
-            }
-            (Mode::Spatiotemporal, Order::StereoFirst) => {
-                self.trace_all(Eye::Right, &mut stats, start)?;
-                self.stereo_fill_left(StereoSource::Traced, &mut stats, start)?;
-                self.accumulate(Eye::Right, Source::Traced, &mut stats)?;
-                self.accumulate(Eye::Left, Source::Work, &mut stats)?;
-            }
-            (Mode::StereoBlend, _) => {
-                for eye in Eye::BOTH {
-                    self.trace_all(eye, &mut stats, start)?;
-                }
-                for eye in Eye::BOTH {
-                    self.stereo_blend(eye, StereoSource::Traced, &mut stats)?;
-                }
-            }
-            (Mode::SpatiotemporalBlend, Order::Paper) => {
-                for eye in Eye::BOTH {
-                    self.trace_all(eye, &mut stats, start)?;
-                    self.accumulate(eye, Source::Traced, &mut stats)?;
-                }
-                for eye in Eye::BOTH {
-                    self.stereo_blend(eye, StereoSource::History, &mut stats)?;
-                }
-            }
-            (Mode::SpatiotemporalBlend, Order::StereoFirst) => {
-                for eye in Eye::BOTH {
-                    self.trace_all(eye, &mut stats, start)?;
-                }
-                for eye in Eye::BOTH {
-                    self.stereo_blend(eye, StereoSource::Traced, &mut stats)?;
-                }
-                for eye in Eye::BOTH {
-                    self.accumulate(eye, Source::Work, &mut stats)?;
-                }
+                Step::Accumulate(eye, source) => self.accumulate(eye, source, &mut stats)?,
             }
         }
         self.frames_done += 1;
@@ -940,17 +893,88 @@ impl<S: FrameSource> Pipeline<S> {
     }
 }
 
+/// One step of a frame after the G-buffers and the temporal reprojection of the histories.
+/// A mode's schedule is a list of them ([`plan`]), so it can be printed and tested.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Step {
+    /// Path trace every pixel of the eye into its `traced` image (under a budget: those
+    /// without valid history first).
+    Trace(Eye),
+    /// Stereo-reproject the right eye's image (`traced` or accumulated `history`) into the
+    /// left eye's `work` image, then trace the left pixels it discarded.
+    StereoFillLeft(StereoSource),
+    /// The eye's `work` = blend of its own image and the other eye's reprojected one.
+    StereoBlend(Eye, StereoSource),
+    /// The left eye's EMA validity: invalid where stereo reprojection succeeded (those
+    /// pixels restart from the stereo sample), the temporal reason elsewhere.
+    CombineLeftValidity,
+    /// EMA of the eye's reprojected history with new samples from the named image.
+    Accumulate(Eye, Source),
+}
+
+/// The schedule of `mode` in `order` (the table in the module notes, as data).
+pub fn plan(mode: Mode, order: Order) -> &'static [Step] {
+    use Eye::{Left, Right};
+    use Step::*;
+    match (mode, order) {
+        (Mode::PathTraced, _) => &[Trace(Left), Trace(Right)],
+        (Mode::Stereo, _) => &[Trace(Right), StereoFillLeft(StereoSource::Traced)],
+        (Mode::Temporal, _) => {
+            &[Trace(Left), Accumulate(Left, Source::Traced), Trace(Right), Accumulate(Right, Source::Traced)]
+        }
+        (Mode::Spatiotemporal, Order::Paper) => &[
+            Trace(Right),
+            Accumulate(Right, Source::Traced),
+            StereoFillLeft(StereoSource::History),
+            CombineLeftValidity,
+            Accumulate(Left, Source::WorkCombined),
+        ],
+        (Mode::Spatiotemporal, Order::StereoFirst) => &[
+            Trace(Right),
+            StereoFillLeft(StereoSource::Traced),
+            Accumulate(Right, Source::Traced),
+            Accumulate(Left, Source::Work),
+        ],
+        (Mode::StereoBlend, _) => &[
+            Trace(Left),
+            Trace(Right),
+            StereoBlend(Left, StereoSource::Traced),
+            StereoBlend(Right, StereoSource::Traced),
+        ],
+        (Mode::SpatiotemporalBlend, Order::Paper) => &[
+            Trace(Left),
+            Accumulate(Left, Source::Traced),
+            Trace(Right),
+            Accumulate(Right, Source::Traced),
+            StereoBlend(Left, StereoSource::History),
+            StereoBlend(Right, StereoSource::History),
+        ],
+        (Mode::SpatiotemporalBlend, Order::StereoFirst) => &[
+            Trace(Left),
+            Trace(Right),
+            StereoBlend(Left, StereoSource::Traced),
+            StereoBlend(Right, StereoSource::Traced),
+            Accumulate(Left, Source::Work),
+            Accumulate(Right, Source::Work),
+        ],
+    }
+}
+
 /// Which image of the other eye a stereo reprojection reads.
-#[derive(Clone, Copy)]
-enum StereoSource {
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StereoSource {
+    /// This frame's path-traced samples.
     Traced,
+    /// The accumulated history (this frame's EMA output).
     History,
 }
 
 /// Where new samples for the EMA come from.
-#[derive(Clone, Copy)]
-enum Source {
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Source {
+    /// The eye's `traced` image.
     Traced,
+    /// The eye's `work` image (stereo reprojection or blend output).
     Work,
     /// `work`, with the combined validity plane (paper-order spatiotemporal left eye).
     WorkCombined,
