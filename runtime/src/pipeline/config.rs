@@ -1,0 +1,200 @@
+//! What a pipeline computes and how: modes, orders, G-buffer passes and layouts, the
+//! configuration and its validation, and the pipeline's errors.
+
+use std::time::Duration;
+
+use crate::kernels::FrameError;
+use crate::kernels::reproject::{TapPolicy, Tolerances};
+use crate::render::RenderError;
+
+/// What the pipeline computes (see the table in the `pipeline` module notes).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum Mode {
+    PathTraced,
+    Stereo,
+    Temporal,
+    Spatiotemporal,
+    StereoBlend,
+    SpatiotemporalBlend,
+}
+
+impl Mode {
+    pub const ALL: [Mode; 6] = [
+        Mode::PathTraced,
+        Mode::Stereo,
+        Mode::Temporal,
+        Mode::Spatiotemporal,
+        Mode::StereoBlend,
+        Mode::SpatiotemporalBlend,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Mode::PathTraced => "path-traced",
+            Mode::Stereo => "stereo",
+            Mode::Temporal => "temporal",
+            Mode::Spatiotemporal => "spatiotemporal",
+            Mode::StereoBlend => "stereo-blend",
+            Mode::SpatiotemporalBlend => "spatiotemporal-blend",
+        }
+    }
+
+    /// Whether the mode accumulates over time (keeps a history).
+    pub fn temporal(self) -> bool {
+        matches!(self, Mode::Temporal | Mode::Spatiotemporal | Mode::SpatiotemporalBlend)
+    }
+
+    /// Whether the mode reprojects between the eyes.
+    pub fn stereo(self) -> bool {
+        !matches!(self, Mode::PathTraced | Mode::Temporal)
+    }
+
+    /// Whether the order of stereo and temporal reprojection matters for this mode.
+    pub fn has_order(self) -> bool {
+        matches!(self, Mode::Spatiotemporal | Mode::SpatiotemporalBlend)
+    }
+}
+
+impl std::fmt::Display for Mode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Which reprojection comes first in the spatiotemporal modes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum Order {
+    /// The paper's: temporal accumulation of the source, then stereo reprojection.
+    #[default]
+    Paper,
+    /// Stereo reprojection of the fresh samples, then temporal accumulation.
+    StereoFirst,
+}
+
+impl Order {
+    pub fn name(self) -> &'static str {
+        match self {
+            Order::Paper => "paper",
+            Order::StereoFirst => "stereo-first",
+        }
+    }
+}
+
+/// How each frame's G-buffers are made.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum GBufferPass {
+    /// Both eyes rasterised in one pass over the triangles, then resolved with the tracer's
+    /// own triangle test (`render::raster`): the same texels as `traced` except at exact depth
+    /// ties, at a fraction of the cost.
+    #[default]
+    Raster,
+    /// One primary ray per pixel through the BVH (the reference).
+    Traced,
+}
+
+impl GBufferPass {
+    pub fn name(self) -> &'static str {
+        match self {
+            GBufferPass::Raster => "raster",
+            GBufferPass::Traced => "traced",
+        }
+    }
+}
+
+/// Which G-buffer layout the reprojection kernels read.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum Layout {
+    /// Depth + octahedral normals, positions rebuilt from depth (8 B/px).
+    #[default]
+    Compact,
+    /// Depth, position and normal planes (28 B/px).
+    Full,
+}
+
+/// Everything that decides a pipeline's images.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PipelineConfig {
+    pub mode: Mode,
+    pub order: Order,
+    /// Samples per traced pixel per frame.
+    pub spp: u32,
+    /// EMA weight of the new sample (the paper: 0.2).
+    pub alpha: f32,
+    /// `α = max(α, 1/(n+1))` with a per-pixel history length.
+    pub ramp: bool,
+    pub policy: TapPolicy,
+    pub tolerances: Tolerances,
+    /// Weight of an eye's own samples in the stereo blend (the paper: 0.5).
+    pub blend_own_weight: f32,
+    pub layout: Layout,
+    /// Seed of the path tracer's random numbers.
+    pub seed: u64,
+    /// Time budget for a whole frame; `None` traces everything.
+    pub budget: Option<Duration>,
+    /// Rows per tracing tile under a budget.
+    pub tile_rows: usize,
+    /// Use the general integrator instead of the specialised one.
+    pub general_integrator: bool,
+    /// How the G-buffers are made.
+    pub gbuffer: GBufferPass,
+}
+
+impl PipelineConfig {
+    /// The paper's settings for `mode` at `spp` with `tolerances`.
+    pub fn paper(mode: Mode, spp: u32, tolerances: Tolerances) -> Self {
+        Self {
+            mode,
+            order: Order::Paper,
+            spp,
+            alpha: 0.2,
+            ramp: false,
+            policy: TapPolicy::Renormalize,
+            tolerances,
+            blend_own_weight: 0.5,
+            layout: Layout::Compact,
+            seed: 1,
+            budget: None,
+            tile_rows: 8,
+            general_integrator: false,
+            gbuffer: GBufferPass::Raster,
+        }
+    }
+
+    pub(super) fn validate(&self) -> Result<(), String> {
+        if self.spp == 0 {
+            return Err("samples per pixel must be at least 1".into());
+        }
+        if !(self.alpha > 0.0 && self.alpha <= 1.0) {
+            return Err(format!("EMA alpha must be in (0, 1], got {}", self.alpha));
+        }
+        if !(0.0..=1.0).contains(&self.blend_own_weight) {
+            return Err(format!("blend weight must be in [0, 1], got {}", self.blend_own_weight));
+        }
+        if self.tile_rows == 0 {
+            return Err("tile rows must be at least 1".into());
+        }
+        self.tolerances.validate().map_err(|e| e.to_string())
+    }
+}
+
+/// Why a pipeline could not be built or could not run a frame.
+#[derive(Debug, thiserror::Error)]
+pub enum PipelineError {
+    #[error("invalid pipeline configuration: {0}")]
+    Config(String),
+    #[error(transparent)]
+    Frame(#[from] FrameError),
+    #[error(transparent)]
+    Render(#[from] RenderError),
+    /// A [`crate::source::FrameSource`] other than the renderer failed (its own message).
+    #[error("frame source: {0}")]
+    Source(String),
+}

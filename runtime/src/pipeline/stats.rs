@@ -1,0 +1,42 @@
+//! What one frame did: stage times, pixels traced, reasons, accumulation counts.
+
+use std::time::Duration;
+
+use crate::kernels::accumulate::AccumulateStats;
+use crate::kernels::reproject::ReasonCounts;
+use crate::render::TraceStats;
+use crate::render::raster::RasterPassStats;
+
+/// Time per stage of one frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StageTimes {
+    pub gbuffer: Duration,
+    pub reprojection: Duration,
+    pub tracing: Duration,
+    pub accumulation: Duration,
+    pub total: Duration,
+}
+
+/// What one frame did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FrameStats {
+    pub frame: u32,
+    pub times: StageTimes,
+    /// Pixels path traced per eye (left, right).
+    pub traced_pixels: [u64; 2],
+    /// Pixels each eye would have traced without a budget.
+    pub wanted_pixels: [u64; 2],
+    pub trace: TraceStats,
+    /// Stereo reprojection into each eye (left, right), by reason; zero where unused.
+    pub stereo_reasons: [ReasonCounts; 2],
+    /// Temporal reprojection of each eye's history, by reason; zero where unused or on the
+    /// first frame (paper-order spatiotemporal left eye: only the pixels whose stereo
+    /// reprojection failed).
+    pub temporal_reasons: [ReasonCounts; 2],
+    pub accumulation: [AccumulateStats; 2],
+    pub budget: Option<Duration>,
+    /// False when the budget was set and the frame took longer.
+    pub budget_met: bool,
+    /// The rasterised G-buffer pass's counts and step times (with [`super::GBufferPass::Raster`]).
+    pub raster: Option<RasterPassStats>,
+}
