@@ -152,7 +152,9 @@ typedef struct StReprojectParams {
 typedef struct StPlaneF32 {
   // Pixel `(0, 0)`; pixel `(x, y)` is `data[y * stride + x]`.
   const float *data;
+  // Pixels per row (1 ..= 65536).
   uint32_t width;
+  // Rows (1 ..= 65536; at most 2^28 pixels in all).
   uint32_t height;
   // Elements from one row's start to the next (at least `width`).
   uint32_t stride;
@@ -162,7 +164,9 @@ typedef struct StPlaneF32 {
 typedef struct StPlaneU32 {
   // Pixel `(0, 0)`; pixel `(x, y)` is `data[y * stride + x]`.
   const uint32_t *data;
+  // Pixels per row (1 ..= 65536).
   uint32_t width;
+  // Rows (1 ..= 65536; at most 2^28 pixels in all).
   uint32_t height;
   // Elements from one row's start to the next (at least `width`).
   uint32_t stride;
@@ -177,8 +181,9 @@ typedef struct StCamera {
   // The view-projection matrix, column-major (`view_proj[4 * column + row]`), in double
   // precision so a camera far from the origin keeps its exact position.
   double view_proj[16];
-  // The frame size this camera renders.
+  // The frame width this camera renders, in pixels.
   uint32_t width;
+  // The frame height this camera renders, in pixels.
   uint32_t height;
 } StCamera;
 
@@ -188,6 +193,7 @@ typedef struct StCamera {
 typedef struct StGBuffer {
   // A `StLayout` value.
   uint32_t layout;
+  // View-axis depth of the surface (`+INFINITY`: none).
   struct StPlaneF32 depth;
   // `ST_LAYOUT_FULL` only: world x, y, z.
   struct StPlaneF32 position[3];
@@ -201,8 +207,11 @@ typedef struct StGBuffer {
 
 // Three read-only planes of one extent: red, green, blue.
 typedef struct StRgb {
+  // Red.
   struct StPlaneF32 r;
+  // Green.
   struct StPlaneF32 g;
+  // Blue.
   struct StPlaneF32 b;
 } StRgb;
 
@@ -210,7 +219,9 @@ typedef struct StRgb {
 typedef struct StPlaneU8 {
   // Pixel `(0, 0)`; pixel `(x, y)` is `data[y * stride + x]`.
   const uint8_t *data;
+  // Pixels per row (1 ..= 65536).
   uint32_t width;
+  // Rows (1 ..= 65536; at most 2^28 pixels in all).
   uint32_t height;
   // Elements from one row's start to the next (at least `width`).
   uint32_t stride;
@@ -232,7 +243,9 @@ typedef struct StReprojectInput {
 typedef struct StPlaneMutF32 {
   // Pixel `(0, 0)`; pixel `(x, y)` is `data[y * stride + x]`.
   float *data;
+  // Pixels per row (1 ..= 65536).
   uint32_t width;
+  // Rows (1 ..= 65536; at most 2^28 pixels in all).
   uint32_t height;
   // Elements from one row's start to the next (at least `width`).
   uint32_t stride;
@@ -240,8 +253,11 @@ typedef struct StPlaneMutF32 {
 
 // Three writable planes of one extent: red, green, blue.
 typedef struct StRgbMut {
+  // Red.
   struct StPlaneMutF32 r;
+  // Green.
   struct StPlaneMutF32 g;
+  // Blue.
   struct StPlaneMutF32 b;
 } StRgbMut;
 
@@ -249,7 +265,9 @@ typedef struct StRgbMut {
 typedef struct StPlaneMutU8 {
   // Pixel `(0, 0)`; pixel `(x, y)` is `data[y * stride + x]`.
   uint8_t *data;
+  // Pixels per row (1 ..= 65536).
   uint32_t width;
+  // Rows (1 ..= 65536; at most 2^28 pixels in all).
   uint32_t height;
   // Elements from one row's start to the next (at least `width`).
   uint32_t stride;
@@ -257,6 +275,7 @@ typedef struct StPlaneMutU8 {
 
 // Where a reprojection writes (all of the target G-buffer's extent).
 typedef struct StReprojectOutput {
+  // The reprojected samples (0 where discarded).
   struct StRgbMut colour;
   // Required exactly when the input has an extra channel.
   const struct StPlaneMutF32 *extra;
@@ -268,6 +287,7 @@ typedef struct StReprojectOutput {
 
 // Pixels per reason, indexed by the reason code.
 typedef struct StReasonCounts {
+  // `pixels[r]`: pixels whose reason code is `r` (pixels a mask skipped are not counted).
   uint64_t pixels[ST_REASON_COUNT];
 } StReasonCounts;
 
@@ -319,8 +339,9 @@ typedef struct StPipelineConfig {
   uint32_t layout;
   // Samples per traced pixel, 1 ..= 2^20.
   uint32_t spp;
-  // Frame size per eye.
+  // Frame width per eye, in pixels.
   uint32_t width;
+  // Frame height per eye, in pixels.
   uint32_t height;
   // Worker threads (0: one per logical CPU).
   uint32_t threads;
@@ -338,7 +359,9 @@ typedef struct StPipelineConfig {
 typedef struct StPlaneMutU32 {
   // Pixel `(0, 0)`; pixel `(x, y)` is `data[y * stride + x]`.
   uint32_t *data;
+  // Pixels per row.
   uint32_t width;
+  // Rows.
   uint32_t height;
   // Elements from one row's start to the next (at least `width`).
   uint32_t stride;
@@ -349,10 +372,15 @@ typedef struct StPlaneMutU32 {
 // `ST_LAYOUT_FULL`, `depth`, `position` and `normal`. `material` is the source's own (kept,
 // not read by the pipeline). Depth is `+INFINITY` where the pixel sees no surface.
 typedef struct StGBufferMut {
+  // View-axis depth of the surface (`+INFINITY`: none).
   struct StPlaneMutF32 depth;
+  // World position x, y, z (full layout).
   struct StPlaneMutF32 position[3];
+  // World shading normal x, y, z (full layout; need not be unit length).
   struct StPlaneMutF32 normal[3];
+  // `stereotrace_encode_normal` of the shading normal (compact layout).
   struct StPlaneMutU32 normal_octahedral;
+  // The source's own material id per pixel (not read by the pipeline).
   struct StPlaneMutU32 material;
   // The camera this frame's G-buffer is for (the one given to
   // `stereotrace_pipeline_render_frame_at`).
@@ -388,10 +416,15 @@ typedef struct StFrameSourceCallbacks {
 
 // What one frame did.
 typedef struct StFrameStats {
+  // The whole frame.
   double total_ms;
+  // Both eyes' G-buffers (the source's `fill_gbuffers`).
   double gbuffer_ms;
+  // Stereo and temporal reprojection.
   double reprojection_ms;
+  // Path tracing (the source's `trace`).
   double tracing_ms;
+  // EMA and blends.
   double accumulation_ms;
   // Pixels path traced per eye (left, right).
   uint64_t traced_pixels[2];

@@ -30,8 +30,9 @@ pub struct StCamera {
     /// The view-projection matrix, column-major (`view_proj[4 * column + row]`), in double
     /// precision so a camera far from the origin keeps its exact position.
     pub view_proj: [f64; 16],
-    /// The frame size this camera renders.
+    /// The frame width this camera renders, in pixels.
     pub width: u32,
+    /// The frame height this camera renders, in pixels.
     pub height: u32,
 }
 
@@ -63,6 +64,7 @@ pub enum StLayout {
 pub struct StGBuffer {
     /// A `StLayout` value.
     pub layout: u32,
+    /// View-axis depth of the surface (`+INFINITY`: none).
     pub depth: StPlaneF32,
     /// `ST_LAYOUT_FULL` only: world x, y, z.
     pub position: [StPlaneF32; 3],
@@ -130,6 +132,7 @@ const _: () = assert!(ST_REASON_COUNT == REASON_COUNT, "the C reason count follo
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default)]
 pub struct StReasonCounts {
+    /// `pixels[r]`: pixels whose reason code is `r` (pixels a mask skipped are not counted).
     pub pixels: [u64; ST_REASON_COUNT],
 }
 
@@ -151,6 +154,7 @@ pub struct StReprojectInput {
 #[repr(C)]
 #[derive(Clone, Copy, Debug)]
 pub struct StReprojectOutput {
+    /// The reprojected samples (0 where discarded).
     pub colour: StRgbMut,
     /// Required exactly when the input has an extra channel.
     pub extra: *const StPlaneMutF32,

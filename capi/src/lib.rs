@@ -16,6 +16,8 @@
 //!   says why. An output that overlaps another buffer of the call is refused.
 //! * No panic crosses the boundary: a bug inside is reported as `ST_STATUS_PANIC`.
 
+#![warn(missing_docs)]
+
 mod boundary;
 mod kernels;
 mod pipeline;

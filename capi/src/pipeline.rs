@@ -63,8 +63,9 @@ pub struct StPipelineConfig {
     pub layout: u32,
     /// Samples per traced pixel, 1 ..= 2^20.
     pub spp: u32,
-    /// Frame size per eye.
+    /// Frame width per eye, in pixels.
     pub width: u32,
+    /// Frame height per eye, in pixels.
     pub height: u32,
     /// Worker threads (0: one per logical CPU).
     pub threads: u32,
@@ -168,7 +169,9 @@ impl StPipelineConfig {
 pub struct StPlaneMutU32 {
     /// Pixel `(0, 0)`; pixel `(x, y)` is `data[y * stride + x]`.
     pub data: *mut u32,
+    /// Pixels per row.
     pub width: u32,
+    /// Rows.
     pub height: u32,
     /// Elements from one row's start to the next (at least `width`).
     pub stride: u32,
@@ -181,10 +184,15 @@ pub struct StPlaneMutU32 {
 #[repr(C)]
 #[derive(Clone, Copy, Debug)]
 pub struct StGBufferMut {
+    /// View-axis depth of the surface (`+INFINITY`: none).
     pub depth: StPlaneMutF32,
+    /// World position x, y, z (full layout).
     pub position: [StPlaneMutF32; 3],
+    /// World shading normal x, y, z (full layout; need not be unit length).
     pub normal: [StPlaneMutF32; 3],
+    /// `stereotrace_encode_normal` of the shading normal (compact layout).
     pub normal_octahedral: StPlaneMutU32,
+    /// The source's own material id per pixel (not read by the pipeline).
     pub material: StPlaneMutU32,
     /// The camera this frame's G-buffer is for (the one given to
     /// `stereotrace_pipeline_render_frame_at`).
@@ -358,10 +366,15 @@ pub struct StPipeline {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default)]
 pub struct StFrameStats {
+    /// The whole frame.
     pub total_ms: f64,
+    /// Both eyes' G-buffers (the source's `fill_gbuffers`).
     pub gbuffer_ms: f64,
+    /// Stereo and temporal reprojection.
     pub reprojection_ms: f64,
+    /// Path tracing (the source's `trace`).
     pub tracing_ms: f64,
+    /// EMA and blends.
     pub accumulation_ms: f64,
     /// Pixels path traced per eye (left, right).
     pub traced_pixels: [u64; 2],

@@ -23,7 +23,9 @@ use crate::boundary::{Context, Failure, StStatus};
 pub struct StPlaneF32 {
     /// Pixel `(0, 0)`; pixel `(x, y)` is `data[y * stride + x]`.
     pub data: *const f32,
+    /// Pixels per row (1 ..= 65536).
     pub width: u32,
+    /// Rows (1 ..= 65536; at most 2^28 pixels in all).
     pub height: u32,
     /// Elements from one row's start to the next (at least `width`).
     pub stride: u32,
@@ -35,7 +37,9 @@ pub struct StPlaneF32 {
 pub struct StPlaneMutF32 {
     /// Pixel `(0, 0)`; pixel `(x, y)` is `data[y * stride + x]`.
     pub data: *mut f32,
+    /// Pixels per row (1 ..= 65536).
     pub width: u32,
+    /// Rows (1 ..= 65536; at most 2^28 pixels in all).
     pub height: u32,
     /// Elements from one row's start to the next (at least `width`).
     pub stride: u32,
@@ -47,7 +51,9 @@ pub struct StPlaneMutF32 {
 pub struct StPlaneU8 {
     /// Pixel `(0, 0)`; pixel `(x, y)` is `data[y * stride + x]`.
     pub data: *const u8,
+    /// Pixels per row (1 ..= 65536).
     pub width: u32,
+    /// Rows (1 ..= 65536; at most 2^28 pixels in all).
     pub height: u32,
     /// Elements from one row's start to the next (at least `width`).
     pub stride: u32,
@@ -59,7 +65,9 @@ pub struct StPlaneU8 {
 pub struct StPlaneMutU8 {
     /// Pixel `(0, 0)`; pixel `(x, y)` is `data[y * stride + x]`.
     pub data: *mut u8,
+    /// Pixels per row (1 ..= 65536).
     pub width: u32,
+    /// Rows (1 ..= 65536; at most 2^28 pixels in all).
     pub height: u32,
     /// Elements from one row's start to the next (at least `width`).
     pub stride: u32,
@@ -71,7 +79,9 @@ pub struct StPlaneMutU8 {
 pub struct StPlaneU32 {
     /// Pixel `(0, 0)`; pixel `(x, y)` is `data[y * stride + x]`.
     pub data: *const u32,
+    /// Pixels per row (1 ..= 65536).
     pub width: u32,
+    /// Rows (1 ..= 65536; at most 2^28 pixels in all).
     pub height: u32,
     /// Elements from one row's start to the next (at least `width`).
     pub stride: u32,
@@ -81,8 +91,11 @@ pub struct StPlaneU32 {
 #[repr(C)]
 #[derive(Clone, Copy, Debug)]
 pub struct StRgb {
+    /// Red.
     pub r: StPlaneF32,
+    /// Green.
     pub g: StPlaneF32,
+    /// Blue.
     pub b: StPlaneF32,
 }
 
@@ -90,8 +103,11 @@ pub struct StRgb {
 #[repr(C)]
 #[derive(Clone, Copy, Debug)]
 pub struct StRgbMut {
+    /// Red.
     pub r: StPlaneMutF32,
+    /// Green.
     pub g: StPlaneMutF32,
+    /// Blue.
     pub b: StPlaneMutF32,
 }
 
