@@ -80,7 +80,7 @@ fn run_reprojection<L: SurfaceLayout>(
     let input = ReprojectInput {
         target,
         source,
-        source_camera: &source_frame.camera,
+        source_camera: &source_frame.surfaces.camera,
         colour: source_frame.colour.view(),
         extra: None,
         pixel_mask: None,

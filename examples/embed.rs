@@ -46,12 +46,7 @@ impl FrameSource for Engine {
         for (eye, g) in gbuffers.into_iter().enumerate() {
             // The engine's G-buffer pass, then a copy into the pipeline's planes.
             let f = self.scene.render(&g.camera, [0.0; 3]);
-            g.depth.as_mut_slice().copy_from_slice(f.depth.as_slice());
-            g.normal_oct.as_mut_slice().copy_from_slice(f.normal_oct.as_slice());
-            for c in 0..3 {
-                g.position[c].as_mut_slice().copy_from_slice(f.position[c].as_slice());
-                g.normal[c].as_mut_slice().copy_from_slice(f.normal[c].as_slice());
-            }
+            g.copy_from(&f.surfaces)?;
             self.frames[eye] = Some(f);
         }
         Ok(None)

@@ -52,11 +52,11 @@ fn gbuffer(e: &Eye, layout: StLayout) -> StGBuffer {
     let f = &e.frame;
     StGBuffer {
         layout: layout as u32,
-        depth: plane(&f.depth),
-        position: [0, 1, 2].map(|c| plane(&f.position[c])),
-        normal: [0, 1, 2].map(|c| plane(&f.normal[c])),
+        depth: plane(&f.surfaces.depth),
+        position: [0, 1, 2].map(|c| plane(&f.surfaces.position[c])),
+        normal: [0, 1, 2].map(|c| plane(&f.surfaces.normal[c])),
         normal_octahedral: StPlaneU32 {
-            data: f.normal_oct.as_slice().as_ptr(),
+            data: f.surfaces.normal_oct.as_slice().as_ptr(),
             width: W as u32,
             height: H as u32,
             stride: W as u32,
@@ -138,7 +138,7 @@ fn direct<L: stereotrace_kernels::SurfaceLayout>(target: &L, source: &L, source_
     let input = ReprojectInput {
         target,
         source,
-        source_camera: &source_eye.frame.camera,
+        source_camera: &source_eye.frame.surfaces.camera,
         colour: source_eye.frame.colour.view(),
         extra: Some(extra.view()),
         pixel_mask: Some(mask.view()),
@@ -230,13 +230,13 @@ fn refused_calls_write_nothing_and_say_why() {
 
     // An output that starts inside an input plane (a partial overlap, not the same pointer).
     let mut inside = output;
-    inside.reason.data = unsafe { right.frame.depth.as_slice().as_ptr().add(10).cast::<u8>().cast_mut() };
+    inside.reason.data = unsafe { right.frame.surfaces.depth.as_slice().as_ptr().add(10).cast::<u8>().cast_mut() };
     let (status, message) = run(&input, &inside, &t);
     assert_eq!(status, StStatus::Aliasing, "{message}");
     assert!(message.contains("output.reason overlaps source.depth"), "{message}");
 
     // The extra channel must be present on both sides or neither.
-    let extra = plane(&right.frame.depth);
+    let extra = plane(&right.frame.surfaces.depth);
     let with_extra = StReprojectInput { extra: &extra, ..input };
     let (status, message) = run(&with_extra, &output, &t);
     assert_eq!(status, StStatus::InvalidArgument, "{message}");

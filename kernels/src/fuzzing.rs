@@ -90,10 +90,10 @@ fn apply_edits(bytes: &mut Bytes<'_>, frame: &mut SynthFrame) {
         let index = usize::from(u16::from_le_bytes([bytes.u8(), bytes.u8()])) % pixels;
         let value = bytes.f32();
         match plane {
-            0 => frame.depth.as_mut_slice()[index] = value,
-            1..=3 => frame.position[usize::from(plane - 1)].as_mut_slice()[index] = value,
-            4..=6 => frame.normal[usize::from(plane - 4)].as_mut_slice()[index] = value,
-            7 => frame.normal_oct.as_mut_slice()[index] = value.to_bits(),
+            0 => frame.surfaces.depth.as_mut_slice()[index] = value,
+            1..=3 => frame.surfaces.position[usize::from(plane - 1)].as_mut_slice()[index] = value,
+            4..=6 => frame.surfaces.normal[usize::from(plane - 4)].as_mut_slice()[index] = value,
+            7 => frame.surfaces.normal_oct.as_mut_slice()[index] = value.to_bits(),
             8 => frame.colour.r_mut()[index] = value,
             9 => frame.colour.g_mut()[index] = value,
             _ => frame.colour.b_mut()[index] = value,
@@ -185,10 +185,10 @@ impl Strided {
         let f = |p: &PlaneBuf| padded(p, stride, f32::NAN);
         Self {
             stride,
-            depth: f(&frame.depth),
-            position: frame.position.each_ref().map(f),
-            normal: frame.normal.each_ref().map(f),
-            normal_oct: padded(&frame.normal_oct, stride, u32::MAX),
+            depth: f(&frame.surfaces.depth),
+            position: frame.surfaces.position.each_ref().map(f),
+            normal: frame.surfaces.normal.each_ref().map(f),
+            normal_oct: padded(&frame.surfaces.normal_oct, stride, u32::MAX),
             colour: frame.colour.planes().map(f),
             frame: frame.clone(),
         }
@@ -208,8 +208,12 @@ impl Strided {
     }
 
     fn compact(&self) -> crate::gbuffer::CompactGBuffer<'_> {
-        crate::gbuffer::CompactGBuffer::new(self.plane(&self.depth), self.plane(&self.normal_oct), self.frame.camera)
-            .expect("one extent")
+        crate::gbuffer::CompactGBuffer::new(
+            self.plane(&self.depth),
+            self.plane(&self.normal_oct),
+            self.frame.surfaces.camera,
+        )
+        .expect("one extent")
     }
 
     fn colour(&self) -> crate::frame::RgbPlanes<'_> {
@@ -230,7 +234,7 @@ fn check_reprojection<L: SurfaceLayout>(
     let input = ReprojectInput {
         target,
         source,
-        source_camera: &source_frame.frame.camera,
+        source_camera: &source_frame.frame.surfaces.camera,
         colour: source_frame.colour(),
         extra: extra.map(|p| p.view()),
         pixel_mask: mask.map(|m| m.view()),

@@ -17,7 +17,7 @@
 //! pixels of a row, or eight gathered pixels as [`Surfels`]; the three agree bit for bit.
 
 use crate::camera::CameraModel;
-use crate::frame::{Extent, FrameError, Plane, same_extent};
+use crate::frame::{Extent, FrameError, Plane, PlaneBuf, same_extent};
 use crate::simd::{F32s, LANES, TapCoords, lane_offsets};
 use wide::{i32x8, u32x8};
 
@@ -269,6 +269,79 @@ impl SurfaceLayout for CompactGBuffer<'_> {
 
     fn bytes_per_pixel(&self) -> usize {
         4 + 4
+    }
+}
+
+/// An owned G-buffer of one eye and frame, the one type every producer fills (the
+/// renderer's traced and rasterised passes, an engine's own pass, the analytic test scenes):
+/// the full layout's planes (depth, position, normal), the compact layout's octahedral
+/// normals, the camera that rendered it, and a material id per pixel (`u32::MAX` for
+/// background; the producer's own, not read by the kernels). Allocated once, rewritten every
+/// frame.
+#[derive(Clone, Debug)]
+pub struct GBufferBuf {
+    /// The camera that rendered it (its extent is the planes').
+    pub camera: CameraModel,
+    /// View-axis depth (`+inf`: no surface).
+    pub depth: PlaneBuf,
+    /// World position x, y, z (NaN: no surface).
+    pub position: [PlaneBuf; 3],
+    /// World shading normal x, y, z (NaN: no surface).
+    pub normal: [PlaneBuf; 3],
+    /// [`encode_normal`] of the shading normal ([`NO_NORMAL`]: no surface).
+    pub normal_oct: PlaneBuf<u32>,
+    /// The producer's material id (`u32::MAX`: no surface).
+    pub material: PlaneBuf<u32>,
+}
+
+impl GBufferBuf {
+    /// Buffers for frames of `camera.extent`.
+    pub fn new(camera: CameraModel) -> Self {
+        let e = camera.extent;
+        Self {
+            camera,
+            depth: PlaneBuf::new(e, f32::INFINITY),
+            position: [0; 3].map(|_| PlaneBuf::new(e, f32::NAN)),
+            normal: [0; 3].map(|_| PlaneBuf::new(e, f32::NAN)),
+            normal_oct: PlaneBuf::new(e, NO_NORMAL),
+            material: PlaneBuf::new(e, u32::MAX),
+        }
+    }
+
+    /// The planes' extent.
+    pub fn extent(&self) -> Extent {
+        self.depth.extent()
+    }
+
+    /// Copies every plane and the camera of `other` (of the same extent) into these
+    /// buffers without allocating: how a producer that renders into buffers of its own hands
+    /// a frame to a consumer's.
+    pub fn copy_from(&mut self, other: &GBufferBuf) -> Result<(), FrameError> {
+        same_extent("G-buffer", self.extent(), other.extent())?;
+        self.camera = other.camera;
+        self.depth.as_mut_slice().copy_from_slice(other.depth.as_slice());
+        for c in 0..3 {
+            self.position[c].as_mut_slice().copy_from_slice(other.position[c].as_slice());
+            self.normal[c].as_mut_slice().copy_from_slice(other.normal[c].as_slice());
+        }
+        self.normal_oct.as_mut_slice().copy_from_slice(other.normal_oct.as_slice());
+        self.material.as_mut_slice().copy_from_slice(other.material.as_slice());
+        Ok(())
+    }
+
+    /// The full-precision kernel view.
+    pub fn view(&self) -> GBuffer<'_> {
+        GBuffer::new(
+            self.depth.view(),
+            self.position.each_ref().map(|p| p.view()),
+            self.normal.each_ref().map(|p| p.view()),
+        )
+        .expect("planes of one extent")
+    }
+
+    /// The compact kernel view (depth + octahedral normals + camera).
+    pub fn compact(&self) -> CompactGBuffer<'_> {
+        CompactGBuffer::new(self.depth.view(), self.normal_oct.view(), self.camera).expect("planes of one extent")
     }
 }
 

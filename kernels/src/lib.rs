@@ -29,4 +29,4 @@ pub mod synth;
 
 pub use camera::CameraModel;
 pub use frame::{Extent, FrameError, Plane, PlaneBuf, PlaneMut, RgbBuf, RgbPlanes, RgbPlanesMut};
-pub use gbuffer::{CompactGBuffer, GBuffer, SurfaceLayout};
+pub use gbuffer::{CompactGBuffer, GBuffer, GBufferBuf, SurfaceLayout};

@@ -9,8 +9,8 @@
 use glam::Vec3;
 
 use crate::camera::CameraModel;
-use crate::frame::{Extent, PlaneBuf, RgbBuf};
-use crate::gbuffer::{CompactGBuffer, GBuffer, NO_NORMAL, encode_normal};
+use crate::frame::{Extent, RgbBuf};
+use crate::gbuffer::{CompactGBuffer, GBuffer, GBufferBuf, encode_normal};
 
 /// xorshift64* — small, fast, deterministic; not for cryptography.
 #[derive(Clone, Debug)]
@@ -144,32 +144,25 @@ pub struct AnalyticScene {
 /// Everything a frame of an analytic scene provides.
 #[derive(Clone, Debug)]
 pub struct SynthFrame {
-    pub camera: CameraModel,
-    pub depth: PlaneBuf,
-    pub position: [PlaneBuf; 3],
-    pub normal: [PlaneBuf; 3],
-    pub normal_oct: PlaneBuf<u32>,
+    /// The frame's G-buffer (material 0 on every rectangle).
+    pub surfaces: GBufferBuf,
+    /// The surfaces' texture colour (the background colour where there is none).
     pub colour: RgbBuf,
 }
 
 impl SynthFrame {
     /// The full-precision G-buffer view.
     pub fn gbuffer(&self) -> GBuffer<'_> {
-        GBuffer::new(
-            self.depth.view(),
-            [0, 1, 2].map(|i| self.position[i].view()),
-            [0, 1, 2].map(|i| self.normal[i].view()),
-        )
-        .expect("planes of one extent")
+        self.surfaces.view()
     }
 
     /// The compact G-buffer view (depth + octahedral normals + camera).
     pub fn compact(&self) -> CompactGBuffer<'_> {
-        CompactGBuffer::new(self.depth.view(), self.normal_oct.view(), self.camera).expect("planes of one extent")
+        self.surfaces.compact()
     }
 
     pub fn extent(&self) -> Extent {
-        self.depth.extent()
+        self.surfaces.extent()
     }
 }
 
@@ -178,10 +171,7 @@ impl AnalyticScene {
     /// get depth `+inf`, NaN positions and normals, and colour `background`.
     pub fn render(&self, camera: &CameraModel, background: [f32; 3]) -> SynthFrame {
         let extent = camera.extent;
-        let mut depth = PlaneBuf::new(extent, f32::INFINITY);
-        let mut position = [0; 3].map(|_| PlaneBuf::new(extent, f32::NAN));
-        let mut normal = [0; 3].map(|_| PlaneBuf::new(extent, f32::NAN));
-        let mut normal_oct = PlaneBuf::new(extent, NO_NORMAL);
+        let mut g = GBufferBuf::new(*camera);
         let mut colour = RgbBuf::new(extent, 0.0);
         let origin = Vec3::from(camera.centre);
         for y in 0..extent.height() {
@@ -202,16 +192,17 @@ impl AnalyticScene {
                 let n = rect.normal();
                 // Shading normals face the camera, as a renderer's would.
                 let n = if n.dot(dir) > 0.0 { -n } else { n };
-                depth.as_mut_slice()[i] = t;
+                g.depth.as_mut_slice()[i] = t;
                 for c in 0..3 {
-                    position[c].as_mut_slice()[i] = p[c];
-                    normal[c].as_mut_slice()[i] = n[c];
+                    g.position[c].as_mut_slice()[i] = p[c];
+                    g.normal[c].as_mut_slice()[i] = n[c];
                 }
-                normal_oct.as_mut_slice()[i] = encode_normal(n.to_array());
+                g.normal_oct.as_mut_slice()[i] = encode_normal(n.to_array());
+                g.material.as_mut_slice()[i] = 0;
                 colour.set(x, y, rect.texture.eval(s, r));
             }
         }
-        SynthFrame { camera: *camera, depth, position, normal, normal_oct, colour }
+        SynthFrame { surfaces: g, colour }
     }
 
     /// A textured back wall at depth `wall_z` with a few boxes' fronts in front of it and a

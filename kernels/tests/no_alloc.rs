@@ -39,7 +39,7 @@ fn second_frame_allocates_nothing() {
         let input = ReprojectInput {
             target: &t,
             source: &s,
-            source_camera: &right.camera,
+            source_camera: &right.surfaces.camera,
             colour: right.colour.view(),
             extra: None,
             pixel_mask: None,
@@ -58,7 +58,7 @@ fn second_frame_allocates_nothing() {
         let input = ReprojectInput {
             target: &t,
             source: &s,
-            source_camera: &left_prev.camera,
+            source_camera: &left_prev.surfaces.camera,
             colour: left_prev.colour.view(),
             extra: Some(history_len.view()),
             pixel_mask: None,
@@ -78,7 +78,7 @@ fn second_frame_allocates_nothing() {
         let input = ReprojectInput {
             target: &t,
             source: &s,
-            source_camera: &right.camera,
+            source_camera: &right.surfaces.camera,
             colour: right.colour.view(),
             extra: None,
             pixel_mask: None,

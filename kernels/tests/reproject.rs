@@ -83,7 +83,7 @@ fn input_for<'a, L: SurfaceLayout>(
     ReprojectInput {
         target,
         source,
-        source_camera: &source_frame.camera,
+        source_camera: &source_frame.surfaces.camera,
         colour: source_frame.colour.view(),
         extra,
         pixel_mask: None,
@@ -173,9 +173,9 @@ fn pixel_mask_reprojects_only_the_chosen_pixels() {
 
 /// Replaces a random share of every G-buffer and colour value with edge values.
 fn corrupt(frame: &mut SynthFrame, rng: &mut Rng, share: f32) {
-    let mut planes: Vec<&mut [f32]> = vec![frame.depth.as_mut_slice()];
-    planes.extend(frame.position.iter_mut().map(PlaneBuf::as_mut_slice));
-    planes.extend(frame.normal.iter_mut().map(PlaneBuf::as_mut_slice));
+    let mut planes: Vec<&mut [f32]> = vec![frame.surfaces.depth.as_mut_slice()];
+    planes.extend(frame.surfaces.position.iter_mut().map(PlaneBuf::as_mut_slice));
+    planes.extend(frame.surfaces.normal.iter_mut().map(PlaneBuf::as_mut_slice));
     planes.extend(frame.colour.slices_mut());
     for plane in planes {
         for v in plane {
@@ -184,7 +184,7 @@ fn corrupt(frame: &mut SynthFrame, rng: &mut Rng, share: f32) {
             }
         }
     }
-    for v in frame.normal_oct.as_mut_slice() {
+    for v in frame.surfaces.normal_oct.as_mut_slice() {
         if rng.next_f32() < share {
             *v = rng.next_u32();
         }
@@ -269,7 +269,7 @@ fn identity_camera_copies_the_source_exactly() {
                 run_reprojection(&input_for(&g, &g, &frame, None), &params(TapPolicy::Strict), true).unwrap()
             };
             for i in 0..e.pixels() {
-                if frame.depth.as_slice()[i].is_infinite() {
+                if frame.surfaces.depth.as_slice()[i].is_infinite() {
                     assert_eq!(r.reason.as_slice()[i], Reason::Background as u8);
                     continue;
                 }
@@ -425,7 +425,7 @@ fn occlusion_band_behind_a_foreground_strip_is_discarded_for_depth() {
 fn flipped_source_normals_are_discarded_for_normal() {
     let e = extent(40, 20);
     let (left, mut right) = stereo_room(e, 0.065);
-    for n in right.normal.iter_mut() {
+    for n in right.surfaces.normal.iter_mut() {
         for v in n.as_mut_slice() {
             *v = -*v;
         }
@@ -471,10 +471,10 @@ fn frame_borders_are_out_of_frame_under_strict_and_renormalised_otherwise() {
 fn background_and_nan_targets_get_their_own_reasons() {
     let e = extent(24, 8);
     let (mut left, right) = stereo_room(e, 0.065);
-    left.depth.as_mut_slice()[5] = f32::INFINITY;
-    left.position[1].as_mut_slice()[9] = f32::NAN;
-    left.normal[2].as_mut_slice()[10] = f32::NAN;
-    left.depth.as_mut_slice()[11] = -1.0;
+    left.surfaces.depth.as_mut_slice()[5] = f32::INFINITY;
+    left.surfaces.position[1].as_mut_slice()[9] = f32::NAN;
+    left.surfaces.normal[2].as_mut_slice()[10] = f32::NAN;
+    left.surfaces.depth.as_mut_slice()[11] = -1.0;
     let (tg, sg) = (left.gbuffer(), right.gbuffer());
     let r = run_reprojection(&input_for(&tg, &sg, &right, None), &params(TapPolicy::Renormalize), true).unwrap();
     assert_eq!(r.reason.as_slice()[5], Reason::Background as u8);
@@ -508,7 +508,7 @@ fn bad_inputs_are_refused_with_named_errors() {
     let input = ReprojectInput {
         target: &tg,
         source: &sg,
-        source_camera: &other.camera,
+        source_camera: &other.surfaces.camera,
         colour: right.colour.view(),
         extra: None,
         pixel_mask: None,
@@ -549,8 +549,11 @@ fn strided_views_give_the_same_result_as_packed_ones() {
         }
         v
     };
-    let planes: Vec<Vec<f32>> =
-        std::iter::once(&left.depth).chain(left.position.iter()).chain(left.normal.iter()).map(pad).collect();
+    let planes: Vec<Vec<f32>> = std::iter::once(&left.surfaces.depth)
+        .chain(left.surfaces.position.iter())
+        .chain(left.surfaces.normal.iter())
+        .map(pad)
+        .collect();
     fn view(v: &[f32], e: Extent, stride: usize) -> Plane<'_> {
         Plane::new(v, e.width(), e.height(), stride).unwrap()
     }

@@ -59,15 +59,7 @@ impl FrameSource for Analytic {
     ) -> Result<Option<RasterPassStats>, PipelineError> {
         for (eye, g) in gbuffers.into_iter().enumerate() {
             let f = self.scene.render(&g.camera, [0.0; 3]);
-            g.depth.as_mut_slice().copy_from_slice(f.depth.as_slice());
-            for c in 0..3 {
-                g.position[c].as_mut_slice().copy_from_slice(f.position[c].as_slice());
-                g.normal[c].as_mut_slice().copy_from_slice(f.normal[c].as_slice());
-            }
-            g.normal_oct.as_mut_slice().copy_from_slice(f.normal_oct.as_slice());
-            for (m, d) in g.material.as_mut_slice().iter_mut().zip(f.depth.as_slice()) {
-                *m = if d.is_finite() { 0 } else { u32::MAX };
-            }
+            g.copy_from(&f.surfaces)?;
             self.frames[eye] = Some(f);
         }
         Ok(None)
@@ -82,7 +74,7 @@ impl FrameSource for Analytic {
         out: &mut RgbBuf,
     ) -> Result<TraceStats, PipelineError> {
         let frame = self.frames[request.eye as usize].as_ref().expect("G-buffers before tracing");
-        assert_eq!(&frame.camera, camera, "traced with the camera the G-buffer was made with");
+        assert_eq!(&frame.surfaces.camera, camera, "traced with the camera the G-buffer was made with");
         for y in rows {
             for x in 0..W {
                 let selected = match selection {
@@ -184,7 +176,7 @@ fn path_traced_and_stereo_frames_are_the_kernels_on_the_same_buffers() {
     let input = ReprojectInput {
         target: &t,
         source: &s,
-        source_camera: &right.camera,
+        source_camera: &right.surfaces.camera,
         colour: right_samples.view(),
         extra: None,
         pixel_mask: None,
@@ -222,7 +214,7 @@ fn temporal_frames_are_reprojection_then_ema_on_the_same_buffers() {
         let input = ReprojectInput {
             target: &t,
             source: &s,
-            source_camera: &prev.camera,
+            source_camera: &prev.surfaces.camera,
             colour: prev_history.view(),
             extra: None,
             pixel_mask: None,

@@ -47,9 +47,10 @@ use rayon::prelude::*;
 
 use crate::camera::Eye;
 use crate::kernels::bvh::{BuildQuality, BuildStats, Hit, PreparedRay, Ray, TriangleBvh, intersect_triangle};
-use crate::kernels::gbuffer::{CompactGBuffer, GBuffer, NO_NORMAL, encode_normal};
+pub use crate::kernels::gbuffer::GBufferBuf;
+use crate::kernels::gbuffer::{NO_NORMAL, encode_normal};
 use crate::kernels::simd::{F32s, LANES};
-use crate::kernels::{CameraModel, Extent, FrameError, PlaneBuf, RgbBuf};
+use crate::kernels::{CameraModel, FrameError, PlaneBuf, RgbBuf};
 use crate::scene::{MaterialKind, Scene};
 use bsdf::ShadingPoint;
 use effects::{ALPHA_MASKS, MOVING_LIGHTS, TEXTURES, has};
@@ -119,53 +120,6 @@ impl std::ops::Add for TraceStats {
 impl std::iter::Sum for TraceStats {
     fn sum<I: Iterator<Item = Self>>(iter: I) -> Self {
         iter.fold(Self::default(), |a, b| a + b)
-    }
-}
-
-/// The G-buffer of one eye and frame: the full layout (depth, position, normal), the
-/// compact layout's octahedral normals, and the material id per pixel (`u32::MAX` for
-/// background). Allocated once, rewritten every frame.
-#[derive(Clone, Debug)]
-pub struct GBufferBuf {
-    pub camera: CameraModel,
-    pub depth: PlaneBuf,
-    pub position: [PlaneBuf; 3],
-    pub normal: [PlaneBuf; 3],
-    pub normal_oct: PlaneBuf<u32>,
-    pub material: PlaneBuf<u32>,
-}
-
-impl GBufferBuf {
-    /// Buffers for frames of `camera.extent`.
-    pub fn new(camera: CameraModel) -> Self {
-        let e = camera.extent;
-        Self {
-            camera,
-            depth: PlaneBuf::new(e, f32::INFINITY),
-            position: [0; 3].map(|_| PlaneBuf::new(e, f32::NAN)),
-            normal: [0; 3].map(|_| PlaneBuf::new(e, f32::NAN)),
-            normal_oct: PlaneBuf::new(e, NO_NORMAL),
-            material: PlaneBuf::new(e, u32::MAX),
-        }
-    }
-
-    pub fn extent(&self) -> Extent {
-        self.depth.extent()
-    }
-
-    /// The full-precision kernel view.
-    pub fn view(&self) -> GBuffer<'_> {
-        GBuffer::new(
-            self.depth.view(),
-            self.position.each_ref().map(|p| p.view()),
-            self.normal.each_ref().map(|p| p.view()),
-        )
-        .expect("planes of one extent")
-    }
-
-    /// The compact kernel view (depth + octahedral normals + camera).
-    pub fn compact(&self) -> CompactGBuffer<'_> {
-        CompactGBuffer::new(self.depth.view(), self.normal_oct.view(), self.camera).expect("planes of one extent")
     }
 }
 
