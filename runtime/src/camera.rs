@@ -18,16 +18,20 @@ pub const DEFAULT_EYE_SEPARATION: f32 = 0.065;
 /// Near and far planes of the projection. Only the x, y and w rows matter to the kernels,
 /// so these only need to bracket nothing in particular; they are kept wide.
 pub const NEAR: f32 = 0.01;
+/// The far plane (see [`NEAR`]).
 pub const FAR: f32 = 10_000.0;
 
 /// Which eye.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Eye {
+    /// The left eye (index 0): filled by stereo reprojection in the stereo modes.
     Left = 0,
+    /// The right eye (index 1): always path traced.
     Right = 1,
 }
 
 impl Eye {
+    /// Both eyes in index order.
     pub const BOTH: [Eye; 2] = [Eye::Left, Eye::Right];
 
     /// The other eye.
@@ -46,6 +50,7 @@ impl Eye {
         }
     }
 
+    /// A lower-case name for tables and file names.
     pub fn name(self) -> &'static str {
         match self {
             Eye::Left => "left",

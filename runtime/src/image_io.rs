@@ -9,7 +9,9 @@ use crate::kernels::{Extent, RgbBuf};
 #[derive(Debug, thiserror::Error)]
 #[error("{path}: {message}")]
 pub struct ImageError {
+    /// The file.
     pub path: PathBuf,
+    /// What went wrong.
     pub message: String,
 }
 

@@ -8,6 +8,8 @@
 //! pulls in no argument parser, progress bar or plotting library (the optional `clap`
 //! feature only derives `clap::ValueEnum` on the pipeline's option enums).
 
+#![warn(missing_docs)]
+
 pub use stereotrace_kernels as kernels;
 
 pub mod camera;

@@ -84,6 +84,7 @@ impl<R: Borrow<Renderer>> RendererSource<R> {
         }
     }
 
+    /// The renderer behind this source.
     pub fn renderer(&self) -> &Renderer {
         self.renderer.borrow()
     }

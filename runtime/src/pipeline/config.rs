@@ -12,15 +12,22 @@ use crate::render::RenderError;
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum Mode {
+    /// Both eyes fully path traced (the baseline).
     PathTraced,
+    /// The left eye reprojected from the right one, traced where discarded.
     Stereo,
+    /// Each eye accumulates its own temporally reprojected history (EMA).
     Temporal,
+    /// Stereo and temporal reprojection combined (the paper's main mode).
     Spatiotemporal,
+    /// Each eye blends its own samples with the other eye's reprojection.
     StereoBlend,
+    /// The stereo blend over temporally accumulated histories.
     SpatiotemporalBlend,
 }
 
 impl Mode {
+    /// Every mode, in the paper's order.
     pub const ALL: [Mode; 6] = [
         Mode::PathTraced,
         Mode::Stereo,
@@ -30,6 +37,7 @@ impl Mode {
         Mode::SpatiotemporalBlend,
     ];
 
+    /// The CLI's and the tables' name (`path-traced`, `stereo`, ...).
     pub fn name(self) -> &'static str {
         match self {
             Mode::PathTraced => "path-traced",
@@ -76,6 +84,7 @@ pub enum Order {
 }
 
 impl Order {
+    /// The CLI's and the tables' name.
     pub fn name(self) -> &'static str {
         match self {
             Order::Paper => "paper",
@@ -99,6 +108,7 @@ pub enum GBufferPass {
 }
 
 impl GBufferPass {
+    /// The CLI's and the tables' name.
     pub fn name(self) -> &'static str {
         match self {
             GBufferPass::Raster => "raster",
@@ -122,7 +132,9 @@ pub enum Layout {
 /// Everything that decides a pipeline's images.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PipelineConfig {
+    /// What is computed (see [`Mode`]).
     pub mode: Mode,
+    /// Order of stereo and temporal reprojection (modes that have one).
     pub order: Order,
     /// Samples per traced pixel per frame.
     pub spp: u32,
@@ -130,10 +142,13 @@ pub struct PipelineConfig {
     pub alpha: f32,
     /// `α = max(α, 1/(n+1))` with a per-pixel history length.
     pub ramp: bool,
+    /// What reprojection does with a pixel some of whose taps failed.
     pub policy: TapPolicy,
+    /// Reprojection discard thresholds, in scene units (see `SceneTolerances::at_height`).
     pub tolerances: Tolerances,
     /// Weight of an eye's own samples in the stereo blend (the paper: 0.5).
     pub blend_own_weight: f32,
+    /// The G-buffer layout reprojection reads.
     pub layout: Layout,
     /// Seed of the path tracer's random numbers.
     pub seed: u64,
@@ -189,10 +204,13 @@ impl PipelineConfig {
 #[derive(Debug, thiserror::Error)]
 pub enum PipelineError {
     #[error("invalid pipeline configuration: {0}")]
+    /// The configuration was refused (the message says which field and why).
     Config(String),
     #[error(transparent)]
+    /// A buffer, extent or camera was refused by a kernel.
     Frame(#[from] FrameError),
     #[error(transparent)]
+    /// The renderer failed.
     Render(#[from] RenderError),
     /// A [`crate::source::FrameSource`] other than the renderer failed (its own message).
     #[error("frame source: {0}")]

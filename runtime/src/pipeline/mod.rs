@@ -180,10 +180,12 @@ impl<S: FrameSource> Pipeline<S> {
         &mut self.source
     }
 
+    /// The configuration the pipeline was built with.
     pub fn config(&self) -> &PipelineConfig {
         &self.config
     }
 
+    /// The frame size of both eyes.
     pub fn extent(&self) -> Extent {
         self.extent
     }

@@ -10,22 +10,30 @@ use crate::render::raster::RasterPassStats;
 /// Time per stage of one frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct StageTimes {
+    /// Both eyes' G-buffers.
     pub gbuffer: Duration,
+    /// Stereo and temporal reprojection.
     pub reprojection: Duration,
+    /// Path tracing.
     pub tracing: Duration,
+    /// EMA and blends.
     pub accumulation: Duration,
+    /// The whole frame.
     pub total: Duration,
 }
 
 /// What one frame did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct FrameStats {
+    /// The frame number given to the render call.
     pub frame: u32,
+    /// Time per stage.
     pub times: StageTimes,
     /// Pixels path traced per eye (left, right).
     pub traced_pixels: [u64; 2],
     /// Pixels each eye would have traced without a budget.
     pub wanted_pixels: [u64; 2],
+    /// Rays traced.
     pub trace: TraceStats,
     /// Stereo reprojection into each eye (left, right), by reason; zero where unused.
     pub stereo_reasons: [ReasonCounts; 2],
@@ -33,7 +41,9 @@ pub struct FrameStats {
     /// first frame (paper-order spatiotemporal left eye: only the pixels whose stereo
     /// reprojection failed).
     pub temporal_reasons: [ReasonCounts; 2],
+    /// What each eye's EMA saw (left, right).
     pub accumulation: [AccumulateStats; 2],
+    /// The frame's budget, if any.
     pub budget: Option<Duration>,
     /// False when the budget was set and the frame took longer.
     pub budget_met: bool,

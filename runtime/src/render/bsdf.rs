@@ -22,6 +22,7 @@ use crate::scene::MaterialKind;
 /// Everything shading needs about a surface point. Normals face the side the ray came from.
 #[derive(Clone, Copy, Debug)]
 pub struct ShadingPoint {
+    /// World position of the point.
     pub position: Vec3,
     /// Per-axis bound on the rounding error of `position` (see [`super::spawn`]).
     pub position_error: Vec3,
@@ -29,6 +30,7 @@ pub struct ShadingPoint {
     pub geometric_normal: Vec3,
     /// Unit shading normal (interpolated), on the same side as `geometric_normal`.
     pub shading_normal: Vec3,
+    /// Which BSDF.
     pub kind: MaterialKind,
     /// Diffuse albedo after texturing.
     pub albedo: Vec3,
@@ -41,7 +43,9 @@ pub struct ShadingPoint {
 /// A sampled direction and its weight `f · |cos θ| / pdf`.
 #[derive(Clone, Copy, Debug)]
 pub struct BsdfSample {
+    /// Unit direction of the sampled incoming light.
     pub wi: Vec3,
+    /// `f · |cos θ| / pdf` per colour channel.
     pub weight: Vec3,
     /// True for a delta lobe (mirror): next-event estimation could not have sampled it.
     pub delta: bool,

@@ -13,10 +13,15 @@
 
 use crate::scene::{Effect, EffectSet};
 
+/// Glossy (GGX) materials.
 pub const GLOSSY: u16 = 1 << 0;
+/// Mirror materials.
 pub const MIRROR: u16 = 1 << 1;
+/// Area lights that move during the camera path.
 pub const MOVING_LIGHTS: u16 = 1 << 2;
+/// Texture lookups.
 pub const TEXTURES: u16 = 1 << 3;
+/// Alpha-masked (cut-out) materials.
 pub const ALPHA_MASKS: u16 = 1 << 4;
 /// The general integrator.
 pub const ALL: u16 = GLOSSY | MIRROR | MOVING_LIGHTS | TEXTURES | ALPHA_MASKS;

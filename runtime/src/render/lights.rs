@@ -22,16 +22,25 @@ use crate::scene::{Environment, MovingShape, Scene, SunLight};
 pub enum LightRecord {
     /// A one-sided emissive triangle (emits on the side of `(v1 − v0) × (v2 − v0)`).
     Triangle {
+        /// The vertices.
         v: [Vec3; 3],
+        /// Unit normal of the emitting side.
         normal: Vec3,
+        /// Area in square metres.
         area: f32,
+        /// Emitted radiance.
         radiance: Vec3,
     },
+    /// A point light.
     Point {
+        /// Its position.
         position: Vec3,
+        /// Radiant intensity (W/sr per channel).
         intensity: Vec3,
     },
+    /// A sun: a distant disc of a given angular radius.
     Sun(SunLight),
+    /// The scene's environment (constant, analytic sky or HDR map).
     Environment,
 }
 
@@ -60,13 +69,22 @@ pub enum ShadowTarget {
     Point(Vec3),
     /// A point sampled on an emitting triangle, with its rounding-error bound and the
     /// triangle's unit normal.
-    Surface { point: Vec3, error: Vec3, normal: Vec3 },
+    Surface {
+        /// The sampled point.
+        point: Vec3,
+        /// Per-axis bound on its rounding error.
+        error: Vec3,
+        /// The triangle's unit normal.
+        normal: Vec3,
+    },
 }
 
 /// A triangle of a moving area light, for ray hits.
 #[derive(Clone, Copy, Debug)]
 pub struct MovingTriangle {
+    /// The vertices at this frame.
     pub v: [Vec3; 3],
+    /// Emitted radiance.
     pub radiance: Vec3,
 }
 
@@ -172,6 +190,7 @@ impl FrameLights {
         self.records.len()
     }
 
+    /// Whether the frame has no light at all.
     pub fn is_empty(&self) -> bool {
         self.records.is_empty()
     }

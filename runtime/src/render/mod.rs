@@ -61,10 +61,13 @@ use rng::{Dim, SampleStream};
 #[derive(Debug, thiserror::Error)]
 pub enum RenderError {
     #[error("BVH build failed: {0}")]
+    /// The scene's BVH could not be built.
     Bvh(#[from] crate::kernels::bvh::BvhError),
     #[error(transparent)]
+    /// A buffer, extent or camera was refused.
     Frame(#[from] FrameError),
     #[error("{0}")]
+    /// An input was refused (the message says which).
     Invalid(String),
 }
 
@@ -136,6 +139,7 @@ enum Kernel {
 /// Which pixels a tracing call fills.
 #[derive(Clone, Copy)]
 pub enum PixelSelection<'a> {
+    /// Every pixel.
     All,
     /// Only pixels whose mask byte is non-zero; the others keep their value.
     Mask(&'a PlaneBuf<u8>),
@@ -144,7 +148,9 @@ pub enum PixelSelection<'a> {
 /// The parameters of one path-tracing call.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TraceRequest {
+    /// Which eye (part of every random number).
     pub eye: Eye,
+    /// The frame (scene time, and part of every random number).
     pub frame: u32,
     /// Samples per pixel.
     pub spp: u32,
@@ -182,10 +188,12 @@ impl Renderer {
         self.bounces
     }
 
+    /// The scene being rendered.
     pub fn scene(&self) -> &Scene {
         &self.scene
     }
 
+    /// The scene's BVH.
     pub fn bvh(&self) -> &TriangleBvh {
         &self.bvh
     }
@@ -195,6 +203,7 @@ impl Renderer {
         self.bvh_stats.total_time
     }
 
+    /// How the BVH was built (time, nodes, quality).
     pub fn bvh_stats(&self) -> &BuildStats {
         &self.bvh_stats
     }

@@ -51,6 +51,7 @@ pub enum GBufferPlanes {
 }
 
 impl RasterGBuffers {
+    /// Buffers for frames of `extent` (grown as frames need).
     pub fn new(extent: Extent) -> Self {
         Self {
             rasterizer: Rasterizer::new(),
@@ -71,7 +72,9 @@ impl RasterGBuffers {
 /// the resolve's time.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct RasterPassStats {
+    /// The rasteriser's counters and step times.
     pub raster: RasterStats,
+    /// Wall time of the resolve (visibility into G-buffer texels).
     pub resolve: std::time::Duration,
 }
 

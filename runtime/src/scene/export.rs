@@ -25,7 +25,9 @@ use crate::kernels::{Extent, RgbBuf};
 /// What [`export_folder`] wrote.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct ExportSummary {
+    /// Triangles written.
     pub triangles: usize,
+    /// Materials written.
     pub materials: usize,
     /// Image files written (textures and the environment map).
     pub images: usize,

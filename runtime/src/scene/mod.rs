@@ -137,6 +137,7 @@ impl SceneTolerances {
 pub struct Units {
     /// One unit of the source files, in metres.
     pub meters_per_unit: f32,
+    /// Who said so.
     pub from: UnitsFrom,
 }
 

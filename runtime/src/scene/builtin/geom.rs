@@ -20,10 +20,12 @@ use crate::scene::texture::Texture;
 pub struct Rng(u64);
 
 impl Rng {
+    /// A generator seeded with `seed`.
     pub fn new(seed: u64) -> Self {
         Self(seed ^ 0x9E37_79B9_7F4A_7C15)
     }
 
+    /// The next 64 random bits (splitmix64).
     pub fn next_u64(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
         let mut z = self.0;
@@ -55,7 +57,9 @@ pub struct Builder {
     nrm: Vec<[Vec3; 3]>,
     uv: Vec<[Vec2; 3]>,
     mat: Vec<u32>,
+    /// The materials added so far.
     pub materials: Vec<Material>,
+    /// The textures added so far.
     pub textures: Vec<Texture>,
     xf: Affine3A,
     nmat: Mat3,
@@ -63,6 +67,7 @@ pub struct Builder {
 }
 
 impl Builder {
+    /// An empty builder with the identity transform.
     pub fn new() -> Self {
         Self::default()
     }
@@ -79,6 +84,7 @@ impl Builder {
         self.cur = m;
     }
 
+    /// Adds a texture and returns its index.
     pub fn texture(&mut self, t: Texture) -> u32 {
         self.textures.push(t);
         self.textures.len() as u32 - 1
