@@ -48,9 +48,13 @@ pub const DEFAULT_BAND_ROWS: usize = 16;
 /// The four taps around one position.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Footprint {
+    /// Column of the top-left tap (may be −1: left of the frame).
     pub x0: i32,
+    /// Row of the top-left tap (may be −1: above the frame).
     pub y0: i32,
+    /// Horizontal offset from the top-left tap, in [0, 1) (snapped near 0).
     pub fx: f32,
+    /// Vertical offset from the top-left tap, in [0, 1) (snapped near 0).
     pub fy: f32,
 }
 
@@ -110,9 +114,13 @@ fn snap(u: f32) -> (f32, f32) {
 /// `LANES` footprints. Lanes where `inside` is clear hold `x0 = y0 = fx = fy = 0`.
 #[derive(Clone, Copy, Debug)]
 pub struct Footprints {
+    /// Column of each lane's top-left tap (as f32).
     pub x0: F32s,
+    /// Row of each lane's top-left tap (as f32).
     pub y0: F32s,
+    /// Horizontal offsets, as [`Footprint::fx`].
     pub fx: F32s,
+    /// Vertical offsets, as [`Footprint::fy`].
     pub fy: F32s,
     /// All-ones where a footprint exists (see [`Footprint::new`]).
     pub inside: F32s,
@@ -225,7 +233,9 @@ pub struct ResampleInput<'a> {
 /// Outputs of the resampling kernel: the renormalised colour (0 where no tap was accepted)
 /// and the accepted weight `Σ_accepted wᵢ` in [0, 1].
 pub struct ResampleOutput<'a> {
+    /// The resampled colour.
     pub colour: RgbPlanesMut<'a>,
+    /// The accepted weight per pixel.
     pub weight: PlaneMut<'a>,
 }
 

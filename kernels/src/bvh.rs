@@ -130,9 +130,15 @@ impl BuildQuality {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum BvhError {
     /// A vertex coordinate is NaN, infinite or larger than [`MAX_COORD`] in magnitude.
-    BadVertex { triangle: usize },
+    BadVertex {
+        /// Index of the offending triangle.
+        triangle: usize,
+    },
     /// More triangles than the `u32` indices can address (2³¹ − 1 is the limit).
-    TooManyTriangles { count: usize },
+    TooManyTriangles {
+        /// How many were given.
+        count: usize,
+    },
 }
 
 impl fmt::Display for BvhError {
@@ -177,9 +183,13 @@ pub struct BuildStats {
 /// units of `dir`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Ray {
+    /// Where the ray starts.
     pub origin: Vec3,
+    /// Its direction (any non-zero length).
     pub dir: Vec3,
+    /// Nearest accepted `t`.
     pub tmin: f32,
+    /// Farthest `t` (exclusive): a hit must be nearer.
     pub tmax: f32,
 }
 
@@ -215,6 +225,7 @@ impl Ray {
 /// A closest hit: distance, the caller's triangle index and barycentrics.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {
+    /// Ray parameter of the hit (in units of the ray's direction).
     pub t: f32,
     /// Index into the triangle list the BVH was built from.
     pub prim: u32,
@@ -228,6 +239,7 @@ impl Hit {
     /// The "no hit" record (`prim == u32::MAX`, `t = inf`).
     pub const NONE: Hit = Hit { t: f32::INFINITY, prim: u32::MAX, u: 0.0, v: 0.0 };
 
+    /// Whether this is a hit (not [`Hit::NONE`]).
     #[inline]
     pub fn is_hit(&self) -> bool {
         self.prim != u32::MAX
@@ -238,6 +250,7 @@ impl Hit {
 /// packet holds exactly these values, so packet and single-ray arithmetic are identical.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PreparedRay {
+    /// The ray's origin.
     pub origin: Vec3A,
     /// Safe reciprocal of the direction (never 0, inf or NaN).
     pub inv: Vec3A,
@@ -252,7 +265,9 @@ pub struct PreparedRay {
     pub shear: [f32; 3],
     /// The origin permuted: `(o[kx], o[ky], o[kz])`.
     pub origin_k: [f32; 3],
+    /// Nearest accepted `t`.
     pub tmin: f32,
+    /// Farthest `t` (exclusive); closest-hit traversal shrinks it.
     pub tmax: f32,
 }
 
@@ -328,9 +343,11 @@ pub type TriVerts = [f32; 9];
 /// Result of the watertight test before the barycentric division.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TriHit {
+    /// Ray parameter of the hit (already divided by `det`).
     pub t: f32,
     /// Edge functions (unnormalised barycentrics of v0, v1, v2) and their sum.
     pub e: [f32; 3],
+    /// The determinant (the edge functions' sum).
     pub det: f32,
 }
 
@@ -460,8 +477,12 @@ pub(crate) fn t_rounding_bound(x: [f32; 3], y: [f32; 3], z: [f32; 3], det: f32) 
 /// formula, so packets (which compute it per lane in `F32s`) agree bit for bit.
 #[derive(Clone, Copy, Debug)]
 pub struct NodeSlabs {
+    /// Per axis, `e·inv`: the ray parameter per quantisation step of the node.
     pub a: Vec3A,
+    /// Per axis, `(p − o)·inv − δ`: the ray parameter of the node's origin plane, lowered by
+    /// the rounding pad (for the near planes).
     pub bn: Vec3A,
+    /// Per axis, `(p − o)·inv + δ`: the same, raised by the pad (for the far planes).
     pub bf: Vec3A,
 }
 
@@ -471,6 +492,7 @@ pub fn node_extent(node: &CwBvhNode) -> [f32; 3] {
     node.e.map(|e| f32::from_bits((e as u32) << 23))
 }
 
+/// The slab constants of `node` for ray `r` (see [`NodeSlabs`]).
 #[inline(always)]
 pub fn node_slabs(node: &CwBvhNode, r: &PreparedRay) -> NodeSlabs {
     let e = Vec3A::from_array(node_extent(node));

@@ -26,6 +26,7 @@ pub fn assert_planes_equal<T: Copy + PartialEq + core::fmt::Debug + BitEq>(
 
 /// Bitwise equality for plane element types.
 pub trait BitEq {
+    /// Whether the two values have the same bits (NaN payloads and signed zeros included).
     fn bit_eq(&self, other: &Self) -> bool;
 }
 
@@ -57,6 +58,7 @@ pub struct CountingAllocator {
 }
 
 impl CountingAllocator {
+    /// A counter at zero around the system allocator.
     pub const fn new() -> Self {
         Self { count: std::sync::atomic::AtomicU64::new(0) }
     }

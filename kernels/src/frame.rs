@@ -39,16 +39,19 @@ impl Extent {
         Ok(Self { width, height })
     }
 
+    /// Pixels per row.
     #[inline]
     pub fn width(self) -> usize {
         self.width
     }
 
+    /// Rows.
     #[inline]
     pub fn height(self) -> usize {
         self.height
     }
 
+    /// `width · height`.
     #[inline]
     pub fn pixels(self) -> usize {
         self.width * self.height
@@ -65,15 +68,42 @@ impl fmt::Display for Extent {
 #[derive(Debug, Clone, PartialEq)]
 pub enum FrameError {
     /// Width or height is zero.
-    ZeroSize { width: usize, height: usize },
+    ZeroSize {
+        /// The width given.
+        width: usize,
+        /// The height given.
+        height: usize,
+    },
     /// Width or height above [`MAX_DIMENSION`], or more than [`MAX_PIXELS`] pixels.
-    TooLarge { width: usize, height: usize },
+    TooLarge {
+        /// The width (or stride) given.
+        width: usize,
+        /// The height given.
+        height: usize,
+    },
     /// The stride (in elements) is smaller than the width.
-    StrideTooSmall { width: usize, stride: usize },
+    StrideTooSmall {
+        /// The width given.
+        width: usize,
+        /// The stride given.
+        stride: usize,
+    },
     /// The buffer is shorter than `(height − 1) · stride + width` elements.
-    BufferTooSmall { needed: usize, got: usize },
+    BufferTooSmall {
+        /// Elements the view needs.
+        needed: usize,
+        /// Elements the buffer holds.
+        got: usize,
+    },
     /// Two views that a kernel combines pixel by pixel have different extents.
-    ExtentMismatch { what: &'static str, expected: Extent, got: Extent },
+    ExtentMismatch {
+        /// Which view.
+        what: &'static str,
+        /// The extent it must have.
+        expected: Extent,
+        /// The extent it has.
+        got: Extent,
+    },
     /// A kernel parameter is out of its documented range (the message names it).
     InvalidParameter(&'static str),
     /// A camera matrix is singular or not finite.
@@ -149,21 +179,25 @@ impl<'a, T: Copy> Plane<'a, T> {
         Self::new(data, width, height, width)
     }
 
+    /// The view's width and height.
     #[inline]
     pub fn extent(&self) -> Extent {
         self.extent
     }
 
+    /// Pixels per row.
     #[inline]
     pub fn width(&self) -> usize {
         self.extent.width
     }
 
+    /// Rows.
     #[inline]
     pub fn height(&self) -> usize {
         self.extent.height
     }
 
+    /// Elements from one row's start to the next.
     #[inline]
     pub fn stride(&self) -> usize {
         self.stride
@@ -245,21 +279,25 @@ impl<'a, T: Copy + Send> PlaneMut<'a, T> {
         Self::new(data, width, height, width)
     }
 
+    /// The view's width and height.
     #[inline]
     pub fn extent(&self) -> Extent {
         self.extent
     }
 
+    /// Pixels per row.
     #[inline]
     pub fn width(&self) -> usize {
         self.extent.width
     }
 
+    /// Rows.
     #[inline]
     pub fn height(&self) -> usize {
         self.extent.height
     }
 
+    /// Elements from one row's start to the next.
     #[inline]
     pub fn stride(&self) -> usize {
         self.stride
@@ -357,26 +395,31 @@ impl<'a> RgbPlanes<'a> {
         Ok(Self { r, g, b })
     }
 
+    /// The common extent of the three planes.
     #[inline]
     pub fn extent(&self) -> Extent {
         self.r.extent()
     }
 
+    /// The planes in red, green, blue order.
     #[inline]
     pub fn channels(&self) -> [Plane<'a>; 3] {
         [self.r, self.g, self.b]
     }
 
+    /// Red.
     #[inline]
     pub fn r(&self) -> Plane<'a> {
         self.r
     }
 
+    /// Green.
     #[inline]
     pub fn g(&self) -> Plane<'a> {
         self.g
     }
 
+    /// Blue.
     #[inline]
     pub fn b(&self) -> Plane<'a> {
         self.b
@@ -404,16 +447,19 @@ impl<'a> RgbPlanesMut<'a> {
         Ok(Self { r, g, b })
     }
 
+    /// The common extent of the three planes.
     #[inline]
     pub fn extent(&self) -> Extent {
         self.r.extent()
     }
 
+    /// A read-only view of the same planes.
     #[inline]
     pub fn as_planes(&self) -> RgbPlanes<'_> {
         RgbPlanes { r: self.r.as_plane(), g: self.g.as_plane(), b: self.b.as_plane() }
     }
 
+    /// A shorter-lived view of the same planes.
     #[inline]
     pub fn reborrow(&mut self) -> RgbPlanesMut<'_> {
         RgbPlanesMut { r: self.r.reborrow(), g: self.g.reborrow(), b: self.b.reborrow() }
@@ -462,26 +508,31 @@ impl<T: Copy + Send + Sync> PlaneBuf<T> {
         Ok(Self { data, extent })
     }
 
+    /// The buffer's width and height.
     #[inline]
     pub fn extent(&self) -> Extent {
         self.extent
     }
 
+    /// A read-only view (packed rows: stride = width).
     #[inline]
     pub fn view(&self) -> Plane<'_, T> {
         Plane { data: &self.data, extent: self.extent, stride: self.extent.width }
     }
 
+    /// A writable view (packed rows).
     #[inline]
     pub fn view_mut(&mut self) -> PlaneMut<'_, T> {
         PlaneMut { data: &mut self.data, extent: self.extent, stride: self.extent.width }
     }
 
+    /// The pixels, row after row.
     #[inline]
     pub fn as_slice(&self) -> &[T] {
         &self.data
     }
 
+    /// The pixels, row after row, writable (the length cannot change).
     #[inline]
     pub fn as_mut_slice(&mut self) -> &mut [T] {
         &mut self.data
@@ -529,16 +580,19 @@ impl RgbBuf {
         [self.r, self.g, self.b]
     }
 
+    /// Red.
     #[inline]
     pub fn r(&self) -> &PlaneBuf {
         &self.r
     }
 
+    /// Green.
     #[inline]
     pub fn g(&self) -> &PlaneBuf {
         &self.g
     }
 
+    /// Blue.
     #[inline]
     pub fn b(&self) -> &PlaneBuf {
         &self.b
@@ -574,16 +628,19 @@ impl RgbBuf {
         [self.r.as_mut_slice(), self.g.as_mut_slice(), self.b.as_mut_slice()]
     }
 
+    /// The common extent of the three planes.
     #[inline]
     pub fn extent(&self) -> Extent {
         self.r.extent()
     }
 
+    /// A read-only view of the three planes.
     #[inline]
     pub fn view(&self) -> RgbPlanes<'_> {
         RgbPlanes { r: self.r.view(), g: self.g.view(), b: self.b.view() }
     }
 
+    /// A writable view of the three planes.
     #[inline]
     pub fn view_mut(&mut self) -> RgbPlanesMut<'_> {
         RgbPlanesMut { r: self.r.view_mut(), g: self.g.view_mut(), b: self.b.view_mut() }

@@ -24,16 +24,22 @@ use wide::{i32x8, u32x8};
 /// One pixel's surface.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Surfel {
+    /// View-axis depth (`+inf`: no surface).
     pub depth: f32,
+    /// World position.
     pub position: [f32; 3],
+    /// Shading normal (not necessarily unit length).
     pub normal: [f32; 3],
 }
 
 /// `LANES` pixels' surfaces.
 #[derive(Clone, Copy, Debug)]
 pub struct Surfels {
+    /// View-axis depth per lane.
     pub depth: F32s,
+    /// World position x, y, z per lane.
     pub position: [F32s; 3],
+    /// Shading normal x, y, z per lane.
     pub normal: [F32s; 3],
 }
 
@@ -97,14 +103,17 @@ impl<'a> GBuffer<'a> {
         Ok(Self { depth, position, normal })
     }
 
+    /// The depth plane.
     pub fn depth(&self) -> Plane<'a> {
         self.depth
     }
 
+    /// The world-position planes x, y, z.
     pub fn position(&self) -> [Plane<'a>; 3] {
         self.position
     }
 
+    /// The normal planes x, y, z.
     pub fn normal(&self) -> [Plane<'a>; 3] {
         self.normal
     }
@@ -202,14 +211,17 @@ impl<'a> CompactGBuffer<'a> {
         Ok(Self { depth, normal, camera, rays })
     }
 
+    /// The depth plane.
     pub fn depth(&self) -> Plane<'a> {
         self.depth
     }
 
+    /// The octahedral-normal plane.
     pub fn normal(&self) -> Plane<'a, u32> {
         self.normal
     }
 
+    /// The camera positions are rebuilt through.
     pub fn camera(&self) -> &CameraModel {
         &self.camera
     }

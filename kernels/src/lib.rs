@@ -11,6 +11,8 @@
 //! into row bands and run them with rayon on the caller's current pool (use
 //! `ThreadPool::install` to choose it).
 
+#![warn(missing_docs)]
+
 pub mod accumulate;
 mod bands;
 pub mod bilinear;

@@ -69,9 +69,13 @@ const PACKET_STACK: usize = 7 * MAX_DEPTH + 1;
 /// `t ∈ [tmin[i], tmax[i])`.
 #[derive(Clone, Copy, Debug)]
 pub struct RayPacket {
+    /// Origins x, y, z.
     pub origin: [F32s; 3],
+    /// Directions x, y, z (any non-zero length).
     pub dir: [F32s; 3],
+    /// Nearest accepted `t` per lane.
     pub tmin: F32s,
+    /// Farthest `t` per lane (exclusive).
     pub tmax: F32s,
 }
 
@@ -102,9 +106,13 @@ impl RayPacket {
 /// Closest hits of a packet, structure of arrays. A miss is `prim == u32::MAX`, `t = inf`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PacketHits {
+    /// Ray parameter of each lane's hit.
     pub t: [f32; LANES],
+    /// Triangle index of each lane's hit (`u32::MAX`: miss).
     pub prim: [u32; LANES],
+    /// Barycentric weight of `v1`.
     pub u: [f32; LANES],
+    /// Barycentric weight of `v2`.
     pub v: [f32; LANES],
 }
 

@@ -102,10 +102,12 @@ impl Reason {
 pub struct ReasonCounts(pub [u64; REASON_COUNT]);
 
 impl ReasonCounts {
+    /// Pixels with `reason`.
     pub fn get(&self, reason: Reason) -> u64 {
         self.0[reason as usize]
     }
 
+    /// Pixels counted.
     pub fn total(&self) -> u64 {
         self.0.iter().sum()
     }
@@ -178,7 +180,9 @@ pub enum TapPolicy {
 /// Parameters of one reprojection call.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ReprojectParams {
+    /// Discard thresholds.
     pub tolerances: Tolerances,
+    /// What to do with pixels some of whose taps failed.
     pub policy: TapPolicy,
     /// Rows per parallel band.
     pub band_rows: usize,
@@ -215,6 +219,7 @@ pub struct ReprojectInput<'a, L: SurfaceLayout> {
 
 /// Where a reprojection writes.
 pub struct ReprojectOutput<'a> {
+    /// The reprojected samples (0 where discarded).
     pub colour: RgbPlanesMut<'a>,
     /// Must be present exactly when the input has an extra channel.
     pub extra: Option<PlaneMut<'a>>,

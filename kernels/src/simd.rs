@@ -76,7 +76,9 @@ pub fn store(slice: &mut [f32], i: usize, v: F32s) {
 /// cannot go out of bounds. Build once per tap, use for every plane of the same extent.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TapCoords {
+    /// Column of each lane's tap.
     pub x: [u32; LANES],
+    /// Row of each lane's tap.
     pub y: [u32; LANES],
 }
 

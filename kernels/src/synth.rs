@@ -17,10 +17,12 @@ use crate::gbuffer::{CompactGBuffer, GBuffer, GBufferBuf, encode_normal};
 pub struct Rng(u64);
 
 impl Rng {
+    /// A generator seeded with `seed`.
     pub fn new(seed: u64) -> Self {
         Self(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1)
     }
 
+    /// The next 64 random bits.
     pub fn next_u64(&mut self) -> u64 {
         self.0 ^= self.0 >> 12;
         self.0 ^= self.0 << 25;
@@ -28,6 +30,7 @@ impl Rng {
         self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
     }
 
+    /// The next 32 random bits.
     pub fn next_u32(&mut self) -> u32 {
         (self.next_u64() >> 32) as u32
     }
@@ -74,13 +77,18 @@ pub const EDGE_VALUES: [f32; 16] = [
 /// interpolation reproduces the texture exactly.
 #[derive(Clone, Copy, Debug)]
 pub struct Texture {
+    /// Colour at `u = 0` without the wave.
     pub base: [f32; 3],
+    /// Amplitude of the wave per channel.
     pub amplitude: [f32; 3],
+    /// Frequency of the wave (0: none).
     pub frequency: f32,
+    /// Change of colour per unit of `u`.
     pub slope: [f32; 3],
 }
 
 impl Texture {
+    /// One colour everywhere.
     pub fn flat(rgb: [f32; 3]) -> Self {
         Self { base: rgb, amplitude: [0.0; 3], frequency: 0.0, slope: [0.0; 3] }
     }
@@ -95,6 +103,7 @@ impl Texture {
         Self { base, amplitude: [0.0; 3], frequency: 0.0, slope }
     }
 
+    /// The colour at texture coordinates `(u, v)`.
     pub fn eval(&self, u: f32, v: f32) -> [f32; 3] {
         let wave = (self.frequency * u).sin() * (self.frequency * 0.7 * v + 0.3).cos();
         [0, 1, 2].map(|c| self.base[c] + self.amplitude[c] * wave + self.slope[c] * u)
@@ -105,10 +114,15 @@ impl Texture {
 /// Its normal is `axis_u × axis_v` (normalised); both sides are visible.
 #[derive(Clone, Copy, Debug)]
 pub struct Rect {
+    /// Centre of the rectangle.
     pub centre: Vec3,
+    /// First half-axis direction (and texture `u` unit).
     pub axis_u: Vec3,
+    /// Second half-axis direction (and texture `v` unit).
     pub axis_v: Vec3,
+    /// Half extents along the two axes, in axis units.
     pub half: (f32, f32),
+    /// Its texture.
     pub texture: Texture,
 }
 
@@ -138,6 +152,7 @@ impl Rect {
 /// A set of rectangles; pixels that hit none are background.
 #[derive(Clone, Debug, Default)]
 pub struct AnalyticScene {
+    /// The rectangles.
     pub rects: Vec<Rect>,
 }
 
@@ -161,6 +176,7 @@ impl SynthFrame {
         self.surfaces.compact()
     }
 
+    /// The frame's width and height.
     pub fn extent(&self) -> Extent {
         self.surfaces.extent()
     }

@@ -99,16 +99,21 @@ impl AlphaTest for NoMasks {
 /// the depth key used to find it (`q = 1/view depth`, and its error bound).
 #[derive(Clone, Debug, PartialEq)]
 pub struct VisibilityBuffer {
+    /// The triangle seen at each pixel centre.
     pub prim: PlaneBuf<u32>,
+    /// Its depth key `1 / view depth` (larger is nearer).
     pub q: PlaneBuf<f32>,
+    /// The error bound of `q`.
     pub q_err: PlaneBuf<f32>,
 }
 
 impl VisibilityBuffer {
+    /// Buffers for one eye of `extent`, showing nothing.
     pub fn new(extent: Extent) -> Self {
         Self { prim: PlaneBuf::new(extent, NO_PRIM), q: PlaneBuf::new(extent, 0.0), q_err: PlaneBuf::new(extent, 0.0) }
     }
 
+    /// The buffers' width and height.
     pub fn extent(&self) -> Extent {
         self.prim.extent()
     }
@@ -117,8 +122,10 @@ impl VisibilityBuffer {
 /// Which fragment loop runs (the SIMD body or its scalar reference).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum Body {
+    /// The `wide` body (the default).
     #[default]
     Simd,
+    /// The scalar reference.
     Scalar,
 }
 
@@ -139,7 +146,9 @@ pub struct RasterStats {
     pub exact_ties: u64,
     /// Wall time of the three steps (see the module notes).
     pub setup: Duration,
+    /// Wall time of binning.
     pub binning: Duration,
+    /// Wall time of the fragment loop.
     pub fragments: Duration,
 }
 
@@ -164,19 +173,24 @@ impl core::ops::Add for RasterStats {
 /// them), so a caller can add a few per-frame triangles (moving lights) without copying.
 #[derive(Clone, Copy, Debug)]
 pub struct Triangles<'a> {
+    /// Triangles with ids `0..main.len()`.
     pub main: &'a [TriVerts],
+    /// Triangles with ids following `main`'s.
     pub extra: &'a [TriVerts],
 }
 
 impl Triangles<'_> {
+    /// Triangles in both lists.
     pub fn len(&self) -> usize {
         self.main.len() + self.extra.len()
     }
 
+    /// Whether there is no triangle.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
 
+    /// The triangle with id `prim`. Panics past the end.
     #[inline(always)]
     pub fn get(&self, prim: u32) -> &TriVerts {
         let i = prim as usize;
@@ -398,6 +412,7 @@ impl Projection {
 }
 
 impl Rasterizer {
+    /// A rasteriser with empty buffers (they grow with the first frame).
     pub fn new() -> Self {
         Self::default()
     }

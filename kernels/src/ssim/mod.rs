@@ -154,6 +154,7 @@ pub enum SsimVariant {
 /// Parameters of [`ssim`] / [`ssim_scalar`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct SsimParams {
+    /// Which SSIM.
     pub variant: SsimVariant,
     /// Rows per parallel band (rounded up so that a frame has at most 256 bands). Each band
     /// recomputes 10 halo rows of the horizontal pass, so small bands cost time.
