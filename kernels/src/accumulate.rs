@@ -231,6 +231,22 @@ fn ema_scalar_at(
 }
 
 /// SIMD EMA step, bit-identical to [`ema_scalar`].
+///
+/// ```
+/// use stereotrace_kernels::accumulate::{self, EmaInput, EmaParams, EmaState};
+/// use stereotrace_kernels::reproject::Reason;
+/// use stereotrace_kernels::{Extent, PlaneBuf, RgbBuf};
+///
+/// let extent = Extent::new(16, 4)?;
+/// let mut history = RgbBuf::new(extent, 1.0); // the reprojected history
+/// let samples = RgbBuf::new(extent, 0.0); // this frame's samples
+/// let valid = PlaneBuf::new(extent, Reason::Reprojected as u8);
+/// let input = EmaInput { new: samples.view(), reason: valid.view(), has_new: None };
+/// let state = EmaState { accum: history.view_mut(), history_len: None };
+/// accumulate::ema(&input, state, &EmaParams::default())?; // alpha 0.2
+/// assert_eq!(history.get(3, 2), [0.8; 3]);
+/// # Ok::<(), stereotrace_kernels::FrameError>(())
+/// ```
 pub fn ema(input: &EmaInput<'_>, mut state: EmaState<'_>, params: &EmaParams) -> Result<AccumulateStats, FrameError> {
     check_ema(input, &state, params)?;
     #[cfg(feature = "check-scalar")]

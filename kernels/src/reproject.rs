@@ -403,6 +403,38 @@ pub fn reproject_scalar<L: SurfaceLayout>(
 
 /// SIMD reprojection, bit-identical to [`reproject_scalar`]. Returns the number of pixels
 /// per reason.
+///
+/// Stereo reprojection of the right eye's image into the left eye, on an analytic scene:
+///
+/// ```
+/// use glam::Vec3;
+/// use stereotrace_kernels::reproject::{self, Reason, ReprojectInput, ReprojectOutput, ReprojectParams, Tolerances};
+/// use stereotrace_kernels::synth::{AnalyticScene, camera_at};
+/// use stereotrace_kernels::{Extent, PlaneBuf, RgbBuf};
+///
+/// let extent = Extent::new(64, 36)?;
+/// let scene = AnalyticScene::room(6.0);
+/// let left = scene.render(&camera_at(Vec3::new(-0.03, 0.0, 0.0), extent, 60.0), [0.0; 3]);
+/// let right = scene.render(&camera_at(Vec3::new(0.03, 0.0, 0.0), extent, 60.0), [0.0; 3]);
+/// let (target, source) = (left.compact(), right.compact());
+/// let input = ReprojectInput {
+///     target: &target,
+///     source: &source,
+///     source_camera: &right.surfaces.camera,
+///     colour: right.colour.view(),
+///     extra: None,
+///     pixel_mask: None,
+/// };
+/// let mut colour = RgbBuf::new(extent, 0.0);
+/// let mut reason = PlaneBuf::new(extent, 0u8);
+/// let output = ReprojectOutput { colour: colour.view_mut(), extra: None, reason: reason.view_mut(), weight: None };
+/// // A pixel of this 64-pixel view spans ~15 cm of the room: tolerances to match.
+/// let params = ReprojectParams { tolerances: Tolerances::new(0.5, 0.05, 25.0), ..ReprojectParams::default() };
+/// let counts = reproject::reproject(&input, output, &params)?;
+/// assert_eq!(counts.total(), extent.pixels() as u64);
+/// assert!(counts.get(Reason::Reprojected) > counts.discarded());
+/// # Ok::<(), stereotrace_kernels::FrameError>(())
+/// ```
 pub fn reproject<L: SurfaceLayout>(
     input: &ReprojectInput<'_, L>,
     mut out: ReprojectOutput<'_>,

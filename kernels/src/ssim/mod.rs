@@ -299,6 +299,20 @@ fn check(a: &RgbPlanes<'_>, b: &RgbPlanes<'_>) -> Result<(), FrameError> {
 /// SSIM ([`SsimParams::variant`]) and RMSE of `a` against `b`: the fused SIMD kernel, run in
 /// row bands on the current rayon pool. Symmetric in its arguments (bit for bit). See the
 /// module docs for the definition, the numerics and what is excluded.
+///
+/// ```
+/// use stereotrace_kernels::ssim::{SsimParams, ssim};
+/// use stereotrace_kernels::{Extent, RgbBuf};
+///
+/// let extent = Extent::new(32, 32)?;
+/// let mut a = RgbBuf::new(extent, 0.5);
+/// a.set(10, 10, [1.0, 0.0, 0.25]);
+/// let same = ssim(&a.view(), &a.view(), &SsimParams::default())?;
+/// assert_eq!((same.ssim, same.rmse), (1.0, 0.0));
+/// let b = RgbBuf::new(extent, 0.5);
+/// assert!(ssim(&a.view(), &b.view(), &SsimParams::default())?.ssim < 1.0);
+/// # Ok::<(), stereotrace_kernels::FrameError>(())
+/// ```
 pub fn ssim(a: &RgbPlanes<'_>, b: &RgbPlanes<'_>, params: &SsimParams) -> Result<SsimResult, FrameError> {
     check(a, b)?;
     let result = simd::run(a, b, params);

@@ -141,6 +141,33 @@ impl<R: Borrow<Renderer>> Pipeline<RendererSource<R>> {
     /// A pipeline over this crate's renderer (borrowed, owned or shared: see
     /// [`RendererSource`]), with every buffer allocated for frames of `extent`; `rig` turns
     /// the scene's head poses into eye cameras.
+    ///
+    /// Three spatiotemporal frames of the built-in Cornell box, the head walking the scene's
+    /// camera path:
+    ///
+    /// ```
+    /// use stereotrace_runtime::camera::{Eye, StereoRig};
+    /// use stereotrace_runtime::kernels::Extent;
+    /// use stereotrace_runtime::pipeline::{Mode, Pipeline, PipelineConfig};
+    /// use stereotrace_runtime::render::Renderer;
+    ///
+    /// # fn main() -> Result<(), Box<dyn std::error::Error>> {
+    /// let renderer = Renderer::new(stereotrace_runtime::scene::resolve("cornell")?)?;
+    /// let extent = Extent::new(64, 36)?;
+    /// let tolerances = renderer.scene().tolerances.at_height(extent.height());
+    /// let config = PipelineConfig::paper(Mode::Spatiotemporal, 1, tolerances);
+    /// let mut pipeline = Pipeline::new(&renderer, config, StereoRig::default(), extent)?;
+    /// for frame in 0..3 {
+    ///     let head = renderer.scene().camera.pose_back_and_forth(frame);
+    ///     let stats = pipeline.render_frame(frame, &head)?;
+    ///     // The right eye is path traced; most of the left eye is reprojected from it.
+    ///     assert!(stats.traced_pixels[0] < stats.traced_pixels[1] / 4);
+    /// }
+    /// let left = pipeline.output(Eye::Left);
+    /// assert!(left.r().as_slice().iter().all(|v| v.is_finite()));
+    /// # Ok(())
+    /// # }
+    /// ```
     pub fn new(renderer: R, config: PipelineConfig, rig: StereoRig, extent: Extent) -> Result<Self, PipelineError> {
         config.validate().map_err(PipelineError::Config)?;
         let head = renderer.borrow().scene().camera.pose_at(0.0);
@@ -154,7 +181,9 @@ impl<R: Borrow<Renderer>> Pipeline<RendererSource<R>> {
 impl<S: FrameSource> Pipeline<S> {
     /// A pipeline over any [`FrameSource`], with every buffer allocated for frames of the
     /// cameras' extent (`cameras` = `[left, right]`, used only until the first frame gives
-    /// its own). Frames are rendered with [`Pipeline::render_frame_at`].
+    /// its own). Frames are rendered with [`Pipeline::render_frame_at`]. A complete engine
+    /// source is `examples/embed.rs`; `runtime/tests/frame_source.rs` checks one against the
+    /// kernels called directly.
     pub fn with_source(source: S, config: PipelineConfig, cameras: [CameraModel; 2]) -> Result<Self, PipelineError> {
         config.validate().map_err(PipelineError::Config)?;
         let extent = cameras[0].extent;
