@@ -15,7 +15,8 @@ use std::borrow::Borrow;
 use std::ops::Range;
 
 use crate::kernels::{CameraModel, Extent, RgbBuf};
-use crate::pipeline::{GBufferPass, Layout, PipelineConfig, PipelineError};
+// From the configuration module only: the pipeline proper sits above this seam.
+use crate::pipeline::config::{GBufferPass, Layout, PipelineConfig, PipelineError};
 use crate::render::lights::FrameLights;
 use crate::render::raster::{GBufferPlanes, RasterGBuffers, RasterPassStats};
 use crate::render::{GBufferBuf, PixelSelection, Renderer, TraceRequest, TraceStats};

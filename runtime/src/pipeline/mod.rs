@@ -53,7 +53,7 @@ use crate::scene::CameraPose;
 use crate::source::{FrameSource, RendererSource};
 
 mod budget;
-mod config;
+pub(crate) mod config;
 mod plan;
 mod stats;
 
