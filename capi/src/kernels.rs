@@ -37,7 +37,8 @@ pub struct StCamera {
 }
 
 impl StCamera {
-    fn model(&self, what: &str) -> Result<CameraModel, Failure> {
+    /// The validated camera (`what` names it in errors).
+    pub(crate) fn model(&self, what: &str) -> Result<CameraModel, Failure> {
         let extent = Extent::new(self.width as usize, self.height as usize).about(what)?;
         CameraModel::from_f64(DMat4::from_cols_array(&self.view_proj), extent).about(what)
     }

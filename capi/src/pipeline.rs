@@ -7,12 +7,13 @@
 use std::ffi::{CStr, c_char, c_void};
 use std::time::Duration;
 
-use glam::DMat4;
 use stereotrace_kernels::frame::same_extent;
 use stereotrace_kernels::reproject::Tolerances;
 use stereotrace_kernels::{CameraModel, Extent, PlaneBuf, RgbBuf};
 use stereotrace_runtime::camera::{Eye, StereoRig};
-use stereotrace_runtime::pipeline::{FrameStats, Layout, Mode, Order, Pipeline, PipelineConfig, PipelineError};
+use stereotrace_runtime::pipeline::{
+    FrameStats, Layout, MAX_SPP, Mode, Order, Pipeline, PipelineConfig, PipelineError, budget_duration,
+};
 use stereotrace_runtime::render::raster::RasterPassStats;
 use stereotrace_runtime::render::{GBufferBuf, PixelSelection, Renderer, TraceRequest, TraceStats};
 use stereotrace_runtime::source::{FrameSource, RendererSource};
@@ -97,11 +98,6 @@ pub extern "C" fn stereotrace_pipeline_config_default() -> StPipelineConfig {
     }
 }
 
-/// The most samples per pixel a pipeline takes (the CLI's bound).
-const MAX_SPP: u32 = 1 << 20;
-/// The longest budget a pipeline takes, in milliseconds.
-const MAX_BUDGET_MS: f64 = 1e6;
-
 impl StPipelineConfig {
     fn extent(&self) -> Result<Extent, Failure> {
         Extent::new(self.width as usize, self.height as usize).about("config size")
@@ -124,12 +120,6 @@ impl StPipelineConfig {
         if !(1..=MAX_SPP).contains(&self.spp) {
             return Err(Failure::invalid(format!("config.spp must be in 1 ..= {MAX_SPP}, got {}", self.spp)));
         }
-        if !(self.budget_ms >= 0.0 && self.budget_ms <= MAX_BUDGET_MS) {
-            return Err(Failure::invalid(format!(
-                "config.budget_ms must be 0 (none) or a positive number of milliseconds up to {MAX_BUDGET_MS}, got {}",
-                self.budget_ms
-            )));
-        }
         let mut c = PipelineConfig::paper(mode, self.spp, tolerances);
         c.order = match self.order {
             0 => Order::Paper,
@@ -147,7 +137,11 @@ impl StPipelineConfig {
             let r = r.kernel()?;
             (c.tolerances, c.policy) = (r.tolerances, r.policy);
         }
-        c.budget = (self.budget_ms > 0.0).then(|| Duration::from_secs_f64(self.budget_ms / 1e3));
+        // 0 means no budget; anything else is checked as the CLI checks `--budget-ms`.
+        c.budget = match self.budget_ms {
+            0.0 => None,
+            ms => Some(budget_duration(ms).map_err(|e| Failure::invalid(format!("config.budget_ms: {e}")))?),
+        };
         Ok(c)
     }
 
@@ -199,22 +193,6 @@ pub struct StGBufferMut {
     pub camera: StCamera,
 }
 
-/// The callback types of [`StFrameSourceCallbacks`] (spelled out there for the header).
-type StFillGBuffers =
-    unsafe extern "C" fn(user: *mut c_void, frame: u32, left: *const StGBufferMut, right: *const StGBufferMut) -> i32;
-
-type StTrace = unsafe extern "C" fn(
-    user: *mut c_void,
-    eye: u32,
-    frame: u32,
-    spp: u32,
-    camera: *const StCamera,
-    mask: *const StPlaneU8,
-    row_start: u32,
-    row_end: u32,
-    out: *const StRgbMut,
-) -> i32;
-
 /// An engine's renderer as the pipeline's frame source. The callbacks are called on one of
 /// the pipeline's worker threads, one at a time, while `stereotrace_pipeline_render_frame_at`
 /// runs (the calling thread waits), so `user` must be usable from another thread.
@@ -253,11 +231,10 @@ pub struct StFrameSourceCallbacks {
     >,
 }
 
-/// [`StFrameSourceCallbacks`] as a [`FrameSource`].
+/// [`StFrameSourceCallbacks`] as a [`FrameSource`] (both callbacks checked non-null when the
+/// pipeline was created).
 struct CallbackSource {
     callbacks: StFrameSourceCallbacks,
-    fill_gbuffers: StFillGBuffers,
-    trace: StTrace,
     frame: u32,
     /// This frame's cameras as the caller gave them (f64, not the kernels' f32 rows).
     cameras: [StCamera; 2],
@@ -304,7 +281,9 @@ impl FrameSource for CallbackSource {
         let (l, r) = (view(left, self.cameras[0]), view(right, self.cameras[1]));
         // SAFETY: the views cover the pipeline's own buffers, alive and unaliased for the
         // call; the callback's contract is the header's.
-        let code = unsafe { (self.fill_gbuffers)(self.callbacks.user, self.frame, &l, &r) };
+        let fill_gbuffers =
+            self.callbacks.fill_gbuffers.ok_or(PipelineError::Source("no fill_gbuffers callback".into()))?;
+        let code = unsafe { fill_gbuffers(self.callbacks.user, self.frame, &l, &r) };
         if code != 0 {
             return Err(PipelineError::Source(format!("fill_gbuffers callback returned {code}")));
         }
@@ -330,9 +309,10 @@ impl FrameSource for CallbackSource {
         let out = StRgbMut { r, g, b };
         let eye = request.eye as usize;
         let mask_ptr = mask.as_ref().map_or(std::ptr::null(), |m| m as *const StPlaneU8);
+        let trace = self.callbacks.trace.ok_or(PipelineError::Source("no trace callback".into()))?;
         // SAFETY: as in `fill_gbuffers`.
         let code = unsafe {
-            (self.trace)(
+            trace(
                 self.callbacks.user,
                 eye as u32,
                 request.frame,
@@ -457,14 +437,18 @@ pub unsafe extern "C" fn stereotrace_pipeline_create_callbacks(
             return Err(Failure::null("out"));
         }
         let callbacks = *required(callbacks, "callbacks")?;
-        let fill_gbuffers = callbacks.fill_gbuffers.ok_or_else(|| Failure::null("callbacks.fill_gbuffers"))?;
-        let trace = callbacks.trace.ok_or_else(|| Failure::null("callbacks.trace"))?;
+        if callbacks.fill_gbuffers.is_none() {
+            return Err(Failure::null("callbacks.fill_gbuffers"));
+        }
+        if callbacks.trace.is_none() {
+            return Err(Failure::null("callbacks.trace"));
+        }
         let config = required(config, "config")?;
         let extent = config.extent()?;
         let (given, models) = eye_cameras(cameras, extent)?;
         let pool = config.pool()?;
         let runtime = config.runtime(Tolerances::default())?;
-        let source = CallbackSource { callbacks, fill_gbuffers, trace, frame: 0, cameras: given };
+        let source = CallbackSource { callbacks, frame: 0, cameras: given };
         let pipeline = Pipeline::with_source(source, runtime, models).map_err(pipeline_error)?;
         out.write(Box::into_raw(Box::new(StPipeline { pool, inner: Inner::Callbacks(Box::new(pipeline)) })));
         Ok(())
@@ -482,9 +466,9 @@ unsafe fn eye_cameras(cameras: *const StCamera, extent: Extent) -> Result<([StCa
     // SAFETY: the caller's contract: two cameras.
     let given = unsafe { [*cameras, *cameras.add(1)] };
     let model = |c: &StCamera, what: &str| -> Result<CameraModel, Failure> {
-        let e = Extent::new(c.width as usize, c.height as usize).about(what)?;
-        same_extent("camera size", extent, e).about(what)?;
-        CameraModel::from_f64(DMat4::from_cols_array(&c.view_proj), e).about(what)
+        let m = c.model(what)?;
+        same_extent("camera size", extent, m.extent).about(what)?;
+        Ok(m)
     };
     Ok((given, [model(&given[0], "cameras[0]")?, model(&given[1], "cameras[1]")?]))
 }

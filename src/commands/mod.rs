@@ -26,15 +26,10 @@ pub fn parse_exposure(s: &str) -> Result<f32, String> {
     if v.is_finite() && v > 0.0 { Ok(v) } else { Err(format!("exposure {s} must be finite and > 0")) }
 }
 
-/// The most samples per pixel a command accepts (2²⁰: above the paper's 4096-spp references
-/// by far; a larger count is a typo that would run for days, or a wrapped negative number).
-pub const MAX_SPP: u32 = 1 << 20;
+pub use crate::pipeline::{MAX_BUDGET_MS, MAX_SPP, budget_duration};
 
 /// The most frames a command renders or measures (10⁶; every frame is kept or written).
 pub const MAX_FRAMES: u32 = 1_000_000;
-
-/// The largest per-frame budget accepted, in milliseconds (1000 s).
-pub const MAX_BUDGET_MS: f64 = 1e6;
 
 /// Parses a sample count: a whole number in 1 ..= [`MAX_SPP`].
 pub fn parse_spp(s: &str) -> Result<u32, String> {
@@ -56,16 +51,6 @@ fn parse_count(s: &str, what: &str, max: u32) -> Result<u32, String> {
 pub fn parse_budget_ms(s: &str) -> Result<f64, String> {
     let v: f64 = s.trim().parse().map_err(|_| format!("budget '{s}' is not a number"))?;
     budget_duration(v).map(|_| v)
-}
-
-/// A budget in milliseconds as a duration, refused as [`parse_budget_ms`] refuses it (the
-/// commands' library entry points take budgets that did not come through the parser).
-pub fn budget_duration(ms: f64) -> Result<std::time::Duration, String> {
-    if ms.is_finite() && ms > 0.0 && ms <= MAX_BUDGET_MS {
-        Ok(std::time::Duration::from_secs_f64(ms / 1e3))
-    } else {
-        Err(format!("budget {ms} ms must be finite, > 0 and at most {MAX_BUDGET_MS} ms"))
-    }
 }
 
 /// `stereotrace export-scene`: writes `spec` at frame 0 into `out` in the shared folder format.

@@ -7,6 +7,25 @@ use crate::kernels::FrameError;
 use crate::kernels::reproject::{TapPolicy, Tolerances};
 use crate::render::RenderError;
 
+/// The most samples per pixel a command or an embedder's configuration accepts (2²⁰: above
+/// the paper's 4096-spp references by far; a larger count is a typo that would run for days,
+/// or a wrapped negative number). The CLI and the C ABI check it.
+pub const MAX_SPP: u32 = 1 << 20;
+
+/// The largest per-frame budget accepted, in milliseconds (1000 s).
+pub const MAX_BUDGET_MS: f64 = 1e6;
+
+/// A per-frame budget in milliseconds as a duration: finite, > 0 and at most
+/// [`MAX_BUDGET_MS`] (NaN, infinite, zero or negative budgets have no meaning, and a huge one
+/// overflows a duration).
+pub fn budget_duration(ms: f64) -> Result<Duration, String> {
+    if ms.is_finite() && ms > 0.0 && ms <= MAX_BUDGET_MS {
+        Ok(Duration::from_secs_f64(ms / 1e3))
+    } else {
+        Err(format!("budget {ms} ms must be finite, > 0 and at most {MAX_BUDGET_MS} ms"))
+    }
+}
+
 /// What the pipeline computes (see the table in the `pipeline` module notes).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]

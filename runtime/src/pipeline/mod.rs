@@ -58,7 +58,9 @@ mod plan;
 mod stats;
 
 use budget::BudgetPlanner;
-pub use config::{GBufferPass, Layout, Mode, Order, PipelineConfig, PipelineError};
+pub use config::{
+    GBufferPass, Layout, MAX_BUDGET_MS, MAX_SPP, Mode, Order, PipelineConfig, PipelineError, budget_duration,
+};
 use plan::Target;
 pub use plan::{Source, Step, StereoSource, plan};
 pub use stats::{FrameStats, StageTimes};
