@@ -64,9 +64,7 @@ impl FrameSource for Engine {
         let mut traced = 0u32;
         for y in rows {
             for x in 0..WIDTH {
-                if let PixelSelection::Mask(m) = selection
-                    && m.as_slice()[y * WIDTH + x] == 0
-                {
+                if !selection.selects(x, y) {
                     continue;
                 }
                 let h = (u64::from(self.frame) << 40 ^ (request.eye as u64) << 32 ^ (y * WIDTH + x) as u64)

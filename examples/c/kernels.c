@@ -25,21 +25,12 @@
 #include <string.h>
 
 #include "stereotrace.h"
+#include "check.h"
 #include "wall.h"
 
 enum { W = 101, H = 37, STRIDE = W + 3, N = STRIDE * H };
 static const double HALF_BASELINE = 0.3;
 
-static int failures = 0;
-#define CHECK(cond, ...)                                                                       \
-    do {                                                                                       \
-        if (!(cond)) {                                                                         \
-            fprintf(stderr, "FAILED %s:%d: ", __FILE__, __LINE__);                             \
-            fprintf(stderr, __VA_ARGS__);                                                      \
-            fprintf(stderr, "\n");                                                             \
-            failures++;                                                                        \
-        }                                                                                      \
-    } while (0)
 
 /* One eye of the engine: camera, G-buffer planes and a colour image. */
 typedef struct {

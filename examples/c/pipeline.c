@@ -22,18 +22,9 @@
 #include <string.h>
 
 #include "stereotrace.h"
+#include "check.h"
 #include "wall.h"
 
-static int failures = 0;
-#define CHECK(cond, ...)                                                                       \
-    do {                                                                                       \
-        if (!(cond)) {                                                                         \
-            fprintf(stderr, "FAILED %s:%d: ", __FILE__, __LINE__);                             \
-            fprintf(stderr, __VA_ARGS__);                                                      \
-            fprintf(stderr, "\n");                                                             \
-            failures++;                                                                        \
-        }                                                                                      \
-    } while (0)
 
 static void expect(StStatus got, StStatus want, const char *what) {
     const char *message = stereotrace_last_error();

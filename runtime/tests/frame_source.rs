@@ -77,11 +77,7 @@ impl FrameSource for Analytic {
         assert_eq!(&frame.surfaces.camera, camera, "traced with the camera the G-buffer was made with");
         for y in rows {
             for x in 0..W {
-                let selected = match selection {
-                    PixelSelection::All => true,
-                    PixelSelection::Mask(m) => m.as_slice()[y * W + x] != 0,
-                };
-                if selected {
+                if selection.selects(x, y) {
                     out.set(x, y, sample(frame, request.eye, self.frame, x, y));
                 }
             }

@@ -145,6 +145,16 @@ pub enum PixelSelection<'a> {
     Mask(&'a PlaneBuf<u8>),
 }
 
+impl PixelSelection<'_> {
+    /// Whether pixel `(x, y)` is to be filled (for a frame source's per-pixel loop).
+    pub fn selects(&self, x: usize, y: usize) -> bool {
+        match self {
+            PixelSelection::All => true,
+            PixelSelection::Mask(m) => m.view().get(x, y) != 0,
+        }
+    }
+}
+
 /// The parameters of one path-tracing call.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TraceRequest {
