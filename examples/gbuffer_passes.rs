@@ -5,6 +5,8 @@
 //! `cargo run --release --example gbuffer_passes -- SCENE [THREADS]` (default 2 threads);
 //! the figures in BENCHMARKS.md come from it. With `COMPACT=1` in the environment the
 //! resolve writes only the compact layout's planes, as the pipeline does with that layout.
+//! `RASTER_RUNS` and `TRACED_RUNS` change the number of passes (9 and 3; a profile of the
+//! rasterised pass alone wants many of the one and none of the other).
 
 use std::time::Instant;
 
@@ -16,7 +18,11 @@ use stereotrace::scene::resolve;
 
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
+    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
+fn runs_from_env(var: &str, default: usize) -> Result<usize, String> {
+    std::env::var(var).map_or(Ok(default), |v| v.parse().map_err(|e| format!("{var}: {e}")))
 }
 
 fn main() -> Result<(), String> {
@@ -40,7 +46,8 @@ fn main() -> Result<(), String> {
     pool.install(|| {
         let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
         let mut runs = Vec::new();
-        for _ in 0..9 {
+        let (raster_runs, traced_runs) = (runs_from_env("RASTER_RUNS", 9)?, runs_from_env("TRACED_RUNS", 3)?);
+        for _ in 0..raster_runs.max(1) {
             let t = Instant::now();
             let st =
                 renderer.render_gbuffers_raster(&lights, [&mut gl, &mut gr], &mut raster).map_err(|e| e.to_string())?;
@@ -51,7 +58,7 @@ fn main() -> Result<(), String> {
             median(runs.iter().map(|r| f(&r.1)).collect())
         };
         let traced = median(
-            (0..3)
+            (0..traced_runs)
                 .map(|_| {
                     let t = Instant::now();
                     renderer.render_gbuffer(&lights, &mut gl);
