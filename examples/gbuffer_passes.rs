@@ -6,7 +6,8 @@
 //! the figures in BENCHMARKS.md come from it. With `COMPACT=1` in the environment the
 //! resolve writes only the compact layout's planes, as the pipeline does with that layout.
 //! `RASTER_RUNS` and `TRACED_RUNS` change the number of passes (9 and 3; a profile of the
-//! rasterised pass alone wants many of the one and none of the other).
+//! rasterised pass alone wants many of the one and none of the other); at least one rasterised
+//! pass runs, and with no traced pass its column reads NaN.
 
 use std::time::Instant;
 
@@ -21,8 +22,14 @@ fn median(mut v: Vec<f64>) -> f64 {
     v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
 }
 
-fn runs_from_env(var: &str, default: usize) -> Result<usize, String> {
-    std::env::var(var).map_or(Ok(default), |v| v.parse().map_err(|e| format!("{var}: {e}")))
+/// A pass count from the environment: `default` when unset, an error when not a number of
+/// at least `least`.
+fn runs_from_env(var: &str, default: usize, least: usize) -> Result<usize, String> {
+    let runs = std::env::var(var).map_or(Ok(default), |v| v.parse().map_err(|e| format!("{var}: {e}")))?;
+    if runs < least {
+        return Err(format!("{var} must be at least {least}, got {runs}"));
+    }
+    Ok(runs)
 }
 
 fn main() -> Result<(), String> {
@@ -46,8 +53,8 @@ fn main() -> Result<(), String> {
     pool.install(|| {
         let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
         let mut runs = Vec::new();
-        let (raster_runs, traced_runs) = (runs_from_env("RASTER_RUNS", 9)?, runs_from_env("TRACED_RUNS", 3)?);
-        for _ in 0..raster_runs.max(1) {
+        let (raster_runs, traced_runs) = (runs_from_env("RASTER_RUNS", 9, 1)?, runs_from_env("TRACED_RUNS", 3, 0)?);
+        for _ in 0..raster_runs {
             let t = Instant::now();
             let st =
                 renderer.render_gbuffers_raster(&lights, [&mut gl, &mut gr], &mut raster).map_err(|e| e.to_string())?;
