@@ -24,7 +24,7 @@ fn shared_scenes() -> Option<PathBuf> {
     if p.join("README.md").is_file() {
         Some(p)
     } else {
-        eprintln!("SKIP: {} not found; the shared-scene tests need it (CI has it)", p.display());
+        common::skip(&format!("{} not found; the shared-scene tests need it (CI has it)", p.display()));
         None
     }
 }
@@ -725,6 +725,8 @@ fn malformed_obj_files_give_file_and_line() {
     // Face index out of range.
     let (p, e) = obj_error(&ROOM_OBJ.replace("f 5 6 7 8", "f 5 6 7 80"));
     assert!(e.to_string().starts_with(&format!("{p}:19: vertex index 80 is out of range")), "{e}");
+    // Issue 13: "the file defines 12 vertices", not "12 vertexs".
+    assert!(e.to_string().ends_with("(the file defines 12 vertices)"), "{e}");
     // Index 0, and relative indices before the first vertex.
     let (p, e) = obj_error(&ROOM_OBJ.replace("f 5 6 7 8", "f 0 6 7"));
     assert!(e.to_string().starts_with(&format!("{p}:19: vertex index 0")), "{e}");
@@ -820,6 +822,25 @@ fn bad_json_gives_line_and_column() {
     );
     let e = load_folder(&dir.0, &FolderOptions::default()).unwrap_err();
     assert!(e.to_string().contains("missing.exr"), "{e}");
+
+    // Issue 13: a null where a string belongs is refused naming the light and the field
+    // (serde alone names neither), and the position is printed once.
+    dir.write(
+        "lights.json",
+        "[\n  {\"type\": \"constant\", \"radiance\": [1, 1, 1]},\n  {\"type\": \"envmap\", \"filename\": null, \
+         \"to_world\": [[1,0,0],[0,1,0],[0,0,1]]}\n]\n",
+    );
+    let e = load_folder(&dir.0, &FolderOptions::default()).unwrap_err().to_string();
+    assert!(e.contains("light 1 (type \"envmap\"), field \"filename\": invalid type: null"), "{e}");
+    assert!(!e.contains("at line"), "position printed twice: {e}");
+    dir.write("camera.json", r#"{"eye": [0, 1, 1.5], "target": [0, 1, -1], "vfov_deg": "wide"}"#);
+    let e = load_folder(&dir.0, &FolderOptions::default()).unwrap_err().to_string();
+    assert!(e.contains("camera.json:1:") && e.contains("expected f32") && !e.contains("at line"), "{e}");
+    dir.write("camera.json", r#"{"eye": [0, 1, 1.5], "target": [0, 1, -1], "vfov_deg": 50}"#);
+    // Issue 13: a sun without power names its irradiance, not a struct dump.
+    dir.write("lights.json", r#"[{"type": "sun", "direction": [0, 1, 0], "irradiance": [0, 0, 0]}]"#);
+    let e = load_folder(&dir.0, &FolderOptions::default()).unwrap_err().to_string();
+    assert!(e.contains("sun irradiance [0, 0, 0]") && !e.contains("SunLight {"), "{e}");
 
     dir.write("lights.json", r#"[{"type": "constant", "radiance": [0.5, 0.5, 0.5]}]"#);
     let s = load_folder(&dir.0, &FolderOptions::default()).unwrap();

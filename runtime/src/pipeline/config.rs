@@ -22,8 +22,14 @@ pub fn budget_duration(ms: f64) -> Result<Duration, String> {
     if ms.is_finite() && ms > 0.0 && ms <= MAX_BUDGET_MS {
         Ok(Duration::from_secs_f64(ms / 1e3))
     } else {
-        Err(format!("budget {ms} ms must be finite, > 0 and at most {MAX_BUDGET_MS} ms"))
+        Err(format!("budget {} ms must be finite, > 0 and at most {MAX_BUDGET_MS} ms", readable(ms)))
     }
+}
+
+/// `v` as a person reads it: plain for ordinary magnitudes, in exponent form for huge or
+/// tiny ones (`{}` of 1e300 prints 301 digits).
+pub fn readable(v: f64) -> String {
+    if v != 0.0 && v.is_finite() && !(1e-3..1e7).contains(&v.abs()) { format!("{v:e}") } else { format!("{v}") }
 }
 
 /// What the pipeline computes (see the table in the `pipeline` module notes).

@@ -59,7 +59,7 @@ mod stats;
 
 use budget::BudgetPlanner;
 pub use config::{
-    GBufferPass, Layout, MAX_BUDGET_MS, MAX_SPP, Mode, Order, PipelineConfig, PipelineError, budget_duration,
+    GBufferPass, Layout, MAX_BUDGET_MS, MAX_SPP, Mode, Order, PipelineConfig, PipelineError, budget_duration, readable,
 };
 use plan::Target;
 pub use plan::{Source, Step, StereoSource, plan};
@@ -600,7 +600,9 @@ impl<S: FrameSource> Pipeline<S> {
                     *has = w & u;
                 }
                 let urgent_count = s.has_new.as_slice().iter().filter(|&&h| h != 0).count() as u64;
+                let urgent_start = Instant::now();
                 let trace = self.source.trace(&s.camera, &request, PixelSelection::Mask(&s.has_new), 0..height, out)?;
+                stats.times.urgent_tracing += urgent_start.elapsed();
                 stats.trace = stats.trace + trace;
                 stats.traced_pixels[eye as usize] += urgent_count;
                 // The rest: `wanted` minus `urgent`, as a mask in `urgent` (reused).

@@ -16,6 +16,10 @@ pub struct StageTimes {
     pub reprojection: Duration,
     /// Path tracing.
     pub tracing: Duration,
+    /// The part of `tracing` that a budget cannot cut: under a budget, the pixels traced
+    /// first because they have no valid history (all of a mode's fully traced eye); zero
+    /// without a budget.
+    pub urgent_tracing: Duration,
     /// EMA and blends.
     pub accumulation: Duration,
     /// The whole frame.

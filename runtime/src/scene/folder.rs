@@ -212,8 +212,63 @@ pub(crate) fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T
     let text = std::fs::read_to_string(path).map_err(|e| SceneError::io(path, e))?;
     serde_json::from_str(&text).map_err(|e| SceneError::Parse {
         location: Location::at(path, e.line().max(1), e.column().max(1)),
-        message: e.to_string(),
+        message: json_message(&e),
     })
+}
+
+/// serde_json's message without the " at line L column C" it appends: the error's location
+/// says that once already.
+fn json_message(e: &serde_json::Error) -> String {
+    let full = e.to_string();
+    let suffix = format!(" at line {} column {}", e.line(), e.column());
+    full.strip_suffix(&suffix).map_or(full.clone(), str::to_owned)
+}
+
+/// Reads `lights.json`. serde reports a wrong value inside an internally tagged entry
+/// (`"filename": null`) without the field, at the entry's closing bracket; so when the typed
+/// parse fails on valid JSON, the entries are parsed again one by one to name the entry, its
+/// type and the field at fault (the position stays serde's).
+fn read_lights(path: &Path) -> Result<Vec<LightJson>, SceneError> {
+    let text = std::fs::read_to_string(path).map_err(|e| SceneError::io(path, e))?;
+    serde_json::from_str(&text).map_err(|e| {
+        let detail =
+            e.is_data().then(|| serde_json::from_str::<Vec<serde_json::Value>>(&text).ok()).flatten().and_then(
+                |entries| {
+                    entries.iter().enumerate().find_map(|(i, entry)| {
+                        serde_json::from_value::<LightJson>(entry.clone())
+                            .err()
+                            .map(|refused| light_error(i, entry, &refused))
+                    })
+                },
+            );
+        SceneError::Parse {
+            location: Location::at(path, e.line().max(1), e.column().max(1)),
+            message: detail.unwrap_or_else(|| json_message(&e)),
+        }
+    })
+}
+
+/// The message for entry `index` of `lights.json` that serde refused with `e`. The field at
+/// fault is the one that, alone in an entry of the same type, is refused the same way.
+fn light_error(index: usize, entry: &serde_json::Value, e: &serde_json::Error) -> String {
+    use serde_json::{Map, Value};
+    let message = json_message(e);
+    let kind = entry.get("type").and_then(Value::as_str).map_or(String::new(), |t| format!(" (type {t:?})"));
+    let field = entry.as_object().and_then(|object| {
+        object.iter().filter(|(k, _)| *k != "type").find_map(|(key, value)| {
+            let mut alone = Map::new();
+            if let Some(t) = object.get("type") {
+                alone.insert("type".into(), t.clone());
+            }
+            alone.insert(key.clone(), value.clone());
+            let refused = serde_json::from_value::<LightJson>(Value::Object(alone)).err()?;
+            (json_message(&refused) == message).then(|| key.clone())
+        })
+    });
+    match field {
+        Some(f) => format!("light {index}{kind}, field {f:?}: {message}"),
+        None => format!("light {index}{kind}: {message}"),
+    }
 }
 
 /// The sun and sky of a Mitsuba `sunsky` entry (see the module notes for the numbers).
@@ -468,7 +523,7 @@ pub(crate) fn load_parts(
     let mut lights = Lights::default();
     let lights_path = dir.join("lights.json");
     if with_lights && lights_path.is_file() {
-        let entries: Vec<LightJson> = read_json(&lights_path)?;
+        let entries = read_lights(&lights_path)?;
         apply_light_json(&entries, &lights_path, &dir, scale, &obj, &mut lights, &mut warnings)?;
     }
     Ok(FolderParts { obj, scale, units, camera, lights, warnings })

@@ -379,8 +379,11 @@ impl Lights {
             check_emission(&format!("point light at {}: intensity", p.position), p.intensity)?;
         }
         if let Some(s) = &self.sun {
-            if !(ok(s.irradiance) && (s.direction.length() - 1.0).abs() < 1e-3) {
-                return Err(format!("sun {s:?} has no power or a non-unit direction"));
+            if !ok(s.irradiance) {
+                return Err(format!("sun irradiance {} must be finite, non-negative and not all zero", s.irradiance));
+            }
+            if !((s.direction.length() - 1.0).abs() < 1e-3) {
+                return Err(format!("sun direction {} is not a unit vector", s.direction));
             }
             if !(s.angular_radius_deg > 0.0 && s.angular_radius_deg < 90.0) {
                 return Err(format!("sun angular radius {} deg is outside (0, 90)", s.angular_radius_deg));
@@ -389,7 +392,12 @@ impl Lights {
         }
         match &self.environment {
             Some(Environment::Constant(c)) if !ok(*c) => return Err(format!("constant environment {c} emits nothing")),
-            Some(Environment::Sky(s)) if !ok(s.mean_radiance()) => return Err(format!("sky {s:?} emits nothing")),
+            Some(Environment::Sky(s)) if !ok(s.mean_radiance()) => {
+                return Err(format!(
+                    "sky (zenith {}, horizon {}, ground {}) emits nothing",
+                    s.zenith, s.horizon, s.ground
+                ));
+            }
             Some(Environment::Map(m)) if !ok(m.mean_radiance) => return Err("environment map is black".into()),
             Some(Environment::Constant(c)) => check_emission("constant environment: radiance", *c)?,
             Some(Environment::Sky(s)) => check_emission("sky: radiance", s.zenith.max(s.horizon).max(s.ground))?,

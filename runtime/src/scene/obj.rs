@@ -431,11 +431,13 @@ fn prescan_obj(path: &Path, bytes: &[u8]) -> Result<ObjScan, SceneError> {
     for (kind, (i, ln)) in max_ref.iter().enumerate() {
         let count = [nv, nt, nn][kind];
         if *i > count {
-            let what = ["vertex", "texture coordinate", "normal"][kind];
+            let (what, plural) =
+                [("vertex", "vertices"), ("texture coordinate", "texture coordinates"), ("normal", "normals")][kind];
+            let defined = if count == 1 { format!("1 {what}") } else { format!("{count} {plural}") };
             return Err(SceneError::parse_at(
                 path,
                 *ln,
-                format!("{what} index {i} is out of range (the file defines {count} {what}s)"),
+                format!("{what} index {i} is out of range (the file defines {defined})"),
             ));
         }
     }
