@@ -165,9 +165,21 @@ fn eval_runs_a_small_configuration_and_resumes_from_its_cache() {
     ] {
         assert!(out.join(f).is_file(), "{f} missing");
     }
+    // Issue 13: a resumed run reports the warnings of the work it loads, and a stale
+    // warnings.txt does not survive a run that reports none.
+    let warnings = out.join("warnings.txt");
+    let first_warnings = std::fs::read_to_string(&warnings).ok();
+    if first_warnings.is_none() {
+        std::fs::write(&warnings, "stale: from an earlier run\n").unwrap();
+    }
     let second = stereotrace(&args);
     let text = String::from_utf8_lossy(&second.stdout);
     assert!(text.contains("computed: 0 references, 0 curves, 0 configurations"), "{text}");
+    assert_eq!(std::fs::read_to_string(&warnings).ok(), first_warnings, "warnings.txt after the resumed run");
+    let results: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap()).unwrap();
+    let reported = results["run"]["warnings"].as_array().map_or(0, Vec::len);
+    assert_eq!(reported, first_warnings.map_or(0, |w| w.lines().count()), "results.json and warnings.txt agree");
     std::fs::remove_dir_all(&dir).ok();
 }
 

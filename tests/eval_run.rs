@@ -1,6 +1,8 @@
 //! The evaluation run: resuming after an interruption (between and inside units), corrupt
 //! cache entries, and the reduced quick preset's tables and figures.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
 use stereotrace::eval::cache::Cache;
@@ -187,10 +189,26 @@ fn the_reduced_quick_preset_reports_every_mode_and_builtin() {
 fn the_embedded_paper_tables_are_the_shared_ones() {
     let shared = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/paper_tables");
     if !shared.is_dir() {
-        println!("SKIP: {} absent", shared.display());
+        common::skip(&format!("{} absent", shared.display()));
         return;
     }
     for (name, text) in stereotrace::eval::paper::embedded_csv() {
         assert_eq!(std::fs::read_to_string(shared.join(name)).unwrap(), text, "{name}");
     }
+}
+
+/// Issue 13: a resumed run's warnings lost those of the work it loaded from the cache (the
+/// error curves' rises were reported only when a curve was computed).
+#[test]
+fn a_resumed_run_reports_the_warnings_of_the_work_it_loads() {
+    let spec = tiny(&["atrium"], &VARIANTS[..1], &[1]);
+    let cache = temp("warn-resume");
+    let fresh = run(&spec, &cache, Limits::default()).unwrap();
+    let rises = |o: &EvalOutcome| -> Vec<String> {
+        o.warnings.iter().filter(|w| w.contains("error curve rises")).cloned().collect()
+    };
+    assert!(!rises(&fresh).is_empty(), "the spec must give a rising curve for this test: {:?}", fresh.warnings);
+    let cached = run(&spec, &cache, Limits::default()).unwrap();
+    assert_eq!(cached.counters.computed_units(), 0);
+    assert_eq!(rises(&cached), rises(&fresh));
 }

@@ -227,11 +227,14 @@ pub fn run(opts: &EvalOptions) -> Result<String, String> {
     let mut written = report::write_reports(&outcome, &out)?;
     let (figures, failed) = plots::write_figures(&outcome.results, &outcome.artifacts, &out);
     written.extend(figures);
+    let warnings_path = out.join("warnings.txt");
     if !outcome.warnings.is_empty() {
-        let path = out.join("warnings.txt");
-        std::fs::write(&path, outcome.warnings.join("\n") + "\n")
-            .map_err(|e| format!("{}: cannot write: {e}", path.display()))?;
-        written.push(path);
+        std::fs::write(&warnings_path, outcome.warnings.join("\n") + "\n")
+            .map_err(|e| format!("{}: cannot write: {e}", warnings_path.display()))?;
+        written.push(warnings_path);
+    } else if warnings_path.exists() {
+        // A file left by an earlier run would contradict this run's report of none.
+        std::fs::remove_file(&warnings_path).map_err(|e| format!("{}: cannot remove: {e}", warnings_path.display()))?;
     }
     let c = outcome.counters;
     let mut text = report::summary_table(&outcome.results, &PaperTables::load());

@@ -642,6 +642,31 @@ impl Runner<'_> {
         Ok((Progressive::new(self.extent), Vec::new()))
     }
 
+    /// Warns where `curve` rises (more samples, more error), whether it was computed in this
+    /// run or loaded from the cache, so a resumed run reports what a fresh one does.
+    fn note_rises(&mut self, scene: &str, curve: &FrameCurve) -> Result<(), EvalError> {
+        for metric in Metric::ALL {
+            let rises = curve.curve(metric)?.rises();
+            if !rises.is_empty() {
+                let at: Vec<u32> = rises.iter().map(|&i| curve.points[i + 1].spp).collect();
+                let message = format!(
+                    "{scene}: frame {}: the {} error curve rises at {} of {} steps (spp {:?}); the first-crossing \
+                     policy applies",
+                    curve.frame,
+                    metric.label(),
+                    at.len(),
+                    curve.points.len() - 1,
+                    &at[..at.len().min(8)]
+                );
+                // Once per curve, however often this run looks it up.
+                if !self.warnings.contains(&message) {
+                    self.warnings.push(message);
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// Builds (or loads, or resumes) the error curve of frame `f`.
     fn curve(
         &mut self,
@@ -655,6 +680,8 @@ impl Runner<'_> {
         let valid = |c: &FrameCurve| c.frame == f && c.points.iter().map(|p| p.spp).eq(points_wanted.iter().copied());
         if let Some(c) = self.load_with(key, |b| serde_json::from_slice::<FrameCurve>(b).map_err(|e| e.to_string())) {
             if valid(&c) {
+                // A curve loaded on a resumed run warns as when it was computed.
+                self.note_rises(&plan.name, &c)?;
                 return Ok(c);
             }
             self.warn(format!("cache entry {} holds another curve; rebuilding", self.cache.path(key).display()));
@@ -687,21 +714,7 @@ impl Runner<'_> {
             }
         }
         let curve = FrameCurve { frame: f, grid: self.spec.grid, points };
-        for metric in Metric::ALL {
-            let rises = curve.curve(metric)?.rises();
-            if !rises.is_empty() {
-                let at: Vec<u32> = rises.iter().map(|&i| curve.points[i + 1].spp).collect();
-                self.warnings.push(format!(
-                    "{}: frame {f}: the {} error curve rises at {} of {} steps (spp {:?}); the first-crossing \
-                     policy applies",
-                    plan.name,
-                    metric.label(),
-                    at.len(),
-                    curve.points.len() - 1,
-                    &at[..at.len().min(8)]
-                ));
-            }
-        }
+        self.note_rises(&plan.name, &curve)?;
         self.cache.put(key, &serde_json::to_vec(&curve).map_err(|e| e.to_string())?)?;
         self.cache.remove(&partial);
         self.counters.curves += 1;
