@@ -12,6 +12,8 @@
 //! The renderer's independent image check against Mitsuba 3 is `tests/mitsuba_reference.rs`.
 //! Uses `../shared/scenes/cornell-box` when present (prints SKIP for it otherwise).
 
+mod common;
+
 use std::path::Path;
 
 use glam::Vec3;
@@ -103,7 +105,7 @@ fn check_invariance(name: &str, scene: &Scene) {
 fn the_shared_cornell_box_renders_the_same_anywhere_and_at_any_scale() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes/cornell-box");
     if !dir.is_dir() {
-        println!("SKIP: ../shared/scenes/cornell-box not found");
+        common::skip("../shared/scenes/cornell-box not found");
         return;
     }
     check_invariance("cornell-box", &resolve(dir.to_str().unwrap()).unwrap());

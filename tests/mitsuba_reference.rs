@@ -9,6 +9,8 @@
 //! sets it), which turns a missing Mitsuba into a failure. The shared-scene cases need
 //! `../shared/scenes` (SKIP otherwise). The full table with larger images is in RESULTS.md.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -53,7 +55,7 @@ fn shared(name: &str) -> Option<String> {
     if dir.is_dir() {
         Some(dir.to_str().unwrap().to_owned())
     } else {
-        println!("SKIP: {} not found", dir.display());
+        common::skip(&format!("{} not found", dir.display()));
         None
     }
 }
@@ -61,7 +63,7 @@ fn shared(name: &str) -> Option<String> {
 #[test]
 fn builtin_cornell_matches_mitsuba() {
     if !mitsuba_available() {
-        println!("SKIP: python3 with mitsuba and numpy not found");
+        common::skip("python3 with mitsuba and numpy not found");
         return;
     }
     check("cornell", "64x64", 512, &[]);
@@ -70,7 +72,7 @@ fn builtin_cornell_matches_mitsuba() {
 #[test]
 fn shared_cornell_box_matches_mitsuba_with_one_bounce_and_direct_only() {
     if !mitsuba_available() {
-        println!("SKIP: python3 with mitsuba and numpy not found");
+        common::skip("python3 with mitsuba and numpy not found");
         return;
     }
     let Some(dir) = shared("cornell-box") else { return };
@@ -81,7 +83,7 @@ fn shared_cornell_box_matches_mitsuba_with_one_bounce_and_direct_only() {
 #[test]
 fn shared_sponza_diffuse_matches_mitsuba() {
     if !mitsuba_available() {
-        println!("SKIP: python3 with mitsuba and numpy not found");
+        common::skip("python3 with mitsuba and numpy not found");
         return;
     }
     let Some(dir) = shared("sponza") else { return };
@@ -91,7 +93,7 @@ fn shared_sponza_diffuse_matches_mitsuba() {
 #[test]
 fn features_without_a_mitsuba_equivalent_are_refused_with_a_reason() {
     if !mitsuba_available() {
-        println!("SKIP: python3 with mitsuba and numpy not found");
+        common::skip("python3 with mitsuba and numpy not found");
         return;
     }
     let Some(dir) = shared("sponza") else { return };

@@ -8,6 +8,8 @@
 //! **edge** (its centre within 1e-5 px of an edge of one of the two triangles); the test
 //! prints how many of each it found. At least 99.9 % of pixels must agree.
 
+mod common;
+
 use std::path::Path;
 
 use glam::{DVec3, Vec3};
@@ -195,7 +197,7 @@ fn raster_and_traced_visibility_agree_on_every_builtin_at_1280x720() {
 fn raster_and_traced_visibility_agree_on_every_shared_scene() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes");
     if !root.is_dir() {
-        println!("SKIP: ../shared/scenes not found");
+        common::skip("../shared/scenes not found");
         return;
     }
     for name in ["cornell-box", "sponza", "living-room", "classroom", "bunny"] {

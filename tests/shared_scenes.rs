@@ -4,6 +4,8 @@
 //!
 //! Prints `SKIP: ../shared/scenes not found` and passes when the folder is absent (CI has it).
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
 use stereotrace::camera::{Eye, StereoRig};
@@ -21,7 +23,7 @@ fn shared_scenes() -> Option<PathBuf> {
 #[test]
 fn every_shared_scene_renders_a_small_stereo_frame() {
     let Some(root) = shared_scenes() else {
-        println!("SKIP: ../shared/scenes not found");
+        common::skip("../shared/scenes not found");
         return;
     };
     let e = Extent::new(64, 36).unwrap();
