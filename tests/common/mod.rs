@@ -29,3 +29,49 @@ pub fn skip(why: &str) {
     let test = std::thread::current().name().unwrap_or("?").to_owned();
     let _ = writeln!(std::io::stderr().lock(), "SKIP {test}: {why}");
 }
+
+/// An OBJ of a closed box from −1 to 1 (material `white`; surfaces are two-sided, so the
+/// winding does not matter) with a `lamp` quad under its ceiling.
+pub const BOX_OBJ: &str = "mtllib scene.mtl
+v -1 -1 -1
+v 1 -1 -1
+v 1 1 -1
+v -1 1 -1
+v -1 -1 1
+v 1 -1 1
+v 1 1 1
+v -1 1 1
+v -0.3 0.99 -0.3
+v 0.3 0.99 -0.3
+v 0.3 0.99 0.3
+v -0.3 0.99 0.3
+usemtl white
+f 1 2 3 4
+f 5 8 7 6
+f 1 5 6 2
+f 4 3 7 8
+f 1 4 8 5
+f 2 6 7 3
+usemtl lamp
+f 9 10 11 12
+";
+
+/// Appended after [`BOX_OBJ`] (vertices 13..): a zero-area triangle (three equal vertices),
+/// a collinear one, a needle 1e-6 wide, and one triangle twice with two materials.
+pub const DEGENERATE_OBJ: &str = "v 0 0 0
+v 0.2 0.2 0.2
+v 0.4 0.4 0.4
+v -0.5 -0.5 -0.5
+v 0.5 -0.5 -0.5
+v 0 -0.5 -0.499999
+v -0.4 -0.2 0
+v 0.4 -0.2 0
+v 0 0.4 0
+usemtl white
+f 13 13 13
+f 13 14 15
+f 16 17 18
+f 19 20 21
+usemtl red
+f 19 20 21
+";
