@@ -12,3 +12,4 @@ pub use stereotrace_runtime::{camera, cpu, image_io, kernels, pipeline, render, 
 
 pub mod commands;
 pub mod eval;
+pub mod fuzzing;

@@ -23,6 +23,7 @@ use crate::check::same_bits;
 use crate::frame::{Extent, FrameError, PlaneBuf, RgbBuf};
 use crate::gbuffer::SurfaceLayout;
 use crate::reproject::{self, Reason, ReprojectInput, ReprojectOutput, ReprojectParams, TapPolicy, Tolerances};
+use crate::simd::LANES;
 use crate::synth::{AnalyticScene, SynthFrame, camera_at};
 
 /// Reads bytes front to back; yields zeros once exhausted.
@@ -434,5 +435,152 @@ pub fn accumulate(data: &[u8]) {
     assert_eq!(stats, stats_ref);
     for (a, b) in [(out.r(), out_ref.r()), (out.g(), out_ref.g()), (out.b(), out_ref.b())] {
         assert_bits("blend", a, b);
+    }
+}
+
+/// Fuzzes SSIM: two images over a small extent (1×1 up to 40×12, so the window's replicate
+/// padding covers most of them), edited anywhere with any f32. Both variants, any band height.
+/// Checks the SIMD body against the f64 scalar reference (the counts exactly, SSIM and RMSE to
+/// [`crate::ssim::CHECK_TOLERANCE`]), symmetry bit for bit, SSIM within [−1, 1] and RMSE
+/// finite and non-negative whenever any sample was usable, NaN exactly when none was.
+pub fn ssim(data: &[u8]) {
+    use crate::ssim::{self as s, SsimParams, SsimVariant};
+    let mut bytes = Bytes(data);
+    let extent = extent_from(&mut bytes);
+    let variant = if bytes.u8() % 2 == 0 { SsimVariant::Volume } else { SsimVariant::PerChannel };
+    let params = SsimParams { variant, band_rows: 1 + usize::from(bytes.u8() % 16) };
+    // A smooth base (so the constant-image and gradient cases both come up), then edits.
+    let (base_a, base_b, slope) = (bytes.unit(-2.0, 2.0), bytes.unit(-2.0, 2.0), bytes.unit(-0.5, 0.5));
+    let mut a = RgbBuf::new(extent, base_a);
+    let mut b = RgbBuf::new(extent, base_b);
+    for i in 0..extent.pixels() {
+        let v = slope * (i % extent.width()) as f32;
+        a.r_mut()[i] += v;
+        b.g_mut()[i] -= v;
+    }
+    while !bytes.is_empty() {
+        let which = bytes.u8() % 6;
+        let index = usize::from(u16::from_le_bytes([bytes.u8(), bytes.u8()])) % extent.pixels();
+        let value = bytes.f32();
+        let plane = match which {
+            0 => a.r_mut(),
+            1 => a.g_mut(),
+            2 => a.b_mut(),
+            3 => b.r_mut(),
+            4 => b.g_mut(),
+            _ => b.b_mut(),
+        };
+        plane[index] = value;
+    }
+    let fast = s::ssim(&a.view(), &b.view(), &params).expect("validated input");
+    let reference = s::ssim_scalar(&a.view(), &b.view(), &params).expect("validated input");
+    s::assert_agrees(&fast, &reference, s::CHECK_TOLERANCE);
+    let swapped = s::ssim(&b.view(), &a.view(), &params).expect("validated input");
+    let same = |x: f64, y: f64| x.to_bits() == y.to_bits() || (x.is_nan() && y.is_nan());
+    assert!(
+        same(fast.ssim, swapped.ssim) && same(fast.rmse, swapped.rmse),
+        "SSIM is not symmetric: {fast:?} vs {swapped:?}"
+    );
+    let samples = 3 * extent.pixels() as u64;
+    assert!(fast.voxels <= samples && fast.rmse_samples <= samples && fast.non_finite <= 2 * samples);
+    if fast.voxels > 0 {
+        assert!((-1.0 - 1e-9..=1.0 + 1e-9).contains(&fast.ssim), "SSIM out of range: {fast:?}");
+    } else {
+        assert!(fast.ssim.is_nan(), "no usable voxel but SSIM {fast:?}");
+    }
+    if fast.rmse_samples > 0 {
+        assert!(fast.rmse.is_finite() && fast.rmse >= 0.0, "RMSE not finite: {fast:?}");
+    } else {
+        assert!(fast.rmse.is_nan(), "no usable sample but RMSE {fast:?}");
+    }
+}
+
+/// A coordinate: mostly on a coarse grid in [−1, 1] (so shared edges, coincident and
+/// degenerate triangles and axis-aligned rays come up often), sometimes any f32.
+fn coordinate(bytes: &mut Bytes<'_>) -> f32 {
+    let b = bytes.u8();
+    match b {
+        0..=239 => f32::from(b % 17) / 8.0 - 1.0,
+        240..=247 => bytes.unit(-1.0, 1.0),
+        _ => bytes.f32(),
+    }
+}
+
+/// Fuzzes BVH build and traversal: up to 48 triangles and 16 rays from the bytes. Checks the
+/// single-ray closest hit against brute force (`t` bit for bit, the same triangle unless both
+/// are hit at exactly that `t`), occlusion against the closest hit, and every lane of a
+/// packet (at single-ray thresholds 0, 2 and 8) against its single ray. Builds that refuse
+/// (non-finite or huge vertices) must say so with a `BvhError`.
+pub fn bvh(data: &[u8]) {
+    use crate::bvh::{BuildQuality, Hit, Ray, TriangleBvh, intersect_brute_force};
+    use crate::packet::{PacketHits, RayPacket};
+    let mut bytes = Bytes(data);
+    let quality = match bytes.u8() % 3 {
+        0 => BuildQuality::Fast,
+        1 => BuildQuality::Medium,
+        _ => BuildQuality::High,
+    };
+    let n_tris = usize::from(bytes.u8() % 49);
+    let n_rays = 1 + usize::from(bytes.u8() % 16);
+    let vec = |bytes: &mut Bytes<'_>| Vec3::new(coordinate(bytes), coordinate(bytes), coordinate(bytes));
+    let tris: Vec<[Vec3; 3]> = (0..n_tris).map(|_| [vec(&mut bytes), vec(&mut bytes), vec(&mut bytes)]).collect();
+    let rays: Vec<Ray> = (0..n_rays)
+        .map(|_| {
+            let origin = vec(&mut bytes) * 2.0;
+            let dir = vec(&mut bytes);
+            let (tmin, tmax) = match bytes.u8() % 4 {
+                0 => (0.0, f32::INFINITY),
+                1 => (bytes.unit(0.0, 1.0), bytes.unit(0.0, 4.0)),
+                2 => (bytes.f32(), bytes.f32()),
+                _ => (1e-4, f32::INFINITY),
+            };
+            Ray { origin, dir, tmin, tmax }
+        })
+        .collect();
+    let bvh = match TriangleBvh::build(&tris, quality) {
+        Ok((bvh, _)) => bvh,
+        Err(_) => {
+            // Refused: only for vertices a build cannot take.
+            assert!(tris.iter().flatten().any(|v| !(v.abs().max_element() <= crate::bvh::MAX_COORD)));
+            return;
+        }
+    };
+    let t_of = |prim: u32, ray: &Ray| intersect_brute_force(&tris[prim as usize..prim as usize + 1], ray).map(|h| h.t);
+    let same = |a: Option<Hit>, b: Option<Hit>, ray: &Ray, what: &str| match (a, b) {
+        (None, None) => {}
+        (Some(x), Some(y)) => {
+            assert_eq!(x.t.to_bits(), y.t.to_bits(), "{what}: t {} vs {} for {ray:?}", x.t, y.t);
+            if x.prim == y.prim {
+                assert_eq!((x.u.to_bits(), x.v.to_bits()), (y.u.to_bits(), y.v.to_bits()), "{what}: uv for {ray:?}");
+            } else {
+                assert_eq!(t_of(x.prim, ray), Some(x.t), "{what}: {} vs {} is not a tie", x.prim, y.prim);
+                assert_eq!(t_of(y.prim, ray), Some(x.t), "{what}: {} vs {} is not a tie", x.prim, y.prim);
+            }
+        }
+        _ => panic!("{what}: {a:?} vs {b:?} for {ray:?}"),
+    };
+    let singles: Vec<Option<Hit>> = rays.iter().map(|r| bvh.intersect(r)).collect();
+    for (r, s) in rays.iter().zip(&singles) {
+        same(*s, intersect_brute_force(&tris, r), r, "single ray vs brute force");
+        assert_eq!(bvh.occluded(r), s.is_some(), "occlusion vs closest hit for {r:?}");
+        if let Some(h) = s {
+            assert!(h.t.is_finite() && h.t >= r.tmin && h.t < r.tmax, "hit outside the ray's interval: {h:?} {r:?}");
+        }
+    }
+    for (chunk, singles) in rays.chunks(LANES).zip(singles.chunks(LANES)) {
+        let mut lanes = [Ray::new(Vec3::ZERO, Vec3::X); LANES];
+        lanes[..chunk.len()].copy_from_slice(chunk);
+        let active = (1u32 << chunk.len()) - 1;
+        let packet = RayPacket::from_rays(&lanes);
+        for threshold in [0, 2, 8] {
+            let mut hits = PacketHits::NONE;
+            let hit_mask = bvh.intersect_packet_with(&packet, active, &mut hits, threshold);
+            let occluded = bvh.occluded_packet_with(&packet, active, threshold);
+            for (i, s) in singles.iter().enumerate() {
+                same(hits.get(i), *s, &chunk[i], "packet lane vs single ray");
+                assert_eq!(hit_mask & (1 << i) != 0, s.is_some(), "packet hit mask lane {i}");
+                assert_eq!(occluded & (1 << i) != 0, s.is_some(), "packet occlusion lane {i}");
+            }
+        }
     }
 }

@@ -33,3 +33,13 @@ fn bilinear_corpus() {
 fn accumulate_corpus() {
     replay("accumulate", stereotrace_kernels::fuzzing::accumulate);
 }
+
+#[test]
+fn ssim_corpus() {
+    replay("ssim", stereotrace_kernels::fuzzing::ssim);
+}
+
+#[test]
+fn bvh_corpus() {
+    replay("bvh", stereotrace_kernels::fuzzing::bvh);
+}

@@ -212,7 +212,7 @@ impl Cache {
 }
 
 /// Checks an entry's framing and returns its payload.
-fn decode_entry<'a>(bytes: &'a [u8], key_text: &str) -> Result<&'a [u8], String> {
+pub(crate) fn decode_entry<'a>(bytes: &'a [u8], key_text: &str) -> Result<&'a [u8], String> {
     let mut r = Reader { bytes, pos: 0 };
     if r.take(8)? != MAGIC {
         return Err("not a cache entry (bad magic)".into());
