@@ -242,7 +242,8 @@ fn guard_rejected(camera: &CameraModel, tris: &[TriVerts], prim: u32, x: usize, 
 /// through the eye, behind it, coincident or degenerate), an extent from 1×1 to 24×16, any
 /// eye separation from the bytes. Both bodies must give the same buffers, and every pixel of
 /// both eyes the tracer's closest hit, unless the tracer's self-intersection guard rejected
-/// the raster's triangle there ([`guard_rejected`]).
+/// the raster's triangle there: a hit the watertight test refuses as within its rounding
+/// bound of the eye, which the raster, deciding by geometry, shows.
 pub fn raster(data: &[u8]) {
     let mut bytes = Bytes(data);
     let extent = Extent::new(1 + usize::from(bytes.u8() % 24), 1 + usize::from(bytes.u8() % 16)).expect("small");

@@ -34,9 +34,13 @@
 //! Tail strategy: rows are processed `LANES` pixels at a time; the remaining `width % LANES`
 //! pixels go through the scalar reference, which gives identical results.
 
+mod scalar;
+mod simd;
+
 use crate::bands::{SharedRows, for_each_band};
 use crate::frame::{Extent, FrameError, Plane, PlaneMut, RgbPlanes, RgbPlanesMut, same_extent};
-use crate::simd::{F32s, LANES, TapCoords, clamp_finite, clamp_finite1, lane_offsets, load, store};
+use crate::simd::{F32s, LANES, clamp_finite, clamp_finite1, lane_offsets};
+pub use scalar::resample_pixel;
 
 /// Fractional offsets closer than this to a pixel centre snap to it.
 pub const SNAP: f32 = 1.0 / 1024.0;
@@ -270,23 +274,7 @@ pub fn resample_scalar(input: &ResampleInput<'_>, out: ResampleOutput<'_>) -> Re
 pub fn resample(input: &ResampleInput<'_>, mut out: ResampleOutput<'_>) -> Result<(), FrameError> {
     check_resample(input, &out)?;
     run_rows(input, out.reborrow(), DEFAULT_BAND_ROWS, |input, y, colour, weight| {
-        let width = weight.len();
-        let mut x = 0;
-        while x + LANES <= width {
-            let (rgb, w) = resample_lanes(input, x, y);
-            for c in 0..3 {
-                store(colour[c], x, rgb[c]);
-            }
-            store(weight, x, w);
-            x += LANES;
-        }
-        for x in x..width {
-            let (rgb, w) = resample_pixel(input, x, y);
-            for c in 0..3 {
-                colour[c][x] = rgb[c];
-            }
-            weight[x] = w;
-        }
+        simd::resample_row(input, y, colour, weight)
     });
     #[cfg(feature = "check-scalar")]
     {
@@ -330,89 +318,6 @@ where
         },
         |(), ()| (),
     );
-}
-
-/// The scalar reference for one output pixel.
-pub fn resample_pixel(input: &ResampleInput<'_>, x: usize, y: usize) -> ([f32; 3], f32) {
-    let extent = input.source.extent();
-    let Some(fp) = Footprint::new(input.map_x.get(x, y), input.map_y.get(x, y), extent) else {
-        return ([0.0; 3], 0.0);
-    };
-    let weights = fp.weights();
-    let in_frame = fp.in_frame(extent);
-    let mut sum = [0.0f32; 3];
-    let mut total = 0.0f32;
-    for (t, &(tx, ty)) in fp.taps().iter().enumerate() {
-        if !in_frame[t] || weights[t] == 0.0 {
-            continue;
-        }
-        let (tx, ty) = (tx as usize, ty as usize);
-        if let Some(valid) = &input.source_valid
-            && valid.get(tx, ty) == 0
-        {
-            continue;
-        }
-        let rgb = input.source.get(tx, ty);
-        for c in 0..3 {
-            sum[c] += weights[t] * rgb[c];
-        }
-        total += weights[t];
-    }
-    if total > 0.0 {
-        let inv_total = 1.0 / total;
-        (sum.map(|s| renormalise(s, inv_total)), total.min(1.0))
-    } else {
-        ([0.0; 3], 0.0)
-    }
-}
-
-/// The SIMD body for `LANES` output pixels starting at `(x, y)`.
-#[inline(always)]
-fn resample_lanes(input: &ResampleInput<'_>, x: usize, y: usize) -> ([F32s; 3], F32s) {
-    let extent = input.source.extent();
-    let fp = Footprints::new(load(input.map_x.row(y), x), load(input.map_y.row(y), x), extent);
-    let weights = fp.weights();
-    let in_frame = fp.in_frame(extent);
-    let mut sum = [F32s::ZERO; 3];
-    let mut total = F32s::ZERO;
-    let planes = input.source.channels();
-    // A coherent group (consecutive source columns on one row, all taps inside) loads each
-    // tap as a contiguous vector instead of gathering lane by lane: same values, same bits.
-    let coherent = coherent_row(&fp, fp.inside, extent);
-    for (t, &(tx, ty)) in fp.taps().iter().enumerate() {
-        let mut accept = in_frame[t] & weights[t].simd_gt(F32s::ZERO);
-        if accept.none() {
-            continue;
-        }
-        let values: [F32s; 3] = match coherent {
-            Some((x0, y0)) => {
-                let (x, y) = (x0 + t % 2, y0 + t / 2);
-                if let Some(valid) = &input.source_valid {
-                    let v = &valid.row(y)[x..x + LANES];
-                    accept &= F32s::from(core::array::from_fn::<f32, LANES, _>(|i| {
-                        if v[i] != 0 { f32::from_bits(u32::MAX) } else { 0.0 }
-                    }));
-                }
-                [0, 1, 2].map(|c| load(planes[c].row(y), x))
-            }
-            None => {
-                let coords = TapCoords::clamped(tx, ty, extent.width(), extent.height());
-                if let Some(valid) = &input.source_valid {
-                    let v = coords.gather(valid).map(|b| if b != 0 { f32::from_bits(u32::MAX) } else { 0.0 });
-                    accept &= F32s::from(v);
-                }
-                [0, 1, 2].map(|c| coords.gather_f32(&planes[c]))
-            }
-        };
-        for c in 0..3 {
-            sum[c] += accept.select(weights[t] * values[c], F32s::ZERO);
-        }
-        total += accept.select(weights[t], F32s::ZERO);
-    }
-    let any = total.simd_gt(F32s::ZERO);
-    let inv_total = F32s::ONE / total;
-    let colour = sum.map(|s| any.select(renormalise_simd(s, inv_total), F32s::ZERO));
-    (colour, any.select(total.min(F32s::ONE), F32s::ZERO))
 }
 
 #[cfg(test)]

@@ -27,10 +27,15 @@
 //! Tail strategy: `LANES` pixels at a time, the remaining `width % LANES` through the scalar
 //! reference.
 
+mod scalar;
+mod simd;
+
 use crate::bands::{SharedRows, for_each_band};
 use crate::frame::{FrameError, Plane, PlaneMut, RgbPlanes, RgbPlanesMut, same_extent};
-use crate::reproject::Reason;
-use crate::simd::{F32s, I32s, LANES, clamp_finite, clamp_finite1, load, store};
+use crate::simd::F32s;
+pub use scalar::{blend_pixel, ema_pixel, lerp};
+use scalar::{blend_scalar_at, ema_scalar_at};
+pub use simd::lerp_simd;
 
 /// EMA parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -57,7 +62,7 @@ pub struct EmaInput<'a> {
     /// This frame's samples.
     pub new: RgbPlanes<'a>,
     /// Reason codes of the history's reprojection: the history is valid where the code is
-    /// [`Reason::Reprojected`].
+    /// [`crate::reproject::Reason::Reprojected`].
     pub reason: Plane<'a, u8>,
     /// Optional: non-zero where a new sample exists this frame (absent: everywhere).
     pub has_new: Option<Plane<'a, u8>>,
@@ -89,52 +94,6 @@ impl AccumulateStats {
     }
 }
 
-/// `a + t·(b − a)`, with `t = 0` returning `a` and `t = 1` returning `b` exactly, clamped
-/// and flushed (see module docs). Where `b − a` overflows (values near ±`f32::MAX` of
-/// opposite sign) it falls back to `a·(1 − t) + b·t`, which cannot overflow.
-#[inline(always)]
-pub fn lerp(a: f32, b: f32, t: f32) -> f32 {
-    let d = b - a;
-    let v = if t == 0.0 {
-        a
-    } else if t == 1.0 {
-        b
-    } else if d.is_finite() || !(a.is_finite() && b.is_finite()) {
-        a + t * d
-    } else {
-        a * (1.0 - t) + b * t
-    };
-    finish(v)
-}
-
-/// Clamp to the finite range and flush subnormals to zero (NaN passes through).
-#[inline(always)]
-fn finish(v: f32) -> f32 {
-    let v = clamp_finite1(v);
-    if v.abs() < f32::MIN_POSITIVE { 0.0 } else { v }
-}
-
-/// SIMD twin of [`lerp`].
-#[inline(always)]
-pub fn lerp_simd(a: F32s, b: F32s, t: F32s) -> F32s {
-    let d = b - a;
-    let overflow = !d.is_finite() & a.is_finite() & b.is_finite();
-    let general = overflow.select(a * (F32s::ONE - t) + b * t, a + t * d);
-    let v = t.simd_eq(F32s::ZERO).select(a, t.simd_eq(F32s::ONE).select(b, general));
-    finish_simd(v)
-}
-
-#[inline(always)]
-fn finish_simd(v: F32s) -> F32s {
-    flush_subnormal(clamp_finite(v))
-}
-
-/// The flushing half of [`finish_simd`] (what it does to a finite value).
-#[inline(always)]
-fn flush_subnormal(v: F32s) -> F32s {
-    v.abs().simd_lt(F32s::splat(f32::MIN_POSITIVE)).select(F32s::ZERO, v)
-}
-
 fn check_params(params: &EmaParams, has_len: bool) -> Result<(), FrameError> {
     if !(params.alpha > 0.0 && params.alpha <= 1.0) {
         return Err(FrameError::InvalidParameter("EMA alpha must be in (0, 1]"));
@@ -159,39 +118,6 @@ fn check_ema(input: &EmaInput<'_>, state: &EmaState<'_>, params: &EmaParams) -> 
     Ok(())
 }
 
-/// One pixel of the EMA (scalar reference). Returns the new accumulation and history length
-/// and updates `stats`.
-#[inline]
-pub fn ema_pixel(
-    history: [f32; 3],
-    history_len: f32,
-    new: [f32; 3],
-    history_valid: bool,
-    has_new: bool,
-    params: &EmaParams,
-    stats: &mut AccumulateStats,
-) -> ([f32; 3], f32) {
-    let finite = new.iter().all(|v| v.is_finite());
-    if has_new && !finite {
-        stats.non_finite += 1;
-    }
-    match (has_new && finite, history_valid) {
-        (true, true) => {
-            let alpha = if params.ramp { params.alpha.max(1.0 / (history_len + 1.0)) } else { params.alpha };
-            ([0, 1, 2].map(|c| lerp(history[c], new[c], alpha)), history_len + 1.0)
-        }
-        (true, false) => {
-            stats.resets += 1;
-            (new.map(finish), 1.0)
-        }
-        (false, true) => (history.map(finish), history_len),
-        (false, false) => {
-            stats.holes += 1;
-            ([0.0; 3], 0.0)
-        }
-    }
-}
-
 /// Scalar reference EMA step.
 pub fn ema_scalar(
     input: &EmaInput<'_>,
@@ -204,30 +130,6 @@ pub fn ema_scalar(
             ema_scalar_at(input, params, y, x, acc, len.as_deref_mut(), stats);
         }
     }))
-}
-
-#[inline(always)]
-fn ema_scalar_at(
-    input: &EmaInput<'_>,
-    params: &EmaParams,
-    y: usize,
-    x: usize,
-    acc: &mut [&mut [f32]; 3],
-    len: Option<&mut [f32]>,
-    stats: &mut AccumulateStats,
-) {
-    let history = [acc[0][x], acc[1][x], acc[2][x]];
-    let n = len.as_ref().map_or(0.0, |l| l[x]);
-    let valid = input.reason.row(y)[x] == Reason::Reprojected as u8;
-    let has_new = input.has_new.as_ref().is_none_or(|m| m.row(y)[x] != 0);
-    let new = input.new.get(x, y);
-    let (out, n_out) = ema_pixel(history, n, new, valid, has_new, params, stats);
-    for c in 0..3 {
-        acc[c][x] = out[c];
-    }
-    if let Some(l) = len {
-        l[x] = n_out;
-    }
 }
 
 /// SIMD EMA step, bit-identical to [`ema_scalar`].
@@ -252,76 +154,7 @@ pub fn ema(input: &EmaInput<'_>, mut state: EmaState<'_>, params: &EmaParams) ->
     #[cfg(feature = "check-scalar")]
     let before = snapshot(&state);
     let stats = run_ema(input, state.reborrow(), params, |input, y, acc, len, stats| {
-        let width = acc[0].len();
-        let reason = input.reason.row(y);
-        let has_new = input.has_new.as_ref().map(|m| m.row(y));
-        let new = input.new.channels().map(|p| p.row(y));
-        // Every row has the extent's width; stated once so that the loop's loads and stores
-        // need no bounds checks.
-        assert!(
-            reason.len() == width
-                && (0..3).all(|c| acc[c].len() == width && new[c].len() == width)
-                && has_new.is_none_or(|m| m.len() == width)
-                && len.as_deref().is_none_or(|l| l.len() == width)
-        );
-        let mut x = 0;
-        while x + LANES <= width {
-            let valid = byte_mask_eq(&reason[x..x + LANES], Reason::Reprojected as u8);
-            let sampled = has_new.map_or(F32s::splat(f32::from_bits(u32::MAX)), |m| !byte_mask_eq(&m[x..x + LANES], 0));
-            let new_v = [load(new[0], x), load(new[1], x), load(new[2], x)];
-            let hist = [load(acc[0], x), load(acc[1], x), load(acc[2], x)];
-            let n = len.as_deref().map_or(F32s::ZERO, |l| load(l, x));
-            let alpha = if params.ramp {
-                F32s::splat(params.alpha).max(F32s::ONE / (n + F32s::ONE))
-            } else {
-                F32s::splat(params.alpha)
-            };
-            // The common case: every lane has a valid history and a finite new sample, and
-            // `new − history` is finite (so neither is infinite). Then `lerp` is
-            // `a + t·(b − a)` (or `b` where t = 1) and there is nothing to count: the same
-            // bits with about a third of the instructions (with the byte masks below,
-            // 353 → 134 per 8 pixels; 2.5 → 1.2 ms per 1280×720 frame on one thread). The
-            // result still goes through `finish`: next to ±f32::MAX, `a + t·d` can round
-            // past the largest finite value (found by the fuzzer), and the reference clamps.
-            let d = [new_v[0] - hist[0], new_v[1] - hist[1], new_v[2] - hist[2]];
-            let zero = F32s::ZERO;
-            let poison =
-                (new_v[0] * zero + new_v[1] * zero + new_v[2] * zero) + (d[0] * zero + d[1] * zero + d[2] * zero);
-            if (valid & sampled & poison.simd_eq(zero)).all() {
-                let one = alpha.simd_eq(F32s::ONE);
-                for c in 0..3 {
-                    let v = one.select(new_v[c], hist[c] + alpha * d[c]);
-                    store(acc[c], x, finish_simd(v));
-                }
-                if let Some(l) = len.as_deref_mut() {
-                    store(l, x, n + F32s::ONE);
-                }
-                x += LANES;
-                continue;
-            }
-            let finite = new_v[0].is_finite() & new_v[1].is_finite() & new_v[2].is_finite();
-            let use_new = sampled & finite;
-            let blend = use_new & valid;
-            let reset = use_new & !valid;
-            let hole = !use_new & !valid;
-            for c in 0..3 {
-                let mixed = lerp_simd(hist[c], new_v[c], alpha);
-                let out = blend
-                    .select(mixed, reset.select(finish_simd(new_v[c]), hole.select(F32s::ZERO, finish_simd(hist[c]))));
-                store(acc[c], x, out);
-            }
-            if let Some(l) = len.as_deref_mut() {
-                let n_out = blend.select(n + F32s::ONE, reset.select(F32s::ONE, hole.select(F32s::ZERO, n)));
-                store(l, x, n_out);
-            }
-            stats.non_finite += u64::from((sampled & !finite).to_bitmask().count_ones());
-            stats.resets += u64::from(reset.to_bitmask().count_ones());
-            stats.holes += u64::from(hole.to_bitmask().count_ones());
-            x += LANES;
-        }
-        for x in x..width {
-            ema_scalar_at(input, params, y, x, acc, len.as_deref_mut(), stats);
-        }
+        simd::ema_row(input, params, y, acc, len, stats)
     });
     #[cfg(feature = "check-scalar")]
     {
@@ -370,16 +203,6 @@ impl EmaState<'_> {
     pub fn reborrow(&mut self) -> EmaState<'_> {
         EmaState { accum: self.accum.reborrow(), history_len: self.history_len.as_mut().map(|l| l.reborrow()) }
     }
-}
-
-/// All-ones lanes where the byte equals `value` (the first `LANES` bytes).
-#[inline(always)]
-fn byte_mask_eq(bytes: &[u8], value: u8) -> F32s {
-    let b: [u8; LANES] = bytes[..LANES].try_into().expect("LANES bytes");
-    // Widened in one vector instruction (`vpmovzxbd`); a per-lane loop building the mask
-    // from scalar compares was 30 instructions.
-    let lanes = I32s::from([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]].map(i32::from));
-    bytemuck::cast(lanes.simd_eq(I32s::splat(i32::from(value))))
 }
 
 type EmaRow<'r> = [&'r mut [f32]; 3];
@@ -439,33 +262,6 @@ fn check_blend(
     same_extent("reason plane", e, reason.extent())
 }
 
-/// One pixel of the blend (scalar reference): `own + (1 − w)·(reprojected − own)` where the
-/// reprojection is valid, `own` elsewhere; a non-finite `own` falls back to the reprojection
-/// (or a hole).
-#[inline]
-pub fn blend_pixel(
-    own: [f32; 3],
-    reprojected: [f32; 3],
-    valid: bool,
-    params: &BlendParams,
-    stats: &mut AccumulateStats,
-) -> [f32; 3] {
-    let finite = own.iter().all(|v| v.is_finite());
-    if !finite {
-        stats.non_finite += 1;
-    }
-    let t = 1.0 - params.own_weight;
-    match (finite, valid) {
-        (true, true) => [0, 1, 2].map(|c| lerp(own[c], reprojected[c], t)),
-        (true, false) => own.map(finish),
-        (false, true) => reprojected.map(finish),
-        (false, false) => {
-            stats.holes += 1;
-            [0.0; 3]
-        }
-    }
-}
-
 /// Scalar reference stereo blend; writes the result over `reprojected`.
 pub fn blend_scalar(
     own: &RgbPlanes<'_>,
@@ -481,23 +277,6 @@ pub fn blend_scalar(
     }))
 }
 
-#[inline(always)]
-fn blend_scalar_at(
-    own: &RgbPlanes<'_>,
-    reason: &Plane<'_, u8>,
-    params: &BlendParams,
-    x: usize,
-    y: usize,
-    out: &mut EmaRow<'_>,
-    stats: &mut AccumulateStats,
-) {
-    let valid = reason.row(y)[x] == Reason::Reprojected as u8;
-    let v = blend_pixel(own.get(x, y), [out[0][x], out[1][x], out[2][x]], valid, params, stats);
-    for c in 0..3 {
-        out[c][x] = v[c];
-    }
-}
-
 /// SIMD stereo blend, bit-identical to [`blend_scalar`]; writes the result over
 /// `reprojected`.
 pub fn blend(
@@ -511,31 +290,7 @@ pub fn blend(
     let before = snapshot(&EmaState { accum: reprojected.reborrow(), history_len: None }).0;
     let t = F32s::splat(1.0 - params.own_weight);
     let stats = run_blend(reprojected.reborrow(), params, |y, out, stats| {
-        let width = out[0].len();
-        let reason_row = reason.row(y);
-        let own_rows = own.channels().map(|p| p.row(y));
-        let mut x = 0;
-        while x + LANES <= width {
-            let valid = byte_mask_eq(&reason_row[x..x + LANES], Reason::Reprojected as u8);
-            let mine = own_rows.map(|p| load(p, x));
-            let theirs = [0, 1, 2].map(|c| load(out[c], x));
-            let finite = mine[0].is_finite() & mine[1].is_finite() & mine[2].is_finite();
-            let hole = !finite & !valid;
-            for c in 0..3 {
-                let mixed = lerp_simd(mine[c], theirs[c], t);
-                let v = finite.select(
-                    valid.select(mixed, finish_simd(mine[c])),
-                    valid.select(finish_simd(theirs[c]), F32s::ZERO),
-                );
-                store(out[c], x, v);
-            }
-            stats.non_finite += u64::from((!finite).to_bitmask().count_ones());
-            stats.holes += u64::from(hole.to_bitmask().count_ones());
-            x += LANES;
-        }
-        for x in x..width {
-            blend_scalar_at(own, reason, params, x, y, out, stats);
-        }
+        simd::blend_row(own, reason, params, t, y, out, stats)
     });
     #[cfg(feature = "check-scalar")]
     {

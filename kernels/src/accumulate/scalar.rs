@@ -1,0 +1,133 @@
+//! The scalar references of the EMA and the stereo blend: one pixel at a time, the
+//! definitions of the module notes; [`super::simd`] computes the same bits.
+
+use super::{AccumulateStats, BlendParams, EmaInput, EmaParams, EmaRow};
+use crate::frame::{Plane, RgbPlanes};
+use crate::reproject::Reason;
+use crate::simd::clamp_finite1;
+
+/// `a + t·(b − a)`, with `t = 0` returning `a` and `t = 1` returning `b` exactly, clamped
+/// and flushed (see module docs). Where `b − a` overflows (values near ±`f32::MAX` of
+/// opposite sign) it falls back to `a·(1 − t) + b·t`, which cannot overflow.
+#[inline(always)]
+pub fn lerp(a: f32, b: f32, t: f32) -> f32 {
+    let d = b - a;
+    let v = if t == 0.0 {
+        a
+    } else if t == 1.0 {
+        b
+    } else if d.is_finite() || !(a.is_finite() && b.is_finite()) {
+        a + t * d
+    } else {
+        a * (1.0 - t) + b * t
+    };
+    finish(v)
+}
+
+/// Clamp to the finite range and flush subnormals to zero (NaN passes through).
+#[inline(always)]
+pub(super) fn finish(v: f32) -> f32 {
+    let v = clamp_finite1(v);
+    if v.abs() < f32::MIN_POSITIVE { 0.0 } else { v }
+}
+
+/// One pixel of the EMA (scalar reference). Returns the new accumulation and history length
+/// and updates `stats`.
+#[inline]
+pub fn ema_pixel(
+    history: [f32; 3],
+    history_len: f32,
+    new: [f32; 3],
+    history_valid: bool,
+    has_new: bool,
+    params: &EmaParams,
+    stats: &mut AccumulateStats,
+) -> ([f32; 3], f32) {
+    let finite = new.iter().all(|v| v.is_finite());
+    if has_new && !finite {
+        stats.non_finite += 1;
+    }
+    match (has_new && finite, history_valid) {
+        (true, true) => {
+            let alpha = if params.ramp { params.alpha.max(1.0 / (history_len + 1.0)) } else { params.alpha };
+            ([0, 1, 2].map(|c| lerp(history[c], new[c], alpha)), history_len + 1.0)
+        }
+        (true, false) => {
+            stats.resets += 1;
+            (new.map(finish), 1.0)
+        }
+        (false, true) => (history.map(finish), history_len),
+        (false, false) => {
+            stats.holes += 1;
+            ([0.0; 3], 0.0)
+        }
+    }
+}
+
+#[inline(always)]
+pub(super) fn ema_scalar_at(
+    input: &EmaInput<'_>,
+    params: &EmaParams,
+    y: usize,
+    x: usize,
+    acc: &mut [&mut [f32]; 3],
+    len: Option<&mut [f32]>,
+    stats: &mut AccumulateStats,
+) {
+    let history = [acc[0][x], acc[1][x], acc[2][x]];
+    let n = len.as_ref().map_or(0.0, |l| l[x]);
+    let valid = input.reason.row(y)[x] == Reason::Reprojected as u8;
+    let has_new = input.has_new.as_ref().is_none_or(|m| m.row(y)[x] != 0);
+    let new = input.new.get(x, y);
+    let (out, n_out) = ema_pixel(history, n, new, valid, has_new, params, stats);
+    for c in 0..3 {
+        acc[c][x] = out[c];
+    }
+    if let Some(l) = len {
+        l[x] = n_out;
+    }
+}
+
+/// One pixel of the blend (scalar reference): `own + (1 − w)·(reprojected − own)` where the
+/// reprojection is valid, `own` elsewhere; a non-finite `own` falls back to the reprojection
+/// (or a hole).
+#[inline]
+pub fn blend_pixel(
+    own: [f32; 3],
+    reprojected: [f32; 3],
+    valid: bool,
+    params: &BlendParams,
+    stats: &mut AccumulateStats,
+) -> [f32; 3] {
+    let finite = own.iter().all(|v| v.is_finite());
+    if !finite {
+        stats.non_finite += 1;
+    }
+    let t = 1.0 - params.own_weight;
+    match (finite, valid) {
+        (true, true) => [0, 1, 2].map(|c| lerp(own[c], reprojected[c], t)),
+        (true, false) => own.map(finish),
+        (false, true) => reprojected.map(finish),
+        (false, false) => {
+            stats.holes += 1;
+            [0.0; 3]
+        }
+    }
+}
+
+#[inline(always)]
+pub(super) fn blend_scalar_at(
+    own: &RgbPlanes<'_>,
+    reason: &Plane<'_, u8>,
+    params: &BlendParams,
+    x: usize,
+    y: usize,
+    out: &mut EmaRow<'_>,
+    stats: &mut AccumulateStats,
+) {
+    let valid = reason.row(y)[x] == Reason::Reprojected as u8;
+    let v = blend_pixel(own.get(x, y), [out[0][x], out[1][x], out[2][x]], valid, params, stats);
+    for c in 0..3 {
+        out[c][x] = v[c];
+    }
+}

@@ -1,0 +1,126 @@
+//! The scalar reference of backward reprojection: one target pixel at a time, the
+//! definition of the module notes written out; [`super::simd`] computes the same values.
+
+use super::{MAX_CHANNELS, Prepared, Reason, ReasonCounts, RowOut, TapVerdict, len2, normals_agree, usable};
+use crate::bilinear::{Footprint, renormalise};
+use crate::gbuffer::SurfaceLayout;
+
+/// Writes the scalar reference result for pixel `(x, y)`.
+#[inline]
+pub(super) fn write_pixel<L: SurfaceLayout>(
+    p: &Prepared<'_, L>,
+    x: usize,
+    y: usize,
+    row: &mut RowOut<'_>,
+    counts: &mut ReasonCounts,
+) {
+    if p.pixel_mask.is_some_and(|m| m.get(x, y) == 0) {
+        row.reason[x] = Reason::Invalid as u8;
+        return;
+    }
+    let (reason, values, weight) = reproject_pixel_prepared(p, x, y);
+    for c in 0..row.count {
+        row.channels[c][x] = values[c];
+    }
+    if let Some(w) = row.weight.as_deref_mut() {
+        w[x] = weight;
+    }
+    row.reason[x] = reason as u8;
+    counts.0[reason as usize] += 1;
+}
+
+pub(super) fn reproject_pixel_prepared<L: SurfaceLayout>(
+    p: &Prepared<'_, L>,
+    x: usize,
+    y: usize,
+) -> (Reason, [f32; MAX_CHANNELS], f32) {
+    const NONE: [f32; MAX_CHANNELS] = [0.0; MAX_CHANNELS];
+    let t = p.target.surfel(x, y);
+    if t.depth == f32::INFINITY {
+        return (Reason::Background, NONE, 0.0);
+    }
+    let t_len2 = len2(t.normal);
+    if !usable(&t, t_len2) {
+        return (Reason::Invalid, NONE, 0.0);
+    }
+    let [cx, cy, _, cw] = p.camera.clip(t.position);
+    if !(cw > 0.0) {
+        return (Reason::OutOfFrame, NONE, 0.0);
+    }
+    let (hw, hh) = (p.half_width, p.half_height);
+    let inv_w = 1.0 / cw;
+    let sx = (cx * inv_w) * hw + hw;
+    let sy = (-(cy * inv_w)) * hh + hh;
+    let Some(fp) = Footprint::new(sx, sy, p.source_extent) else {
+        return (Reason::OutOfFrame, NONE, 0.0);
+    };
+    let weights = fp.weights();
+    let in_frame = fp.in_frame(p.source_extent);
+    // Clamped so that an infinite tap depth can never pass (see `evaluate_taps`).
+    let depth_tolerance = (p.depth_relative * cw).min(f32::MAX);
+
+    let mut sum = NONE;
+    let mut total = 0.0f32;
+    let (mut any_accepted, mut any_failed) = (false, false);
+    let (mut fail_geometry, mut fail_normal, mut fail_invalid) = (false, false, false);
+    for (tap, &(tx, ty)) in fp.taps().iter().enumerate() {
+        if weights[tap] == 0.0 {
+            continue;
+        }
+        if !in_frame[tap] {
+            any_failed = true;
+            continue;
+        }
+        let (tx, ty) = (tx as usize, ty as usize);
+        let s = p.source.surfel(tx, ty);
+        let mut values = NONE;
+        for c in 0..p.channel_count {
+            values[c] = p.channels[c].get(tx, ty);
+        }
+        let s_len2 = len2(s.normal);
+        let verdict = if s.depth == f32::INFINITY {
+            TapVerdict::Geometry
+        } else if !usable(&s, s_len2) || !values[..p.channel_count].iter().all(|v| v.is_finite()) {
+            TapVerdict::Invalid
+        } else {
+            let d = [0, 1, 2].map(|i| s.position[i] - t.position[i]);
+            let distance2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+            let dot = s.normal[0] * t.normal[0] + s.normal[1] * t.normal[1] + s.normal[2] * t.normal[2];
+            if !(distance2 <= p.position2) || !((s.depth - cw).abs() <= depth_tolerance) {
+                TapVerdict::Geometry
+            } else if !normals_agree(dot, s_len2 * t_len2, p.normal_cos2, p.normal_cos_positive) {
+                TapVerdict::Normal
+            } else {
+                TapVerdict::Accepted
+            }
+        };
+        match verdict {
+            TapVerdict::Accepted => {
+                any_accepted = true;
+                for c in 0..MAX_CHANNELS {
+                    sum[c] += weights[tap] * values[c];
+                }
+                total += weights[tap];
+            }
+            TapVerdict::Geometry => fail_geometry = true,
+            TapVerdict::Normal => fail_normal = true,
+            TapVerdict::Invalid => fail_invalid = true,
+        }
+        any_failed |= verdict != TapVerdict::Accepted;
+    }
+    let ok = any_accepted && !(p.strict && any_failed);
+    if ok {
+        let inv_total = 1.0 / total;
+        return (Reason::Reprojected, sum.map(|s| renormalise(s, inv_total)), total.min(1.0));
+    }
+    let reason = if fail_geometry {
+        Reason::DepthOrPosition
+    } else if fail_normal {
+        Reason::Normal
+    } else if fail_invalid {
+        Reason::Invalid
+    } else {
+        Reason::OutOfFrame
+    };
+    (reason, NONE, 0.0)
+}
