@@ -539,9 +539,11 @@ pub fn bvh(data: &[u8]) {
         .collect();
     let bvh = match TriangleBvh::build(&tris, quality) {
         Ok((bvh, _)) => bvh,
-        Err(_) => {
-            // Refused: only for vertices a build cannot take.
-            assert!(tris.iter().flatten().any(|v| !(v.abs().max_element() <= crate::bvh::MAX_COORD)));
+        Err(e) => {
+            // Refused: only for vertices a build cannot take (NaN included: compared lane by
+            // lane, as the build does; `max_element` would skip a NaN).
+            let bound = Vec3::splat(crate::bvh::MAX_COORD);
+            assert!(tris.iter().flatten().any(|v| !v.abs().cmple(bound).all()), "refused: {e}");
             return;
         }
     };
