@@ -2,7 +2,10 @@
 //! in 8×1 and 4×2 pixel tiles, and single rays), shadow rays from the primary hits toward one
 //! point light (packets and single), and cosine-distributed diffuse rays from the primary hits
 //! (single). obvhs's own single-ray CWBVH traversal (its Möller–Trumbore test, same tree,
-//! triangles in BVH order) runs on identical rays as the peer baseline.
+//! triangles in BVH order) runs on identical rays as the peer baseline, and with the feature
+//! `peer-embree` (Debian's `libembree-dev`, Embree 3.13) Embree traces them too, single rays
+//! and 8-wide packets (`rtcIntersect8`/`rtcOccluded8`), on a scene built from the same
+//! triangles (`benches/peers/embree.rs`).
 //!
 //! Scenes: Sponza from `../shared/scenes/sponza` (67k triangles; skipped with a message if
 //! absent) and a built-in procedural scene of ~700k triangles (a tessellated terrain and a field
@@ -13,7 +16,8 @@
 //! Throughput is in rays (criterion's "elem/s"). Rays are generated outside the timed loop
 //! from fixed seeds; one iteration traces a whole frame of them.
 //!
-//! Run: `cargo bench --bench traversal -- --warm-up-time 1 --measurement-time 3`
+//! Run: `cargo bench --bench traversal -- --warm-up-time 1 --measurement-time 3`, with
+//! `--features peer-embree` for the Embree rows
 //! (add a filter such as `sponza/primary` to pick groups; `threshold` sweeps the packet
 //! single-ray fallback threshold).
 
@@ -27,6 +31,10 @@ use obvhs::ray::{Ray as ORay, RayHit};
 use obvhs::triangle::Triangle as OTri;
 use stereotrace::kernels::bvh::{BuildQuality, Ray, Tri, TriangleBvh};
 use stereotrace::kernels::packet::{PacketHits, RayPacket};
+
+#[cfg(feature = "peer-embree")]
+#[path = "peers/embree.rs"]
+mod embree;
 
 const WIDTH: usize = 1280;
 const HEIGHT: usize = 720;
@@ -61,6 +69,9 @@ type Packet = (RayPacket, u32);
 
 struct Fixture {
     bvh: TriangleBvh,
+    /// The same triangles in Embree (feature `peer-embree`).
+    #[cfg(feature = "peer-embree")]
+    embree: embree::EmbreeScene,
     /// obvhs triangles in BVH order (as obvhs's own examples lay them out).
     otris: Vec<OTri>,
     primary: Vec<Ray>,
@@ -180,6 +191,8 @@ impl Fixture {
             diffuse,
             primary,
             otris,
+            #[cfg(feature = "peer-embree")]
+            embree: embree::EmbreeScene::new(&tris),
             bvh,
         };
         eprintln!(
@@ -187,6 +200,14 @@ impl Fixture {
             fixture.primary.len(),
             fixture.shadow.len(),
             fixture.shadow.iter().filter(|r| fixture.bvh.occluded(r)).count()
+        );
+        #[cfg(feature = "peer-embree")]
+        eprintln!(
+            "[{name}] Embree on the same rays: {} primary hits, {} shadow rays occluded, {} diffuse hits (ours: {})",
+            fixture.embree.intersect(&fixture.primary),
+            fixture.embree.occluded(&fixture.shadow),
+            fixture.embree.intersect(&fixture.diffuse),
+            fixture.diffuse.iter().filter(|r| fixture.bvh.intersect(r).is_some()).count()
         );
         fixture
     }
@@ -332,6 +353,12 @@ fn bench_scene(c: &mut Criterion, name: &str, available: bool, fixture: &dyn Fn(
     g.bench_function("packet_4x2", |b| b.iter(|| trace_packets(&f().bvh, black_box(&f().primary_4x2), 2)));
     g.bench_function("single", |b| b.iter(|| trace_single(&f().bvh, black_box(&f().primary))));
     g.bench_function("obvhs_single", |b| b.iter(|| obvhs_single(f(), black_box(&f().primary))));
+    #[cfg(feature = "peer-embree")]
+    {
+        g.bench_function("embree_packet_8x1", |b| b.iter(|| f().embree.intersect8(black_box(&f().primary_8x1))));
+        g.bench_function("embree_packet_4x2", |b| b.iter(|| f().embree.intersect8(black_box(&f().primary_4x2))));
+        g.bench_function("embree_single", |b| b.iter(|| f().embree.intersect(black_box(&f().primary))));
+    }
     g.finish();
 
     let mut g = c.benchmark_group(format!("traversal/{name}/shadow"));
@@ -341,6 +368,12 @@ fn bench_scene(c: &mut Criterion, name: &str, available: bool, fixture: &dyn Fn(
     g.bench_function("packet_4x2", |b| b.iter(|| occlude_packets(&f().bvh, black_box(&f().shadow_4x2), 2)));
     g.bench_function("single", |b| b.iter(|| occlude_single(&f().bvh, black_box(&f().shadow))));
     g.bench_function("obvhs_single", |b| b.iter(|| obvhs_occlude(f(), black_box(&f().shadow))));
+    #[cfg(feature = "peer-embree")]
+    {
+        g.bench_function("embree_packet_8x1", |b| b.iter(|| f().embree.occluded8(black_box(&f().shadow_8x1))));
+        g.bench_function("embree_packet_4x2", |b| b.iter(|| f().embree.occluded8(black_box(&f().shadow_4x2))));
+        g.bench_function("embree_single", |b| b.iter(|| f().embree.occluded(black_box(&f().shadow))));
+    }
     g.finish();
 
     let mut g = c.benchmark_group(format!("traversal/{name}/diffuse"));
@@ -348,6 +381,8 @@ fn bench_scene(c: &mut Criterion, name: &str, available: bool, fixture: &dyn Fn(
     g.throughput(Throughput::Elements(f().diffuse.len() as u64));
     g.bench_function("single", |b| b.iter(|| trace_single(&f().bvh, black_box(&f().diffuse))));
     g.bench_function("obvhs_single", |b| b.iter(|| obvhs_single(f(), black_box(&f().diffuse))));
+    #[cfg(feature = "peer-embree")]
+    g.bench_function("embree_single", |b| b.iter(|| f().embree.intersect(black_box(&f().diffuse))));
     g.finish();
 }
 
