@@ -22,36 +22,13 @@ use glam::{Mat3, Vec3};
 use crate::camera::{Eye, StereoRig};
 use crate::eval::cache;
 use crate::kernels::bvh::{MAX_COORD, PreparedRay, Ray, TriVerts, intersect_triangle, intersect_triangle_line};
+use crate::kernels::fuzzing::Bytes;
 use crate::kernels::raster::{Body, NO_PRIM, NoMasks, Rasterizer, Triangles, VisibilityBuffer};
 use crate::kernels::{CameraModel, Extent};
 use crate::render::Renderer;
 use crate::scene::folder::{FolderOptions, load_folder};
 use crate::scene::manifest::load_manifest;
 use crate::scene::{CameraPose, EnvMap, Texture, TextureUsage};
-
-/// Reads bytes front to back; yields zeros once exhausted.
-struct Bytes<'a>(&'a [u8]);
-
-impl Bytes<'_> {
-    fn u8(&mut self) -> u8 {
-        match self.0.split_first() {
-            Some((&b, rest)) => {
-                self.0 = rest;
-                b
-            }
-            None => 0,
-        }
-    }
-
-    fn f32(&mut self) -> f32 {
-        f32::from_bits(u32::from_le_bytes([self.u8(), self.u8(), self.u8(), self.u8()]))
-    }
-
-    /// A float in [lo, hi] from one byte.
-    fn unit(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * f32::from(self.u8()) / 255.0
-    }
-}
 
 /// This process's scratch folder (created once, emptied of nothing: every entry overwrites
 /// the files it reads).

@@ -26,11 +26,13 @@ use crate::reproject::{self, Reason, ReprojectInput, ReprojectOutput, ReprojectP
 use crate::simd::LANES;
 use crate::synth::{AnalyticScene, SynthFrame, camera_at};
 
-/// Reads bytes front to back; yields zeros once exhausted.
-struct Bytes<'a>(&'a [u8]);
+/// Fuzz input read front to back: zeros once exhausted, so every input is complete. Also the
+/// reader of the fuzz entry points above the kernels (`stereotrace::fuzzing`).
+pub struct Bytes<'a>(pub &'a [u8]);
 
 impl Bytes<'_> {
-    fn u8(&mut self) -> u8 {
+    /// The next byte.
+    pub fn u8(&mut self) -> u8 {
         match self.0.split_first() {
             Some((&b, rest)) => {
                 self.0 = rest;
@@ -40,16 +42,18 @@ impl Bytes<'_> {
         }
     }
 
-    fn f32(&mut self) -> f32 {
+    /// The next four bytes as any f32 (NaN, ±∞, subnormals included).
+    pub fn f32(&mut self) -> f32 {
         f32::from_bits(u32::from_le_bytes([self.u8(), self.u8(), self.u8(), self.u8()]))
     }
 
     /// A float in [lo, hi] from one byte.
-    fn unit(&mut self, lo: f32, hi: f32) -> f32 {
+    pub fn unit(&mut self, lo: f32, hi: f32) -> f32 {
         lo + (hi - lo) * f32::from(self.u8()) / 255.0
     }
 
-    fn is_empty(&self) -> bool {
+    /// Whether every byte has been read.
+    pub fn is_empty(&self) -> bool {
         self.0.is_empty()
     }
 }
