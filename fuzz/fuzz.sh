@@ -13,9 +13,11 @@
 set -euo pipefail
 cd "$(dirname "$0")"
 sanitizer=none
+target_dir=target
 if [ "${1:-}" = "--asan" ]; then
     sanitizer=address
     export RUSTC_BOOTSTRAP=1   # -Zsanitizer on the stable toolchain
+    target_dir=target/asan     # its own build, so it can run beside an unsanitized one
     shift
 fi
 seconds=${1:?usage: fuzz.sh [--asan] SECONDS [TARGET...]}
@@ -36,7 +38,7 @@ for t in "${targets[@]}"; do
     echo "== $t: ${seconds}s, sanitizer $sanitizer"
     log="target/fuzz-logs/$t.log"
     echo "# $(date -u +%FT%TZ) sanitizer=$sanitizer seconds=$seconds" >> "$log"
-    if ! cargo fuzz run --sanitizer "$sanitizer" -O "$t" "target/fuzz-new/$t" "corpus/$t" -- \
+    if ! cargo fuzz run --sanitizer "$sanitizer" --target-dir "$target_dir" -O "$t" "target/fuzz-new/$t" "corpus/$t" -- \
         -max_total_time="$seconds" -max_len=4096 -print_final_stats=1 "${dict[@]}" >> "$log" 2>&1; then
         tail -40 "$log"
         echo "fuzz target $t failed: see $log and artifacts/$t"
