@@ -223,39 +223,39 @@ fn guard_rejected(camera: &CameraModel, tris: &[TriVerts], prim: u32, x: usize, 
 const FAR_VERTEX: f64 = 1e3;
 
 /// The exact answer at `(x, y)` where the tracer's rounding may be wrong: whether, in f64 on
-/// the tracer's own f32 pixel ray, `prim` is hit in front of the eye and no triangle nearer,
-/// and a vertex of `prim` or of the tracer's triangle lies beyond [`FAR_VERTEX`].
+/// the tracer's own f32 pixel ray, `prim` is hit in front of the eye and no triangle nearer
+/// by more than the two triangles' f32 error scales (`8·2⁻²⁴·max|v − eye|` each: below that
+/// the tracer cannot order them), and a vertex of `prim` or of the tracer's triangle lies
+/// beyond [`FAR_VERTEX`].
 fn exact_explains(camera: &CameraModel, tris: &[TriVerts], prim: u32, tracer: u32, x: usize, y: usize) -> bool {
     let o = glam::DVec3::from(Vec3::from(camera.centre));
     let d = glam::DVec3::from(Vec3::from(camera.ray(x as f32 + 0.5, y as f32 + 0.5)));
-    let far = |p: u32| {
-        tris.get(p as usize).is_some_and(|t| {
-            (0..3).any(|k| {
-                (glam::DVec3::new(t[3 * k].into(), t[3 * k + 1].into(), t[3 * k + 2].into()) - o).length() > FAR_VERTEX
-            })
-        })
-    };
-    if !(far(prim) || far(tracer)) {
+    let vertex = |t: &TriVerts, k: usize| glam::DVec3::new(t[3 * k].into(), t[3 * k + 1].into(), t[3 * k + 2].into());
+    let reach = |t: &TriVerts| (0..3).map(|k| (vertex(t, k) - o).length()).fold(0.0, f64::max);
+    let error = |t: &TriVerts| 8.0 * f64::from(f32::EPSILON) * 0.5 * reach(t);
+    if !(reach(&tris[prim as usize]) > FAR_VERTEX || tris.get(tracer as usize).is_some_and(|t| reach(t) > FAR_VERTEX)) {
         return false;
     }
     // Möller–Trumbore in f64, edges inclusive (to 1e-12 of the barycentrics).
     let hit = |t: &TriVerts| -> Option<f64> {
-        let v = |k: usize| glam::DVec3::new(t[3 * k].into(), t[3 * k + 1].into(), t[3 * k + 2].into());
-        let (e1, e2) = (v(1) - v(0), v(2) - v(0));
+        let (e1, e2) = (vertex(t, 1) - vertex(t, 0), vertex(t, 2) - vertex(t, 0));
         let p = d.cross(e2);
         let det = e1.dot(p);
         if det == 0.0 || !det.is_finite() {
             return None;
         }
-        let s = o - v(0);
+        let s = o - vertex(t, 0);
         let u = s.dot(p) / det;
         let q = s.cross(e1);
         let w = d.dot(q) / det;
         let t = e2.dot(q) / det;
         (u >= -1e-12 && w >= -1e-12 && u + w <= 1.0 + 1e-12 && t > 0.0).then_some(t)
     };
-    let Some(t_prim) = hit(&tris[prim as usize]) else { return false };
-    tris.iter().enumerate().all(|(i, t)| i as u32 == prim || hit(t).is_none_or(|ti| ti >= t_prim * (1.0 - 1e-9)))
+    let mine = &tris[prim as usize];
+    let Some(t_prim) = hit(mine) else { return false };
+    tris.iter()
+        .enumerate()
+        .all(|(i, t)| i as u32 == prim || hit(t).is_none_or(|ti| ti >= t_prim - (error(mine) + error(t))))
 }
 
 /// Fuzzes the stereo rasteriser: up to 24 triangles around a camera (the grid puts many
