@@ -21,7 +21,7 @@ use glam::{Mat3, Vec3};
 
 use crate::camera::{Eye, StereoRig};
 use crate::eval::cache;
-use crate::kernels::bvh::{MAX_COORD, PreparedRay, Ray, TriVerts, intersect_triangle, intersect_triangle_line};
+use crate::kernels::bvh::{PreparedRay, Ray, TriVerts, intersect_triangle, intersect_triangle_line};
 use crate::kernels::fuzzing::Bytes;
 use crate::kernels::raster::{Body, NO_PRIM, NoMasks, Rasterizer, Triangles, VisibilityBuffer};
 use crate::kernels::{CameraModel, Extent};
@@ -166,10 +166,17 @@ pub fn cache_entry(data: &[u8]) {
     }
 }
 
+/// How far from the origin a fuzzed raster vertex may lie (the camera is within 2 units of it):
+/// a scene 10³ times larger than the viewing distance, as a kilometre of ground under a camera
+/// a metre above it. Beyond that, the f32 tracer's own rounding (about `2⁻²⁴·|v − eye|`, far
+/// more in the products of slivers) is no longer an oracle for single pixels: the fuzzer found
+/// hits put behind the eye and near ties ordered wrongly with vertices at ±2²⁴
+/// (`RELIABILITY.md`).
+pub const RASTER_FUZZ_EXTENT: f32 = 1e3;
+
 /// A coordinate: mostly on a coarse grid (shared edges, coincident and degenerate triangles,
 /// triangles through the eye), sometimes anywhere, rarely any f32 (NaN and ±∞ included, which
-/// must never reach a pixel). Finite values are clamped to the tracer's coordinate limit
-/// (`bvh::MAX_COORD`), which scene loading and the BVH build enforce.
+/// must never reach a pixel; finite values clamped to ±[`RASTER_FUZZ_EXTENT`]).
 fn coordinate(bytes: &mut Bytes<'_>, scale: f32) -> f32 {
     let b = bytes.u8();
     match b {
@@ -177,7 +184,7 @@ fn coordinate(bytes: &mut Bytes<'_>, scale: f32) -> f32 {
         224..=251 => bytes.unit(-scale, scale),
         _ => {
             let v = bytes.f32();
-            if v.is_finite() { v.clamp(-MAX_COORD, MAX_COORD) } else { v }
+            if v.is_finite() { v.clamp(-RASTER_FUZZ_EXTENT, RASTER_FUZZ_EXTENT) } else { v }
         }
     }
 }
@@ -215,12 +222,11 @@ fn guard_rejected(camera: &CameraModel, tris: &[TriVerts], prim: u32, x: usize, 
         && intersect_triangle_line(&r, tri).is_some_and(|h| h.t > 0.0 && h.t <= tracer_t)
 }
 
-/// How far from the eye a vertex must lie for the f32 tracer's rounding to be the likely
-/// cause of a disagreement: its watertight test works on coordinates relative to the ray
-/// origin, so its error grows as `2⁻²⁴·|v − eye|` (and more in the products of slivers), which
-/// beyond 10³ units (the fuzzed camera is within 2 units of the origin) reaches the size of
-/// the scene's detail.
-const FAR_VERTEX: f64 = 1e3;
+/// How far from the eye a vertex must lie for the f32 tracer's rounding to be a possible cause
+/// of a disagreement: its watertight test works on coordinates relative to the ray origin, so
+/// its error grows as `2⁻²⁴·|v − eye|` (and more in the products of slivers). Fuzzed vertices
+/// lie up to [`RASTER_FUZZ_EXTENT`] from the origin, the camera within 2 units of it.
+const FAR_VERTEX: f64 = 100.0;
 
 /// The exact answer at `(x, y)` where the tracer's rounding may be wrong: whether, in f64 on
 /// the tracer's own f32 pixel ray, `prim` is hit in front of the eye and no triangle nearer
