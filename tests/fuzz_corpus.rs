@@ -45,3 +45,18 @@ fn image_corpus() {
 fn cache_entry_corpus() {
     replay("cache_entry", stereotrace::fuzzing::cache_entry);
 }
+
+/// An open raster bug the fuzzer found with vertices up to 10³ units from the origin (the
+/// target now keeps them within 100): at one pixel the raster shows a sliver 1.91 units away
+/// while two triangles in front of it (f64: 0.46 and 0.76; the tracer: 0.76) are not shown.
+/// `cargo test --release --test fuzz_corpus -- --ignored` replays it; see RELIABILITY.md.
+#[test]
+#[ignore = "open raster bug: a far sliver shown in front of nearer triangles (RELIABILITY.md)"]
+fn raster_known_failures() {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fuzz/known/raster");
+    for entry in std::fs::read_dir(&dir).expect("known failures").flatten() {
+        let data = std::fs::read(entry.path()).expect("readable input");
+        let result = std::panic::catch_unwind(|| stereotrace::fuzzing::raster_within(&data, 1e3));
+        assert!(result.is_ok(), "{} fails", entry.path().display());
+    }
+}
