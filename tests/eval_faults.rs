@@ -95,8 +95,9 @@ fn timeless_results(out: &Path) -> serde_json::Value {
     results
 }
 
-fn undisturbed() -> serde_json::Value {
-    let dir = temp_dir("fresh");
+/// The results of an undisturbed run in its own folder (`tag`: the tests run in parallel).
+fn undisturbed(tag: &str) -> serde_json::Value {
+    let dir = temp_dir(&format!("fresh-{tag}"));
     finish(spawn(&dir.join("out"), &dir.join("cache")));
     let results = timeless_results(&dir.join("out"));
     std::fs::remove_dir_all(&dir).ok();
@@ -105,7 +106,7 @@ fn undisturbed() -> serde_json::Value {
 
 #[test]
 fn a_run_killed_at_three_moments_resumes_to_the_same_results() {
-    let fresh = undisturbed();
+    let fresh = undisturbed("killed");
     for (moment, after_entries) in [("early", 1), ("middle", 7), ("late", 13)] {
         let dir = temp_dir(moment);
         let (out, cache) = (dir.join("out"), dir.join("cache"));
@@ -126,7 +127,7 @@ fn a_run_killed_at_three_moments_resumes_to_the_same_results() {
 
 #[test]
 fn two_runs_racing_on_one_cache_both_finish_with_the_same_results() {
-    let fresh = undisturbed();
+    let fresh = undisturbed("race");
     let dir = temp_dir("race");
     let cache = dir.join("cache");
     let (a, b) = (spawn(&dir.join("a"), &cache), spawn(&dir.join("b"), &cache));
