@@ -480,7 +480,14 @@ pub fn ssim(data: &[u8]) {
     let reference = s::ssim_scalar(&a.view(), &b.view(), &params).expect("validated input");
     s::assert_agrees(&fast, &reference, s::CHECK_TOLERANCE);
     let swapped = s::ssim(&b.view(), &a.view(), &params).expect("validated input");
-    let same = |x: f64, y: f64| x.to_bits() == y.to_bits() || (x.is_nan() && y.is_nan());
+    // Bit for bit, except that voxels refined in f64 (ill-conditioned in the first pass) sum
+    // in an order that depends on the argument order: the last bits may differ there (found
+    // by the fuzzer in CI; the input is a seed).
+    let same = |x: f64, y: f64| {
+        x.to_bits() == y.to_bits()
+            || (x.is_nan() && y.is_nan())
+            || (fast.refined > 0 && (x - y).abs() <= 1e-12 * x.abs().max(y.abs()))
+    };
     assert!(
         same(fast.ssim, swapped.ssim) && same(fast.rmse, swapped.rmse),
         "SSIM is not symmetric: {fast:?} vs {swapped:?}"

@@ -297,8 +297,9 @@ fn check(a: &RgbPlanes<'_>, b: &RgbPlanes<'_>) -> Result<(), FrameError> {
 }
 
 /// SSIM ([`SsimParams::variant`]) and RMSE of `a` against `b`: the fused SIMD kernel, run in
-/// row bands on the current rayon pool. Symmetric in its arguments (bit for bit). See the
-/// module docs for the definition, the numerics and what is excluded.
+/// row bands on the current rayon pool. Symmetric in its arguments: bit for bit, except in the
+/// last bits where voxels were refined (`SsimResult::refined`). See the module docs for the
+/// definition, the numerics and what is excluded.
 ///
 /// ```
 /// use stereotrace_kernels::ssim::{SsimParams, ssim};
