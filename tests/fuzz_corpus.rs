@@ -6,19 +6,11 @@
 
 use std::path::PathBuf;
 
+use stereotrace::kernels::fuzzing::replay_dir;
+
 fn replay(target: &str, run: fn(&[u8])) {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fuzz/corpus").join(target);
-    let mut entries: Vec<PathBuf> = std::fs::read_dir(&dir)
-        .unwrap_or_else(|e| panic!("seed corpus {} is missing: {e}", dir.display()))
-        .map(|entry| entry.expect("readable corpus entry").path())
-        .collect();
-    entries.sort();
-    assert!(entries.len() >= 8, "corpus {} has only {} seeds", dir.display(), entries.len());
-    for path in entries {
-        let data = std::fs::read(&path).expect("readable seed");
-        let result = std::panic::catch_unwind(|| run(&data));
-        assert!(result.is_ok(), "seed {} fails", path.display());
-    }
+    replay_dir(&dir, 8, run);
 }
 
 #[test]
@@ -54,9 +46,5 @@ fn cache_entry_corpus() {
 #[ignore = "open raster bug: a far sliver shown in front of nearer triangles (RELIABILITY.md)"]
 fn raster_known_failures() {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fuzz/known/raster");
-    for entry in std::fs::read_dir(&dir).expect("known failures").flatten() {
-        let data = std::fs::read(entry.path()).expect("readable input");
-        let result = std::panic::catch_unwind(|| stereotrace::fuzzing::raster_within(&data, 1e3));
-        assert!(result.is_ok(), "{} fails", entry.path().display());
-    }
+    replay_dir(&dir, 1, |data| stereotrace::fuzzing::raster_within(data, 1e3));
 }

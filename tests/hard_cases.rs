@@ -11,7 +11,7 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use common::{BOX_OBJ, DEGENERATE_OBJ};
+use common::{DEGENERATE_OBJ, write_box_scene};
 
 fn stereotrace(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_stereotrace")).args(args).output().expect("the binary runs")
@@ -98,15 +98,7 @@ fn frames_one_pixel_wide_or_tall_render_and_run_every_mode() {
 fn the_brightest_accepted_light_renders_finite_images() {
     let dir = temp_dir("bright");
     let scene = dir.join("scene");
-    std::fs::create_dir_all(&scene).unwrap();
-    std::fs::write(scene.join("scene.obj"), BOX_OBJ).unwrap();
-    let ke = stereotrace::scene::light::MAX_EMISSION;
-    std::fs::write(
-        scene.join("scene.mtl"),
-        format!("newmtl white\nKd 0.9 0.9 0.9\nnewmtl lamp\nKd 0 0 0\nKe {ke:e} {ke:e} {ke:e}\n"),
-    )
-    .unwrap();
-    std::fs::write(scene.join("camera.json"), r#"{"eye": [0, 0, 0.9], "target": [0, 0, 0], "vfov_deg": 70}"#).unwrap();
+    write_box_scene(&scene, "", stereotrace::scene::light::MAX_EMISSION);
     let out = dir.join("out");
     let out = out.to_str().unwrap();
     succeeded(&stereotrace(&[
@@ -168,14 +160,7 @@ fn eye_separations_up_to_the_bound_render_finite_images_with_a_warning() {
 fn degenerate_and_coincident_triangles_render_finite_images() {
     let dir = temp_dir("degenerate");
     let scene = dir.join("scene");
-    std::fs::create_dir_all(&scene).unwrap();
-    std::fs::write(scene.join("scene.obj"), format!("{BOX_OBJ}{DEGENERATE_OBJ}")).unwrap();
-    std::fs::write(
-        scene.join("scene.mtl"),
-        "newmtl white\nKd 0.9 0.9 0.9\nnewmtl lamp\nKd 0 0 0\nKe 5 5 5\nnewmtl red\nKd 0.9 0.1 0.1\n",
-    )
-    .unwrap();
-    std::fs::write(scene.join("camera.json"), r#"{"eye": [0, 0, 0.9], "target": [0, 0, 0], "vfov_deg": 70}"#).unwrap();
+    write_box_scene(&scene, DEGENERATE_OBJ, 5.0);
     let out = dir.join("out");
     succeeded(&stereotrace(&[
         "render",

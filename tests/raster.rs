@@ -281,14 +281,7 @@ fn the_compact_planes_are_the_full_passs_and_the_rest_are_left_alone() {
 #[test]
 fn raster_and_traced_visibility_agree_on_degenerate_and_coincident_triangles() {
     let dir = std::env::temp_dir().join(format!("stereotrace-raster-degenerate-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    std::fs::write(dir.join("scene.obj"), format!("{}{}", common::BOX_OBJ, common::DEGENERATE_OBJ)).unwrap();
-    std::fs::write(
-        dir.join("scene.mtl"),
-        "newmtl white\nKd 0.9 0.9 0.9\nnewmtl lamp\nKe 5 5 5\nnewmtl red\nKd 0.9 0.1 0.1\n",
-    )
-    .unwrap();
-    std::fs::write(dir.join("camera.json"), r#"{"eye": [0, 0, 0.9], "target": [0, 0, 0], "vfov_deg": 70}"#).unwrap();
+    common::write_box_scene(&dir, common::DEGENERATE_OBJ, 5.0);
     let renderer = Renderer::new(resolve(dir.to_str().unwrap()).unwrap()).unwrap();
     for (w, h) in [(320, 180), (7, 3), (1, 1)] {
         // Not `check`: the coincident pair covers ~9 % of the frame, all of it depth ties

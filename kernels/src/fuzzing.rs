@@ -58,6 +58,23 @@ impl Bytes<'_> {
     }
 }
 
+/// Runs every input in `dir` through `run` (sorted, each under `catch_unwind`) and panics
+/// naming the first that fails, or when `dir` holds fewer than `at_least` inputs: how
+/// `cargo test` replays a committed corpus through the entry points the fuzzers call.
+pub fn replay_dir(dir: &std::path::Path, at_least: usize, run: fn(&[u8])) {
+    let mut entries: Vec<std::path::PathBuf> = std::fs::read_dir(dir)
+        .unwrap_or_else(|e| panic!("corpus {} is missing: {e}", dir.display()))
+        .map(|entry| entry.expect("readable corpus entry").path())
+        .collect();
+    entries.sort();
+    assert!(entries.len() >= at_least, "corpus {} has only {} inputs", dir.display(), entries.len());
+    for path in entries {
+        let data = std::fs::read(&path).expect("readable input");
+        let result = std::panic::catch_unwind(|| run(&data));
+        assert!(result.is_ok(), "input {} fails", path.display());
+    }
+}
+
 fn extent_from(bytes: &mut Bytes<'_>) -> Extent {
     // 1×1 … 40×12, so 1×N and N×1 frames come up often.
     let w = 1 + usize::from(bytes.u8() % 40);

@@ -4,19 +4,11 @@
 
 use std::path::PathBuf;
 
+use stereotrace_kernels::fuzzing::replay_dir;
+
 fn replay(target: &str, run: fn(&[u8])) {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../fuzz/corpus").join(target);
-    let mut entries: Vec<PathBuf> = std::fs::read_dir(&dir)
-        .unwrap_or_else(|e| panic!("seed corpus {} is missing: {e}", dir.display()))
-        .map(|entry| entry.expect("readable corpus entry").path())
-        .collect();
-    entries.sort();
-    assert!(entries.len() >= 8, "corpus {} has only {} seeds", dir.display(), entries.len());
-    for path in entries {
-        let data = std::fs::read(&path).expect("readable seed");
-        let result = std::panic::catch_unwind(|| run(&data));
-        assert!(result.is_ok(), "seed {} fails", path.display());
-    }
+    replay_dir(&dir, 8, run);
 }
 
 #[test]

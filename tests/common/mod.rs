@@ -75,3 +75,15 @@ f 19 20 21
 usemtl red
 f 19 20 21
 ";
+
+/// Writes a scene folder at `dir`: [`BOX_OBJ`] followed by `extra_obj`, materials `white`,
+/// `lamp` (emitting `lamp_ke` in every channel) and `red`, and a camera inside the box.
+pub fn write_box_scene(dir: &Path, extra_obj: &str, lamp_ke: f32) {
+    std::fs::create_dir_all(dir).unwrap();
+    std::fs::write(dir.join("scene.obj"), format!("{BOX_OBJ}{extra_obj}")).unwrap();
+    let mtl = format!(
+        "newmtl white\nKd 0.9 0.9 0.9\nnewmtl lamp\nKd 0 0 0\nKe {lamp_ke:e} {lamp_ke:e} {lamp_ke:e}\nnewmtl red\nKd 0.9 0.1 0.1\n"
+    );
+    std::fs::write(dir.join("scene.mtl"), mtl).unwrap();
+    std::fs::write(dir.join("camera.json"), r#"{"eye": [0, 0, 0.9], "target": [0, 0, 0], "vfov_deg": 70}"#).unwrap();
+}
