@@ -37,14 +37,3 @@ fn image_corpus() {
 fn cache_entry_corpus() {
     replay("cache_entry", stereotrace::fuzzing::cache_entry);
 }
-
-/// An open raster bug the fuzzer found with vertices up to 10³ units from the origin (the
-/// target now keeps them within 100): at one pixel the raster shows a sliver 1.91 units away
-/// while two triangles in front of it (f64: 0.46 and 0.76; the tracer: 0.76) are not shown.
-/// `cargo test --release --test fuzz_corpus -- --ignored` replays it; see RELIABILITY.md.
-#[test]
-#[ignore = "open raster bug: a far sliver shown in front of nearer triangles (RELIABILITY.md)"]
-fn raster_known_failures() {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fuzz/known/raster");
-    replay_dir(&dir, 1, |data| stereotrace::fuzzing::raster_within(data, 1e3));
-}
