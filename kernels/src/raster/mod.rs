@@ -322,8 +322,24 @@ impl<M: AlphaTest> EyeView<'_, M> {
         }
         *sp = prim;
         *sq = 1.0 / new.t;
-        *se = 4.0 * U * *sq;
+        *se = self.hit_q_err(prim, new.t);
         true
+    }
+
+    /// The error bound of `q = 1/t` for the tracer's hit on `prim` at `t`. The watertight
+    /// test's `t` errs by a few roundings of the vertices' coordinates relative to the ray
+    /// origin, not of `t` itself, so near the eye (small `t`, large `q`) its relative error
+    /// is far above one rounding: `|Δt| ≤ 32·u·max_k ‖v_k − o‖₁` (generous against pbrt-v4's
+    /// bound), hence `|Δq| ≈ q²·|Δt|`, plus the rounding of the division.
+    fn hit_q_err(&self, prim: u32, t: f32) -> f32 {
+        let o = self.camera.centre;
+        let v = self.tris.get(prim);
+        let reach = (0..3)
+            .map(|k| (0..3).map(|c| (v[3 * k + c] - o[c]).abs()).sum::<f32>())
+            .fold(0.0f32, f32::max);
+        let q = 1.0 / t;
+        let err = q * q * 32.0 * U * reach + 4.0 * U * q;
+        if err.is_finite() { err } else { f32::MAX }
     }
 }
 
