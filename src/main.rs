@@ -157,6 +157,17 @@ enum Command {
         /// How the pipelines make their G-buffers (default: raster).
         #[arg(long, value_enum)]
         gbuffer: Option<stereotrace::pipeline::GBufferPass>,
+        /// List the run's work units and their estimated CPU time (writes OUT/plan.tsv);
+        /// compute nothing.
+        #[arg(long, conflicts_with_all = ["shard", "merge"])]
+        plan: bool,
+        /// Compute only shard K of N (0-based) into the cache, e.g. 2/8; `env` reads a Slurm
+        /// array task or a Kubernetes Indexed Job. Shards may run at once on one cache.
+        #[arg(long, value_parser = stereotrace::eval::units::Shard::parse, conflicts_with = "merge")]
+        shard: Option<stereotrace::eval::units::Shard>,
+        /// Write the reports from the cache alone (after every shard); fails naming what is missing.
+        #[arg(long)]
+        merge: bool,
     },
     /// What accuracy costs in time: sweeps pipeline settings on one scene and measures time
     /// per stereo frame and effective spp (table, CSV, JSON and a plot with the Pareto front).
@@ -314,7 +325,17 @@ fn main() -> ExitCode {
             no_figures,
             max_units,
             gbuffer,
+            plan,
+            shard,
+            merge,
         } => {
+            use stereotrace::commands::eval::Scope;
+            let scope = match (plan, shard, merge) {
+                (true, ..) => Scope::Plan,
+                (_, Some(s), _) => Scope::Shard(s),
+                (_, _, true) => Scope::Merge,
+                _ => Scope::Whole,
+            };
             let opts = stereotrace::commands::eval::EvalOptions {
                 preset,
                 scenes,
@@ -332,6 +353,7 @@ fn main() -> ExitCode {
                 no_figures,
                 max_units,
                 gbuffer,
+                scope,
             };
             stereotrace::commands::eval::run(&opts).map(|report| println!("{report}"))
         }

@@ -178,7 +178,7 @@ fn eval_runs_a_small_configuration_and_resumes_from_its_cache() {
     assert_eq!(std::fs::read_to_string(&warnings).ok(), first_warnings, "warnings.txt after the resumed run");
     let results: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap()).unwrap();
-    let reported = results["run"]["warnings"].as_array().map_or(0, Vec::len);
+    let reported = results["warnings"].as_array().map_or(0, Vec::len);
     assert_eq!(reported, first_warnings.map_or(0, |w| w.lines().count()), "results.json and warnings.txt agree");
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -6,7 +6,7 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use stereotrace::eval::cache::Cache;
-use stereotrace::eval::run::{EvalError, EvalOutcome, EvalResults, Limits, Quiet};
+use stereotrace::eval::run::{EvalError, EvalOutcome, Limits, Quiet};
 use stereotrace::eval::{EvalSpec, Grid, Preset, Variant, evaluate, plots, report};
 use stereotrace::pipeline::{Mode, Order};
 use stereotrace::scene::builtin_names;
@@ -37,17 +37,6 @@ fn run(spec: &EvalSpec, cache: &Path, limits: Limits) -> Result<EvalOutcome, Eva
     evaluate(spec, &Cache::open(cache).unwrap(), &Quiet, limits)
 }
 
-/// The results without the wall times (the only field that differs between runs).
-fn timeless(r: &EvalResults) -> EvalResults {
-    let mut r = r.clone();
-    for s in &mut r.scenes {
-        for c in &mut s.configs {
-            c.seconds = 0.0;
-        }
-    }
-    r
-}
-
 const VARIANTS: [Variant; 3] = [
     Variant { mode: Mode::Stereo, order: Order::Paper },
     Variant { mode: Mode::Temporal, order: Order::Paper },
@@ -74,7 +63,7 @@ fn an_interrupted_run_resumes_without_redoing_finished_work() {
     assert_eq!(computed, 5);
     let resumed = run(&spec, &cache, Limits::default()).unwrap();
     assert_eq!(resumed.counters.computed_units(), total - 5, "{:?}", resumed.counters);
-    assert_eq!(timeless(&resumed.results), timeless(&fresh.results));
+    assert_eq!(resumed.results, fresh.results);
     // Everything is cached now: a third run computes nothing.
     let again = run(&spec, &cache, Limits::default()).unwrap();
     assert_eq!(again.counters.computed_units() + again.counters.figure_images + again.counters.corrupt_entries, 0);
@@ -98,7 +87,7 @@ fn a_run_killed_inside_a_reference_resumes_from_its_checkpoint() {
     assert_eq!((computed, counters.samples), (0, 10 * pixels), "{counters:?}");
     let resumed = run(&spec, &cache, Limits::default()).unwrap();
     assert_eq!(resumed.counters.samples + 10 * pixels, fresh.counters.samples, "no sample traced twice");
-    assert_eq!(timeless(&resumed.results), timeless(&fresh.results), "resumed references are bit-identical");
+    assert_eq!(resumed.results, fresh.results, "resumed references are bit-identical");
     let partials = walk(&cache).into_iter().filter(|p| p.to_string_lossy().contains("partial")).count();
     assert_eq!(partials, 0, "finished units remove their checkpoints");
 }

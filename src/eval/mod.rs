@@ -14,6 +14,8 @@
 //! | progressive references and curves | [`curve`] |
 //! | mean ± std with out-of-range frames as bounds | [`stats`] |
 //! | the on-disk cache (keys, atomic writes, checksums) | [`cache`] |
+//! | claims: concurrent shards compute each entry once | [`claim`] |
+//! | work units, their cost, shards of them | [`units`] |
 //! | the run: planning, caching, progress, resuming | [`run`] |
 //! | the paper's numbers | [`paper`] |
 //! | tables (Markdown, CSV), JSON, figures | [`report`], [`plots`] |
@@ -25,6 +27,7 @@
 //! samples.
 
 pub mod cache;
+pub mod claim;
 pub mod curve;
 pub mod effective;
 pub mod paper;
@@ -32,6 +35,7 @@ pub mod plots;
 pub mod report;
 pub mod run;
 pub mod stats;
+pub mod units;
 
 use serde::{Deserialize, Serialize};
 

@@ -439,18 +439,20 @@ pub fn summary_table(results: &EvalResults, paper: &PaperTables) -> String {
     md
 }
 
-/// The JSON written next to the tables.
+/// `results.json`: what was measured, and the warnings about it. Identical, byte for byte,
+/// for every run of one spec and code version, however it ran (one process, shards merged,
+/// resumed), so it holds no wall times and no counts of what this run computed.
 #[derive(Serialize)]
 struct JsonReport<'a> {
     results: &'a EvalResults,
-    run: RunInfo<'a>,
+    warnings: &'a [String],
 }
 
+/// `run.json`: how this run went (wall time, what it computed and loaded).
 #[derive(Serialize)]
 struct RunInfo<'a> {
     seconds: f64,
     counters: &'a WorkCounters,
-    warnings: &'a [String],
 }
 
 fn write(path: &Path, text: &str, written: &mut Vec<PathBuf>) -> Result<(), String> {
@@ -459,7 +461,7 @@ fn write(path: &Path, text: &str, written: &mut Vec<PathBuf>) -> Result<(), Stri
     Ok(())
 }
 
-/// Writes every table, the long CSV, the summary and `results.json` into `dir`.
+/// Writes every table, the long CSV, the summary, `results.json` and `run.json` into `dir`.
 pub fn write_reports(outcome: &EvalOutcome, dir: &Path) -> Result<Vec<PathBuf>, String> {
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: cannot create: {e}", dir.display()))?;
     let paper = PaperTables::load();
@@ -486,11 +488,11 @@ pub fn write_reports(outcome: &EvalOutcome, dir: &Path) -> Result<Vec<PathBuf>, 
     write(&dir.join("table4_discards.csv"), &csv, &mut written)?;
     write(&dir.join("tables.md"), &all_md, &mut written)?;
     write(&dir.join("effective_spp_long.csv"), &long_csv(results, &paper), &mut written)?;
-    let json = JsonReport {
-        results,
-        run: RunInfo { seconds: outcome.seconds, counters: &outcome.counters, warnings: &outcome.warnings },
-    };
+    let json = JsonReport { results, warnings: &outcome.warnings };
     let text = serde_json::to_string_pretty(&json).map_err(|e| e.to_string())?;
-    write(&dir.join("results.json"), &text, &mut written)?;
+    write(&dir.join("results.json"), &(text + "\n"), &mut written)?;
+    let run = RunInfo { seconds: outcome.seconds, counters: &outcome.counters };
+    let text = serde_json::to_string_pretty(&run).map_err(|e| e.to_string())?;
+    write(&dir.join("run.json"), &(text + "\n"), &mut written)?;
     Ok(written)
 }

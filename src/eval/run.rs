@@ -36,9 +36,11 @@ use super::cache::{
     CACHE_FORMAT, Cache, CacheKey, Lookup, Reader, checksum, decode_image, decode_mask, decode_sums, encode_image,
     encode_mask, encode_sums,
 };
+use super::claim::{Attempt, Claim, try_claim};
 use super::curve::{CurvePoint, FrameCurve, FrameView, Measurement, Progressive, SampleSums, measure};
 use super::effective::{EffectiveSpp, Grid, Metric};
 use super::stats::Summary;
+use super::units::{Plan, Shard, Unit, UnitKind, assign};
 use super::{EvalSpec, Variant};
 use crate::camera::{Eye, StereoRig};
 use crate::kernels::reproject::REASON_COUNT;
@@ -116,6 +118,9 @@ pub enum EvalError {
     Failed(String),
     #[error("stopped after computing {computed} units (limit reached); run again to resume")]
     Interrupted { computed: usize, counters: WorkCounters },
+    /// A merge found entries missing from the cache (each named: kind, scene, what).
+    #[error("the cache lacks {} of the run's entries (run the missing shards first):\n  {}", .0.len(), .0.join("\n  "))]
+    Missing(Vec<String>),
 }
 
 impl From<String> for EvalError {
@@ -169,8 +174,6 @@ pub struct ConfigResult {
     pub rmse: Summary,
     /// Left-eye pixels path traced over all frames.
     pub traced_left_pixels: u64,
-    /// Wall time of the pipeline run that produced this (not part of any key).
-    pub seconds: f64,
 }
 
 impl ConfigResult {
@@ -250,6 +253,9 @@ pub struct EvalOutcome {
 
 const PROBE_SEED: u64 = 0x9E0B_E5EE_D000_0001;
 
+/// How often a process waiting for another's claim looks again.
+const CLAIM_POLL: std::time::Duration = std::time::Duration::from_millis(500);
+
 /// Hashes the bits of images and numbers.
 #[derive(Default)]
 struct BitHash(Vec<u8>);
@@ -320,6 +326,13 @@ pub fn scene_probe(renderer: &Renderer, rig: &StereoRig) -> Result<u64, String> 
     Ok(h.finish())
 }
 
+/// A scene's references and curves, held while a shard runs that scene's units.
+struct SceneInputs {
+    scene: usize,
+    references: BTreeMap<u32, RgbBuf>,
+    curves: BTreeMap<u32, FrameCurve>,
+}
+
 /// What to do for one configuration.
 struct ConfigPlan {
     variant: Variant,
@@ -337,6 +350,10 @@ impl ConfigPlan {
     }
     fn reasons_key(&self, frame: u32, kind: &str) -> CacheKey {
         self.key.derive("artifact", &[("what", format!("{kind}-reasons")), ("frame", frame.to_string())])
+    }
+    /// Which reason planes Figure 6 keeps of this configuration.
+    fn reasons_kind(&self) -> &'static str {
+        if self.variant.mode == Mode::Stereo { "stereo" } else { "temporal" }
     }
 }
 
@@ -371,6 +388,8 @@ struct Runner<'a> {
     rig: StereoRig,
     counters: WorkCounters,
     warnings: Vec<String>,
+    /// Compute nothing: every entry must be in the cache (`eval --merge`).
+    merge_only: bool,
 }
 
 /// The payload of a checkpoint: the samples so far, the curve points so far, the sum.
@@ -473,6 +492,48 @@ impl Runner<'_> {
             return Err(EvalError::Interrupted { computed, counters: self.counters });
         }
         Ok(())
+    }
+
+    /// The entry of `key`: loaded when it is in the cache; otherwise computed under a claim
+    /// (see [`super::claim`]), or waited for while another process holds the claim. A merge
+    /// computes nothing and reports the entry missing.
+    fn obtain<T>(
+        &mut self,
+        key: &CacheKey,
+        what: &str,
+        mut load: impl FnMut(&mut Self) -> Option<T>,
+        compute: impl FnOnce(&mut Self, &mut Claim) -> Result<T, EvalError>,
+    ) -> Result<T, EvalError> {
+        let mut waiting_since: Option<Instant> = None;
+        loop {
+            if let Some(v) = load(self) {
+                return Ok(v);
+            }
+            if self.merge_only {
+                return Err(EvalError::Missing(vec![format!("{} {what}", key.kind())]));
+            }
+            match try_claim(&self.cache.path(key))? {
+                Attempt::Acquired(mut claim) => {
+                    // Another process may have written the entry and released its claim
+                    // between our load and our claim: then it is not computed twice.
+                    if self.cache.contains(key)
+                        && matches!(self.cache.get(key), Lookup::Hit(_))
+                        && let Some(v) = load(self)
+                    {
+                        return Ok(v);
+                    }
+                    return compute(self, &mut claim);
+                }
+                Attempt::HeldBy(holder) => {
+                    let since = *waiting_since.get_or_insert_with(Instant::now);
+                    self.reporter.status(&format!(
+                        "waiting for the {what}: {holder} is computing it ({:.0} s)",
+                        since.elapsed().as_secs_f64()
+                    ));
+                    std::thread::sleep(CLAIM_POLL);
+                }
+            }
+        }
     }
 
     fn samples_exhausted(&self) -> bool {
@@ -601,11 +662,19 @@ impl Runner<'_> {
         work
     }
 
-    /// Renders (or loads, or resumes) the reference of frame `f`.
+    /// Renders (or loads, or resumes, or waits for) the reference of frame `f`.
     fn reference(&mut self, plan: &ScenePlan, f: u32, key: &CacheKey) -> Result<RgbBuf, EvalError> {
-        if let Some(img) = self.load_image(key) {
-            return Ok(img);
-        }
+        let what = format!("reference of {} frame {f}", plan.name);
+        self.obtain(key, &what, |s| s.load_image(key), |s, claim| s.compute_reference(plan, f, key, claim))
+    }
+
+    fn compute_reference(
+        &mut self,
+        plan: &ScenePlan,
+        f: u32,
+        key: &CacheKey,
+        claim: &mut Claim,
+    ) -> Result<RgbBuf, EvalError> {
         self.start_unit()?;
         let r = self.spec.reference_spp;
         self.reporter.status(&format!("{}: reference of frame {f} ({r} spp)", plan.name));
@@ -616,6 +685,7 @@ impl Runner<'_> {
             let stats = prog.add_sample(&plan.renderer, &view, self.spec.seeds.reference, false)?;
             self.counters.samples += stats.samples;
             self.reporter.advance(self.pixels());
+            claim.heartbeat();
             if prog.samples() % self.spec.checkpoint_spp == 0 && prog.samples() < r {
                 self.cache.put(&partial, &encode_partial(prog.samples(), &[], prog.sum()))?;
             }
@@ -677,15 +747,34 @@ impl Runner<'_> {
         reference: &RgbBuf,
     ) -> Result<FrameCurve, EvalError> {
         let points_wanted = grid_points(self.spec.grid, max_spp, &plan.extra_points);
-        let valid = |c: &FrameCurve| c.frame == f && c.points.iter().map(|p| p.spp).eq(points_wanted.iter().copied());
-        if let Some(c) = self.load_with(key, |b| serde_json::from_slice::<FrameCurve>(b).map_err(|e| e.to_string())) {
-            if valid(&c) {
-                // A curve loaded on a resumed run warns as when it was computed.
-                self.note_rises(&plan.name, &c)?;
-                return Ok(c);
+        let load = |s: &mut Self| {
+            let c = s.load_with(key, |b| serde_json::from_slice::<FrameCurve>(b).map_err(|e| e.to_string()))?;
+            if c.frame == f && c.points.iter().map(|p| p.spp).eq(points_wanted.iter().copied()) {
+                return Some(c);
             }
-            self.warn(format!("cache entry {} holds another curve; rebuilding", self.cache.path(key).display()));
-        }
+            s.warn(format!("cache entry {} holds another curve; rebuilding", s.cache.path(key).display()));
+            None
+        };
+        let what = format!("error curve of {} frame {f}", plan.name);
+        let curve = self.obtain(key, &what, load, |s, claim| {
+            s.compute_curve(plan, f, max_spp, &points_wanted, key, reference, claim)
+        })?;
+        // Loaded or computed, a curve warns the same (a resumed run reports what a fresh one does).
+        self.note_rises(&plan.name, &curve)?;
+        Ok(curve)
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn compute_curve(
+        &mut self,
+        plan: &ScenePlan,
+        f: u32,
+        max_spp: u32,
+        points_wanted: &[u32],
+        key: &CacheKey,
+        reference: &RgbBuf,
+        claim: &mut Claim,
+    ) -> Result<FrameCurve, EvalError> {
         self.start_unit()?;
         self.reporter.status(&format!("{}: error curve of frame {f} (1..{max_spp} spp)", plan.name));
         let partial = key.derive("curve-partial", &[]);
@@ -706,6 +795,7 @@ impl Runner<'_> {
                 points.push(CurvePoint { spp: m, ssim, rmse });
             }
             self.reporter.advance(self.pixels());
+            claim.heartbeat();
             if m % self.spec.checkpoint_spp == 0 && m < max_spp {
                 self.cache.put(&partial, &encode_partial(m, &points, prog.sum()))?;
             }
@@ -714,7 +804,6 @@ impl Runner<'_> {
             }
         }
         let curve = FrameCurve { frame: f, grid: self.spec.grid, points };
-        self.note_rises(&plan.name, &curve)?;
         self.cache.put(key, &serde_json::to_vec(&curve).map_err(|e| e.to_string())?)?;
         self.cache.remove(&partial);
         self.counters.curves += 1;
@@ -730,20 +819,31 @@ impl Runner<'_> {
         curves: &BTreeMap<u32, FrameCurve>,
     ) -> Result<ConfigResult, EvalError> {
         let figure_frame = self.spec.figure_frame();
-        let artifacts_present = (!c.keep_output || self.cache.contains(&c.output_key(figure_frame)))
-            && (!c.keep_reasons || {
-                let kind = if c.variant.mode == Mode::Stereo { "stereo" } else { "temporal" };
-                self.cache.contains(&c.reasons_key(figure_frame, kind))
-            });
-        if artifacts_present
-            && let Some(r) =
-                self.load_with(&c.key, |b| serde_json::from_slice::<ConfigResult>(b).map_err(|e| e.to_string()))
-        {
-            return Ok(r);
-        }
+        let load = |s: &mut Self| {
+            // The artifacts are written before the result, so a result implies them; checked
+            // anyway, for a cache that lost files.
+            let artifacts_present = (!c.keep_output || s.cache.contains(&c.output_key(figure_frame)))
+                && (!c.keep_reasons || s.cache.contains(&c.reasons_key(figure_frame, c.reasons_kind())));
+            if !artifacts_present {
+                return None;
+            }
+            s.load_with(&c.key, |b| serde_json::from_slice::<ConfigResult>(b).map_err(|e| e.to_string()))
+        };
+        let what = format!("{} {} at {} spp", plan.name, c.variant, c.spp);
+        self.obtain(&c.key, &what, load, |s, claim| s.compute_config(plan, c, references, curves, claim))
+    }
+
+    fn compute_config(
+        &mut self,
+        plan: &ScenePlan,
+        c: &ConfigPlan,
+        references: &BTreeMap<u32, RgbBuf>,
+        curves: &BTreeMap<u32, FrameCurve>,
+        claim: &mut Claim,
+    ) -> Result<ConfigResult, EvalError> {
+        let figure_frame = self.spec.figure_frame();
         self.start_unit()?;
         self.reporter.status(&format!("{}: {} at {} spp", plan.name, c.variant, c.spp));
-        let start = Instant::now();
         let spec = self.spec;
         let tol = plan.renderer.scene().tolerances.at_height(self.extent.height());
         let cfg = pipeline_config(spec, c.variant, c.spp, tol);
@@ -757,7 +857,6 @@ impl Runner<'_> {
             ssim: Summary::of_values(&[]),
             rmse: Summary::of_values(&[]),
             traced_left_pixels: 0,
-            seconds: 0.0,
         };
         let per_frame = config_work(self.pixels(), 1, c.variant, c.spp);
         let variant = spec.ssim.kernel();
@@ -794,22 +893,22 @@ impl Runner<'_> {
                     self.put_image(&c.output_key(f), p.output(Eye::Left))?;
                 }
                 if c.keep_reasons {
-                    let (kind, plane) = if c.variant.mode == Mode::Stereo {
-                        ("stereo", p.stereo_reasons(Eye::Left))
+                    let plane = if c.variant.mode == Mode::Stereo {
+                        p.stereo_reasons(Eye::Left)
                     } else {
-                        ("temporal", p.temporal_reasons(Eye::Left))
+                        p.temporal_reasons(Eye::Left)
                     };
                     let plane = plane.clone();
-                    self.put_mask(&c.reasons_key(f, kind), &plane)?;
+                    self.put_mask(&c.reasons_key(f, c.reasons_kind()), &plane)?;
                 }
             }
             self.reporter.advance(per_frame);
+            claim.heartbeat();
         }
         let evaluated: Vec<&FrameResult> = result.frames.iter().filter(|r| r.evaluated).collect();
         let of = |metric| Summary::of_frames(&evaluated.iter().filter_map(|r| r.effective(metric)).collect::<Vec<_>>());
         result.ssim = of(Metric::Ssim);
         result.rmse = of(Metric::Rmse);
-        result.seconds = start.elapsed().as_secs_f64();
         self.cache.put(&c.key, &serde_json::to_vec(&result).map_err(|e| e.to_string())?)?;
         self.counters.configs += 1;
         Ok(result)
@@ -824,9 +923,17 @@ impl Runner<'_> {
             ("seed", self.spec.seeds.curve.to_string()),
         ]);
         let key = CacheKey::new("figure-image", &plan.name, &fields);
-        if let Some(img) = self.load_image(&key) {
-            return Ok(img);
-        }
+        let what = format!("figure image of {} frame {frame} at {spp} spp", plan.name);
+        self.obtain(&key, &what, |s| s.load_image(&key), |s, _claim| s.compute_figure_image(plan, frame, spp, &key))
+    }
+
+    fn compute_figure_image(
+        &mut self,
+        plan: &ScenePlan,
+        frame: u32,
+        spp: u32,
+        key: &CacheKey,
+    ) -> Result<RgbBuf, EvalError> {
         let work = self.pixels() * u64::from(spp);
         self.reporter.add_work(work);
         self.reporter.status(&format!("{}: figure frame {frame} at {spp} spp", plan.name));
@@ -835,7 +942,7 @@ impl Runner<'_> {
         self.counters.samples += stats.samples;
         self.counters.figure_images += 1;
         self.reporter.advance(work);
-        self.put_image(&key, &img)?;
+        self.put_image(key, &img)?;
         Ok(img)
     }
 
@@ -867,6 +974,92 @@ impl Runner<'_> {
         Ok(result)
     }
 
+    /// The units of a run in plan order (scene by scene: references, curves,
+    /// configurations, figures), with their CPU time when the scenes' rates are given.
+    fn units(&self, plans: &[ScenePlan], seconds_per_sample: Option<&[f64]>) -> Vec<Unit> {
+        let p = self.pixels();
+        let mut units = Vec::new();
+        let entry = |key: &CacheKey| {
+            let path = self.cache.path(key);
+            Some(path.strip_prefix(self.cache.root()).unwrap_or(&path).display().to_string())
+        };
+        for (scene, plan) in plans.iter().enumerate() {
+            let rate = seconds_per_sample.map_or(0.0, |r| r[scene]);
+            let mut push = |kind: UnitKind, samples: u64, dependencies: usize, entry: Option<String>| {
+                let cpu_seconds = samples as f64 * rate;
+                let scene_name = plan.name.clone();
+                units.push(Unit { scene, scene_name, kind, samples, cpu_seconds, dependencies, entry });
+            };
+            for (f, _, key, _) in &plan.frames {
+                push(UnitKind::Reference { frame: *f }, p * u64::from(self.spec.reference_spp), 0, entry(key));
+            }
+            for (f, max_spp, _, key) in &plan.frames {
+                push(UnitKind::Curve { frame: *f }, p * u64::from(*max_spp), 1, entry(key));
+            }
+            let inputs = 2 * plan.frames.len();
+            for c in &plan.configs {
+                let samples = config_work(p, self.spec.frames, c.variant, c.spp);
+                push(UnitKind::Config { variant: c.variant, spp: c.spp }, samples, inputs, entry(&c.key));
+            }
+            if plan.comparison {
+                // Each row: its input spp and its effective spp (unknown before the run;
+                // counted as 8× the input).
+                let rows: u64 = plan.configs.iter().filter(|c| c.keep_output).map(|c| 9 * u64::from(c.spp)).sum();
+                push(UnitKind::Figures, p * rows, inputs + plan.configs.len(), None);
+            }
+        }
+        units
+    }
+
+    /// The references and curves of `plan`'s scene (kept between units of one scene).
+    fn inputs<'s>(
+        &mut self,
+        plan: &ScenePlan,
+        scene: usize,
+        held: &'s mut Option<SceneInputs>,
+    ) -> Result<&'s SceneInputs, EvalError> {
+        if held.as_ref().is_none_or(|h| h.scene != scene) {
+            *held = None;
+            let mut references = BTreeMap::new();
+            for (f, _, key, _) in &plan.frames {
+                references.insert(*f, self.reference(plan, *f, key)?);
+            }
+            let mut curves = BTreeMap::new();
+            for (f, max_spp, _, key) in &plan.frames {
+                curves.insert(*f, self.curve(plan, *f, *max_spp, key, &references[f])?);
+            }
+            *held = Some(SceneInputs { scene, references, curves });
+        }
+        Ok(held.as_ref().expect("just filled"))
+    }
+
+    /// Computes (or loads, or waits for) one unit of a shard, and what it needs first.
+    fn run_unit(&mut self, plan: &ScenePlan, unit: &Unit, held: &mut Option<SceneInputs>) -> Result<(), EvalError> {
+        let frame_keys = |f: u32| plan.frames.iter().find(|(g, ..)| *g == f).expect("a planned frame");
+        match &unit.kind {
+            UnitKind::Reference { frame } => {
+                let (f, _, key, _) = frame_keys(*frame);
+                self.reference(plan, *f, key)?;
+            }
+            UnitKind::Curve { frame } => {
+                let (f, max_spp, reference, curve) = frame_keys(*frame);
+                let image = self.reference(plan, *f, reference)?;
+                self.curve(plan, *f, *max_spp, curve, &image)?;
+            }
+            UnitKind::Config { variant, spp } => {
+                let c = plan.configs.iter().find(|c| c.variant == *variant && c.spp == *spp).expect("a planned config");
+                let inputs = self.inputs(plan, unit.scene, held)?;
+                self.config(plan, c, &inputs.references, &inputs.curves)?;
+            }
+            UnitKind::Figures => {
+                // The scene's results decide which images Figure 7 needs.
+                let mut artifacts = Artifacts::default();
+                self.run_scene(plan, &mut artifacts)?;
+            }
+        }
+        Ok(())
+    }
+
     /// Collects the images of Figures 6 and 7 for this scene.
     fn figures(
         &mut self,
@@ -877,7 +1070,7 @@ impl Runner<'_> {
     ) -> Result<(), EvalError> {
         let frame = self.spec.figure_frame();
         for c in plan.configs.iter().filter(|c| c.keep_reasons) {
-            let kind = if c.variant.mode == Mode::Stereo { "stereo" } else { "temporal" };
+            let kind = c.reasons_kind();
             if let Some(reasons) = self.load_mask(&c.reasons_key(frame, kind)) {
                 artifacts.discard_maps.push(DiscardMap {
                     scene: plan.name.clone(),
@@ -941,14 +1134,13 @@ fn config_work(pixels: u64, frames: u32, variant: Variant, spp: u32) -> u64 {
     pixels * u64::from(frames) * u64::from(spp) * variant.traced_eyes_x10() / 10
 }
 
-/// Runs the evaluation `spec` with `cache`.
-pub fn evaluate(
-    spec: &EvalSpec,
-    cache: &Cache,
-    reporter: &dyn Reporter,
+/// The runner and the scenes' plans of a run (every scope starts here).
+fn prepare<'a>(
+    spec: &'a EvalSpec,
+    cache: &'a Cache,
+    reporter: &'a dyn Reporter,
     limits: Limits,
-) -> Result<EvalOutcome, EvalError> {
-    let start = Instant::now();
+) -> Result<(Runner<'a>, Vec<ScenePlan>, u64), EvalError> {
     let spec_warnings = spec.validate()?;
     let mut runner = Runner {
         spec,
@@ -959,6 +1151,7 @@ pub fn evaluate(
         rig: StereoRig::new(spec.eye_separation)?,
         counters: WorkCounters::default(),
         warnings: Vec::new(),
+        merge_only: false,
     };
     for w in spec_warnings {
         runner.warn(w);
@@ -969,20 +1162,136 @@ pub fn evaluate(
     for name in &spec.scenes {
         plans.push(runner.plan_scene(name, global_probe)?);
     }
-    reporter.begin(plans.iter().map(|p| runner.pending_work(p)).sum());
+    Ok((runner, plans, global_probe))
+}
+
+/// Every scene's results (computing, loading or waiting for each unit), in spec order.
+fn assemble(
+    mut runner: Runner<'_>,
+    plans: &[ScenePlan],
+    global_probe: u64,
+    start: Instant,
+) -> Result<EvalOutcome, EvalError> {
     let mut scenes = Vec::new();
     let mut artifacts = Artifacts::default();
-    for plan in &plans {
+    for plan in plans {
         scenes.push(runner.run_scene(plan, &mut artifacts)?);
     }
     let code_version = format!("{CACHE_FORMAT}/{}/{global_probe:016x}", env!("CARGO_PKG_VERSION"));
     Ok(EvalOutcome {
-        results: EvalResults { spec: spec.clone(), code_version, scenes },
+        results: EvalResults { spec: runner.spec.clone(), code_version, scenes },
         artifacts,
         counters: runner.counters,
         warnings: runner.warnings,
         seconds: start.elapsed().as_secs_f64(),
     })
+}
+
+/// Runs the evaluation `spec` with `cache`: every unit, then every result.
+pub fn evaluate(
+    spec: &EvalSpec,
+    cache: &Cache,
+    reporter: &dyn Reporter,
+    limits: Limits,
+) -> Result<EvalOutcome, EvalError> {
+    let start = Instant::now();
+    let (runner, plans, global_probe) = prepare(spec, cache, reporter, limits)?;
+    reporter.begin(plans.iter().map(|p| runner.pending_work(p)).sum());
+    assemble(runner, &plans, global_probe, start)
+}
+
+/// Builds every result of `spec` from the cache alone (after the shards of `eval --shard`);
+/// fails with [`EvalError::Missing`] naming every entry that is not there.
+pub fn merge(spec: &EvalSpec, cache: &Cache, reporter: &dyn Reporter) -> Result<EvalOutcome, EvalError> {
+    let start = Instant::now();
+    let (mut runner, plans, global_probe) = prepare(spec, cache, reporter, Limits::default())?;
+    runner.merge_only = true;
+    let units = runner.units(&plans, None);
+    let missing: Vec<String> = units
+        .iter()
+        .filter(|u| u.entry.as_ref().is_some_and(|e| !cache.root().join(e).is_file()))
+        .map(|u| format!("{u} ({})", u.entry.as_deref().unwrap_or("")))
+        .collect();
+    if !missing.is_empty() {
+        return Err(EvalError::Missing(missing));
+    }
+    assemble(runner, &plans, global_probe, start)
+}
+
+/// What one shard did.
+#[derive(Clone, Debug)]
+pub struct ShardOutcome {
+    pub shard: Shard,
+    /// Units dealt to this shard, and how many units the whole run has.
+    pub units: usize,
+    pub total_units: usize,
+    /// Everything computed (its own units, and dependencies nobody else had claimed).
+    pub counters: WorkCounters,
+    pub warnings: Vec<String>,
+    pub seconds: f64,
+}
+
+/// Computes shard `shard`'s units of `spec` into `cache` (see [`super::units`]).
+pub fn run_shard(
+    spec: &EvalSpec,
+    cache: &Cache,
+    reporter: &dyn Reporter,
+    shard: Shard,
+    limits: Limits,
+) -> Result<ShardOutcome, EvalError> {
+    let start = Instant::now();
+    let (mut runner, plans, _) = prepare(spec, cache, reporter, limits)?;
+    let units = runner.units(&plans, None);
+    let mine = assign(&units, shard.count).swap_remove(shard.index);
+    let pending: u64 = mine
+        .iter()
+        .filter(|&&i| units[i].entry.as_ref().is_none_or(|e| !cache.root().join(e).is_file()))
+        .map(|&i| units[i].samples)
+        .sum();
+    reporter.begin(pending);
+    let mut inputs = None;
+    for &i in &mine {
+        runner.run_unit(&plans[units[i].scene], &units[i], &mut inputs)?;
+    }
+    Ok(ShardOutcome {
+        shard,
+        units: mine.len(),
+        total_units: units.len(),
+        counters: runner.counters,
+        warnings: runner.warnings,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// The units of `spec` and their estimated CPU time, from each scene's path-tracing rate
+/// measured on a small render of its first frame.
+pub fn plan(spec: &EvalSpec, cache: &Cache, reporter: &dyn Reporter) -> Result<Plan, EvalError> {
+    let (runner, plans, _) = prepare(spec, cache, reporter, Limits::default())?;
+    let mut rates = Vec::new();
+    for p in &plans {
+        reporter.status(&format!("{}: measuring its path-tracing rate", p.name));
+        rates.push(seconds_per_sample(&p.renderer, &runner.rig, runner.extent)?);
+    }
+    let units = runner.units(&plans, Some(&rates));
+    Ok(Plan { units, seconds_per_sample: plans.iter().map(|p| p.name.clone()).zip(rates).collect() })
+}
+
+/// CPU seconds per left-eye pixel sample of frame 0 (wall time × threads of a render at
+/// most 160×90, after one warm-up render).
+fn seconds_per_sample(renderer: &Renderer, rig: &StereoRig, extent: Extent) -> Result<f64, String> {
+    let scale = (160.0 / extent.width() as f64).min(90.0 / extent.height() as f64).min(1.0);
+    let small = Extent::new(
+        ((extent.width() as f64 * scale).round() as usize).max(1),
+        ((extent.height() as f64 * scale).round() as usize).max(1),
+    )
+    .map_err(|e| e.to_string())?;
+    let view = FrameView::new(renderer, rig, small, 0, Eye::Left)?;
+    view.render(renderer, 1, PROBE_SEED, 0, false)?;
+    let spp = 4;
+    let t = Instant::now();
+    view.render(renderer, spp, PROBE_SEED, 0, false)?;
+    let cpu = t.elapsed().as_secs_f64() * rayon::current_num_threads() as f64;
+    Ok(cpu / (small.pixels() as f64 * f64::from(spp)))
 }
 
 /// A scene's measuring stick under a spec: the renderer, and the reference and error curve
@@ -1017,6 +1326,7 @@ pub fn scene_basis(
         rig: StereoRig::new(spec.eye_separation)?,
         counters: WorkCounters::default(),
         warnings: Vec::new(),
+        merge_only: false,
     };
     let global_probe = code_probe()?;
     let plan = runner.plan_scene(scene, global_probe)?;

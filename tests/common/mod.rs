@@ -87,3 +87,5 @@ pub fn write_box_scene(dir: &Path, extra_obj: &str, lamp_ke: f32) {
     std::fs::write(dir.join("scene.mtl"), mtl).unwrap();
     std::fs::write(dir.join("camera.json"), r#"{"eye": [0, 0, 0.9], "target": [0, 0, 0], "vfov_deg": 70}"#).unwrap();
 }
+
+pub mod eval;
