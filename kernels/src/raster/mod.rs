@@ -334,9 +334,7 @@ impl<M: AlphaTest> EyeView<'_, M> {
     fn hit_q_err(&self, prim: u32, t: f32) -> f32 {
         let o = self.camera.centre;
         let v = self.tris.get(prim);
-        let reach = (0..3)
-            .map(|k| (0..3).map(|c| (v[3 * k + c] - o[c]).abs()).sum::<f32>())
-            .fold(0.0f32, f32::max);
+        let reach = (0..3).map(|k| (0..3).map(|c| (v[3 * k + c] - o[c]).abs()).sum::<f32>()).fold(0.0f32, f32::max);
         let q = 1.0 / t;
         let err = q * q * 32.0 * U * reach + 4.0 * U * q;
         if err.is_finite() { err } else { f32::MAX }
