@@ -229,8 +229,8 @@ const FAR_VERTEX: f64 = 50.0;
 /// The exact answer at `(x, y)` where the tracer's rounding may be wrong: whether, in f64 on
 /// the tracer's own f32 pixel ray, `prim` is hit in front of the eye and no triangle nearer
 /// by more than the two triangles' f32 error scales (`8·2⁻²⁴·max|v − eye|` each: below that
-/// the tracer cannot order them), and a vertex of `prim` or of the tracer's triangle lies
-/// beyond [`FAR_VERTEX`].
+/// the tracer cannot order them) unless the tracer misses that far triangle there, and a
+/// vertex of `prim` or of the tracer's triangle lies beyond [`FAR_VERTEX`].
 fn exact_explains(camera: &CameraModel, tris: &[TriVerts], prim: u32, tracer: u32, x: usize, y: usize) -> bool {
     let o = glam::DVec3::from(Vec3::from(camera.centre));
     let d = glam::DVec3::from(Vec3::from(camera.ray(x as f32 + 0.5, y as f32 + 0.5)));
@@ -257,9 +257,15 @@ fn exact_explains(camera: &CameraModel, tris: &[TriVerts], prim: u32, tracer: u3
     };
     let mine = &tris[prim as usize];
     let Some(t_prim) = hit(mine) else { return false };
-    tris.iter()
-        .enumerate()
-        .all(|(i, t)| i as u32 == prim || hit(t).is_none_or(|ti| ti >= t_prim - (error(mine) + error(t))))
+    // The raster's uncertain pixels take the tracer's answer, so a nearer far sliver that
+    // the f32 test misses there is one the raster cannot see either.
+    let ray = pixel_ray(camera, x, y);
+    let tracer_misses = |t: &TriVerts| {
+        reach(t) > FAR_VERTEX && ray.as_ref().is_none_or(|r| intersect_triangle(r, t, f32::INFINITY).is_none())
+    };
+    tris.iter().enumerate().all(|(i, t)| {
+        i as u32 == prim || hit(t).is_none_or(|ti| ti >= t_prim - (error(mine) + error(t))) || tracer_misses(t)
+    })
 }
 
 /// Fuzzes the stereo rasteriser: up to 24 triangles around a camera (the grid puts many
