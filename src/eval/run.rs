@@ -255,6 +255,8 @@ const PROBE_SEED: u64 = 0x9E0B_E5EE_D000_0001;
 
 /// How often a process waiting for another's claim looks again.
 const CLAIM_POLL: std::time::Duration = std::time::Duration::from_millis(500);
+/// How often a wait is reported again.
+const WAIT_REPORT: std::time::Duration = std::time::Duration::from_secs(30);
 
 /// Hashes the bits of images and numbers.
 #[derive(Default)]
@@ -504,7 +506,8 @@ impl Runner<'_> {
         mut load: impl FnMut(&mut Self) -> Option<T>,
         compute: impl FnOnce(&mut Self, &mut Claim) -> Result<T, EvalError>,
     ) -> Result<T, EvalError> {
-        let mut waiting_since: Option<Instant> = None;
+        // When the wait for another holder began, and when it was last reported.
+        let mut waiting_since: Option<(Instant, Option<Instant>)> = None;
         loop {
             if let Some(v) = load(self) {
                 return Ok(v);
@@ -525,11 +528,16 @@ impl Runner<'_> {
                     return compute(self, &mut claim);
                 }
                 Attempt::HeldBy(holder) => {
-                    let since = *waiting_since.get_or_insert_with(Instant::now);
-                    self.reporter.status(&format!(
-                        "waiting for the {what}: {holder} is computing it ({:.0} s)",
-                        since.elapsed().as_secs_f64()
-                    ));
+                    // Said when the wait starts and every half minute (a log is not a ticker).
+                    let now = Instant::now();
+                    let (since, said) = waiting_since.get_or_insert((now, None));
+                    if said.is_none_or(|t: Instant| now - t >= WAIT_REPORT) {
+                        *said = Some(now);
+                        self.reporter.status(&format!(
+                            "waiting for the {what}: {holder} is computing it (waited {:.0} s)",
+                            (now - *since).as_secs_f64()
+                        ));
+                    }
                     std::thread::sleep(CLAIM_POLL);
                 }
             }
