@@ -207,6 +207,12 @@ fn closest(camera: &CameraModel, tris: &[TriVerts], x: usize, y: usize) -> (u32,
     best
 }
 
+/// The tracer's hit `t` on triangle `prim` at `(x, y)` (for failure messages).
+fn tracer_hit(camera: &CameraModel, tris: &[TriVerts], prim: u32, x: usize, y: usize) -> Option<f32> {
+    let r = pixel_ray(camera, x, y)?;
+    intersect_triangle(&r, tris.get(prim as usize)?, f32::INFINITY).map(|h| h.t)
+}
+
 /// Whether the tracer's self-intersection guard explains why it does not see `prim` at
 /// `(x, y)` where the raster does: the pixel ray's line meets `prim` in front of the eye and
 /// nearer than the tracer's own hit, but the watertight test rejects that hit because `t` is
@@ -229,17 +235,17 @@ const FAR_VERTEX: f64 = 50.0;
 /// The exact answer at `(x, y)` where the tracer's rounding may be wrong: whether, in f64 on
 /// the tracer's own f32 pixel ray, `prim` is hit in front of the eye and no triangle nearer
 /// by more than the two triangles' f32 error scales (`8·2⁻²⁴·max|v − eye|` each: below that
-/// the tracer cannot order them) unless the tracer misses that far triangle there, and a
-/// vertex of `prim` or of the tracer's triangle lies beyond [`FAR_VERTEX`].
+/// the tracer cannot order them) unless the tracer misses that far triangle there; and a
+/// vertex of `prim` or of the tracer's triangle lies beyond [`FAR_VERTEX`], or the tracer's
+/// triangle is hit within those error scales of `prim` (a near tie the f32 test orders by
+/// rounding).
 fn exact_explains(camera: &CameraModel, tris: &[TriVerts], prim: u32, tracer: u32, x: usize, y: usize) -> bool {
     let o = glam::DVec3::from(Vec3::from(camera.centre));
     let d = glam::DVec3::from(Vec3::from(camera.ray(x as f32 + 0.5, y as f32 + 0.5)));
     let vertex = |t: &TriVerts, k: usize| glam::DVec3::new(t[3 * k].into(), t[3 * k + 1].into(), t[3 * k + 2].into());
     let reach = |t: &TriVerts| (0..3).map(|k| (vertex(t, k) - o).length()).fold(0.0, f64::max);
     let error = |t: &TriVerts| 8.0 * f64::from(f32::EPSILON) * 0.5 * reach(t);
-    if !(reach(&tris[prim as usize]) > FAR_VERTEX || tris.get(tracer as usize).is_some_and(|t| reach(t) > FAR_VERTEX)) {
-        return false;
-    }
+
     // Möller–Trumbore in f64, edges inclusive (to 1e-12 of the barycentrics).
     let hit = |t: &TriVerts| -> Option<f64> {
         let (e1, e2) = (vertex(t, 1) - vertex(t, 0), vertex(t, 2) - vertex(t, 0));
@@ -257,6 +263,16 @@ fn exact_explains(camera: &CameraModel, tris: &[TriVerts], prim: u32, tracer: u3
     };
     let mine = &tris[prim as usize];
     let Some(t_prim) = hit(mine) else { return false };
+    // The tracer's rounding is a possible cause only with a far vertex, or where its triangle
+    // is hit within the two triangles' error scales of the raster's (a near tie it orders by
+    // rounding: two hits 1e-8 apart at t = 0.0028 with vertices 3.5 units away).
+    let far = reach(mine) > FAR_VERTEX || tris.get(tracer as usize).is_some_and(|t| reach(t) > FAR_VERTEX);
+    let near_tie = tris
+        .get(tracer as usize)
+        .is_some_and(|t| hit(t).is_some_and(|ti| (ti - t_prim).abs() <= error(mine) + error(t)));
+    if !(far || near_tie) {
+        return false;
+    }
     // The raster's uncertain pixels take the tracer's answer, so a nearer far sliver that
     // the f32 test misses there is one the raster cannot see either.
     let ray = pixel_ray(camera, x, y);
@@ -329,8 +345,10 @@ pub fn raster(data: &[u8]) {
                         || (got != NO_PRIM
                             && (guard_rejected(cam, &tris, got, x, y, tracer_t)
                                 || exact_explains(cam, &tris, got, want, x, y))),
-                    "pixel ({x}, {y}) of {extent:?}: raster {got}, tracer {want}; camera {head:?}, separation \
-                     {separation}, triangles {tris:?}"
+                    "pixel ({x}, {y}) of {extent:?}: raster {got}, tracer {want} (the tracer's t: {:?} and {:?}); \
+                     camera {head:?}, separation {separation}, triangles {tris:?}",
+                    tracer_hit(cam, &tris, got, x, y),
+                    tracer_hit(cam, &tris, want, x, y),
                 );
             }
         }
