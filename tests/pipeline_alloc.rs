@@ -1,10 +1,11 @@
-//! A frame through a warmed-up pipeline allocates nothing, in every mode and with either
-//! G-buffer pass (one test per file: the counting allocator sees the whole process).
+//! A frame through a warmed-up pipeline, driven as every frame loop drives it (a `Session`),
+//! allocates nothing, in every mode, with either G-buffer pass, and for the mono baseline
+//! (one test per file: the counting allocator sees the whole process).
 
 use stereotrace::camera::StereoRig;
 use stereotrace::kernels::Extent;
 use stereotrace::kernels::check::CountingAllocator;
-use stereotrace::pipeline::{GBufferPass, Mode, Order, Pipeline, PipelineConfig};
+use stereotrace::pipeline::{CameraWalk, GBufferPass, Mode, Order, Pipeline, PipelineConfig, Session, View};
 use stereotrace::render::Renderer;
 use stereotrace::scene::resolve;
 
@@ -16,7 +17,6 @@ fn frames_after_the_first_allocate_nothing() {
     // The moving-light scene exercises the per-frame light table too.
     let renderer = Renderer::new(resolve("living-room-moving-light").unwrap()).unwrap();
     let e = Extent::new(64, 36).unwrap();
-    let poses: Vec<_> = (0..4).map(|f| renderer.scene().camera.pose_at(f as f32)).collect();
     let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
     let cases = Mode::ALL.into_iter().flat_map(|mode| {
         [Order::Paper, Order::StereoFirst].into_iter().flat_map(move |order| {
@@ -30,21 +30,30 @@ fn frames_after_the_first_allocate_nothing() {
             cfg.gbuffer = pass;
             cfg.ramp = true;
             cfg.budget = budget;
-            let mut pipeline = Pipeline::new(&renderer, cfg, StereoRig::default(), e).unwrap();
-            let allocated = pool.install(|| {
-                for f in 0..2 {
-                    pipeline.render_frame(f, &poses[f as usize]).unwrap();
-                }
-                let before = GLOBAL.allocations();
-                for f in 2..4 {
-                    pipeline.render_frame(f, &poses[f as usize]).unwrap();
-                }
-                GLOBAL.allocations() - before
-            });
+            let pipeline = Pipeline::new(&renderer, cfg, StereoRig::default(), e).unwrap();
+            let allocated = warm_then_count(&pool, Session::new(pipeline, CameraWalk::Path));
             assert_eq!(
                 allocated, 0,
                 "{mode} {order:?} {pass:?} G-buffer, budget {budget:?}: {allocated} allocations in two frames"
             );
         }
     }
+    let cfg = PipelineConfig::paper(Mode::PathTraced, 1, renderer.scene().tolerances.at_height(36));
+    let pipeline = Pipeline::new(&renderer, cfg, StereoRig::default(), e).unwrap();
+    let mono = Session::new(pipeline, CameraWalk::BackAndForth).with_view(View::Mono);
+    assert_eq!(warm_then_count(&pool, mono), 0, "mono frames allocate");
+}
+
+/// Allocations in frames 2 and 3 of `session` (frames 0 and 1 warm it up).
+fn warm_then_count(pool: &rayon::ThreadPool, mut session: Session<&Renderer>) -> u64 {
+    pool.install(|| {
+        for _ in 0..2 {
+            session.next_frame().unwrap();
+        }
+        let before = GLOBAL.allocations();
+        for _ in 0..2 {
+            session.next_frame().unwrap();
+        }
+        GLOBAL.allocations() - before
+    })
 }

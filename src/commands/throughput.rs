@@ -10,7 +10,9 @@ use serde::Serialize;
 
 use crate::camera::{Eye, StereoRig};
 use crate::kernels::Extent;
-use crate::pipeline::{FrameStats, GBufferPass, Layout, Mode, Order, Pipeline, PipelineConfig};
+use crate::pipeline::{
+    CameraWalk, FrameStats, GBufferPass, Layout, Mode, Order, Pipeline, PipelineConfig, Session, View,
+};
 use crate::render::Renderer;
 
 /// Options of the throughput command.
@@ -112,14 +114,14 @@ fn run_frames(
     frames: u32,
     mono: bool,
 ) -> Result<Vec<FrameStats>, String> {
-    let mut pipeline = Pipeline::new(renderer, config, StereoRig::default(), extent).map_err(|e| e.to_string())?;
-    let path = &renderer.scene().camera;
+    let pipeline = Pipeline::new(renderer, config, StereoRig::default(), extent).map_err(|e| e.to_string())?;
+    let view = if mono { View::Mono } else { View::Stereo };
+    let mut session = Session::new(pipeline, CameraWalk::BackAndForth).with_view(view);
     let mut stats = Vec::with_capacity(frames as usize);
     for i in 0..=frames {
-        let head = path.pose_back_and_forth(i);
-        let s = if mono { pipeline.render_mono_frame(i, &head) } else { pipeline.render_frame(i, &head) };
+        let s = session.next_frame().map_err(|e| format!("frame {i}: {e}"))?;
         if i > 0 {
-            stats.push(s.map_err(|e| e.to_string())?);
+            stats.push(s);
         }
     }
     Ok(stats)

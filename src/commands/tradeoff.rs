@@ -26,7 +26,7 @@ use crate::eval::stats::Summary;
 use crate::eval::{EvalSpec, Metric, Preset, Reporter, Variant};
 use crate::kernels::Extent;
 use crate::kernels::reproject::TapPolicy;
-use crate::pipeline::{GBufferPass, Layout, Mode, Order, Pipeline};
+use crate::pipeline::{CameraWalk, GBufferPass, Layout, Mode, Order, Pipeline, Session};
 
 /// Options of the trade-off sweep.
 #[derive(Clone, Debug)]
@@ -268,15 +268,15 @@ fn measure_setting(
     config.gbuffer = setting.gbuffer;
     config.budget = budget_ms.map(super::budget_duration).transpose()?;
     let rig = StereoRig::new(spec.eye_separation)?;
-    let mut pipeline = Pipeline::new(renderer, config, rig, extent).map_err(|e| e.to_string())?;
+    let pipeline = Pipeline::new(renderer, config, rig, extent).map_err(|e| e.to_string())?;
+    let mut session = Session::new(pipeline, CameraWalk::Path);
     let variant = spec.ssim.kernel();
     let pixels = extent.pixels() as f64;
     let (mut times, mut left, mut right) = (Vec::new(), Vec::new(), Vec::new());
     let (mut eff_ssim, mut eff_rmse, mut ssim_values) = (Vec::new(), Vec::new(), Vec::new());
     let (mut misses, mut worst) = (0, 0.0f64);
     for f in 0..spec.frames {
-        let head = renderer.scene().camera.pose_at(f as f32);
-        let stats = pipeline.render_frame(f, &head).map_err(|e| format!("frame {f}: {e}"))?;
+        let stats = session.next_frame().map_err(|e| format!("frame {f}: {e}"))?;
         if f > 0 {
             let t = ms(stats.times.total);
             times.push(t);
@@ -288,7 +288,7 @@ fn measure_setting(
             }
         }
         if let (Some(reference), Some(curve)) = (basis.references.get(&f), basis.curves.get(&f)) {
-            let m = measure(pipeline.output(Eye::Left), reference, variant)?;
+            let m = measure(session.pipeline().output(Eye::Left), reference, variant)?;
             ssim_values.push(m.ssim);
             eff_ssim.push(curve.curve(Metric::Ssim)?.effective_spp(m.error(Metric::Ssim)));
             eff_rmse.push(curve.curve(Metric::Rmse)?.effective_spp(m.error(Metric::Rmse)));

@@ -55,6 +55,7 @@ use crate::source::{FrameSource, RendererSource};
 mod budget;
 pub(crate) mod config;
 mod plan;
+mod session;
 mod stats;
 
 use budget::BudgetPlanner;
@@ -63,6 +64,7 @@ pub use config::{
 };
 use plan::Target;
 pub use plan::{Source, Step, StereoSource, plan};
+pub use session::{CameraWalk, Session, View};
 pub use stats::{FrameStats, StageTimes};
 
 /// One eye's buffers.

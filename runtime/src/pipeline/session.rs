@@ -1,0 +1,103 @@
+//! The one frame driver: a [`Pipeline`] over this crate's renderer walking its scene's camera
+//! path, frame after frame.
+//!
+//! Every loop that renders a scene's frames (the `throughput` and `tradeoff` commands, the
+//! evaluation, the frame benchmark) is this driver: what differs between them is only how the
+//! head walks the path ([`CameraWalk`]) and what they record of each frame's [`FrameStats`].
+//! The C ABI takes frame numbers from its caller and an engine with its own cameras drives
+//! [`Pipeline::render_frame_at`]; neither needs a session.
+
+use std::borrow::Borrow;
+
+use super::{FrameStats, Pipeline, PipelineError};
+use crate::render::Renderer;
+use crate::source::RendererSource;
+
+/// How the head moves along the scene's camera path, frame after frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CameraWalk {
+    /// Frame `f` at the path's frame `f` (poses past its end stay at its last key): the frames
+    /// the evaluation measures against references of the same frames.
+    Path,
+    /// Forward and back along the path (`0, 1, …, n−1, n−2, …, 1, 0, 1, …`), so any number of
+    /// frames keeps moving: what a real-time runtime and the benchmarks render.
+    BackAndForth,
+}
+
+/// Which frames a [`Session`] renders.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum View {
+    /// Stereo frames ([`Pipeline::render_frame`]).
+    Stereo,
+    /// The mono baseline: the right eye alone, path traced ([`Pipeline::render_mono_frame`]).
+    Mono,
+}
+
+/// A pipeline over the renderer `R` (borrowed, owned or shared), the frames it has rendered
+/// and the walk that gives the next one's head pose. Allocates nothing per frame.
+///
+/// ```
+/// use stereotrace_runtime::camera::StereoRig;
+/// use stereotrace_runtime::kernels::Extent;
+/// use stereotrace_runtime::pipeline::{CameraWalk, Mode, Pipeline, PipelineConfig, Session};
+/// use stereotrace_runtime::render::Renderer;
+///
+/// # fn main() -> Result<(), Box<dyn std::error::Error>> {
+/// let renderer = Renderer::new(stereotrace_runtime::scene::resolve("cornell")?)?;
+/// let extent = Extent::new(32, 18)?;
+/// let config = PipelineConfig::paper(Mode::Temporal, 1, renderer.scene().tolerances.at_height(18));
+/// let mut session = Session::new(Pipeline::new(&renderer, config, StereoRig::default(), extent)?, CameraWalk::Path);
+/// for _ in 0..3 {
+///     let stats = session.next_frame()?;
+///     println!("frame {}: {:?}", stats.frame, stats.times.total);
+/// }
+/// assert_eq!(session.frames_rendered(), 3);
+/// # Ok(())
+/// # }
+/// ```
+pub struct Session<R: Borrow<Renderer>> {
+    pipeline: Pipeline<RendererSource<R>>,
+    walk: CameraWalk,
+    view: View,
+    next: u32,
+}
+
+impl<R: Borrow<Renderer>> Session<R> {
+    /// A session of stereo frames from frame 0.
+    pub fn new(pipeline: Pipeline<RendererSource<R>>, walk: CameraWalk) -> Self {
+        Self { pipeline, walk, view: View::Stereo, next: 0 }
+    }
+
+    /// The same session rendering `view`'s frames.
+    pub fn with_view(mut self, view: View) -> Self {
+        self.view = view;
+        self
+    }
+
+    /// Renders the next frame: its index keys the random numbers and moving lights, the walk
+    /// gives its head pose.
+    pub fn next_frame(&mut self) -> Result<FrameStats, PipelineError> {
+        let frame = self.next;
+        let path = &self.pipeline.source().renderer().scene().camera;
+        let head = match self.walk {
+            CameraWalk::Path => path.pose(frame),
+            CameraWalk::BackAndForth => path.pose_back_and_forth(frame),
+        };
+        let stats = match self.view {
+            View::Stereo => self.pipeline.render_frame(frame, &head),
+            View::Mono => self.pipeline.render_mono_frame(frame, &head),
+        }?;
+        self.next += 1;
+        Ok(stats)
+    }
+
+    /// Frames rendered so far (the next frame's index).
+    pub fn frames_rendered(&self) -> u32 {
+        self.next
+    }
+
+    /// The pipeline: its images and reason maps of the last frame.
+    pub fn pipeline(&self) -> &Pipeline<RendererSource<R>> {
+        &self.pipeline
+    }
+}
