@@ -137,15 +137,21 @@ pub fn build_spec(opts: &EvalOptions) -> Result<EvalSpec, String> {
     if let Some(g) = opts.gbuffer {
         spec.gbuffer = g;
     }
-    let first = spec.scenes.first().cloned();
-    let has = |s: &Option<String>| s.as_ref().is_some_and(|s| spec.scenes.contains(s));
+    // Figure options name scenes as the run will know them (a manifest's `name`, not its path).
+    let names = spec
+        .scenes
+        .iter()
+        .map(|s| crate::scene::scene_name(s).map_err(|e| format!("scene '{s}': {e}")))
+        .collect::<Result<Vec<String>, String>>()?;
+    let first = names.first().cloned();
+    let has = |s: &Option<String>| s.as_ref().is_some_and(|s| names.contains(s));
     if !has(&spec.figures.framewise_scene) {
         spec.figures.framewise_scene = first.clone();
     }
     if !has(&spec.figures.discard_scene) {
         spec.figures.discard_scene = first.clone();
     }
-    spec.figures.comparison_scenes.retain(|s| spec.scenes.contains(s));
+    spec.figures.comparison_scenes.retain(|s| names.contains(s));
     if spec.figures.comparison_scenes.is_empty() {
         spec.figures.comparison_scenes.extend(first);
     }

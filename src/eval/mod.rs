@@ -201,12 +201,32 @@ pub struct EvalSpec {
     pub figures: FigureSpec,
 }
 
+/// The paper's scenes that exist as real scenes: manifests in the repository's `scenes/` over
+/// the folders of `../shared/scenes`. Paths are relative to the working directory, so the
+/// presets that use them run from the repository root.
+pub const REAL_SCENES: [&str; 9] = [
+    "scenes/real-sponza.toml",
+    "scenes/real-sponza-glossy.toml",
+    "scenes/real-sponza-moving-light.toml",
+    "scenes/real-living-room.toml",
+    "scenes/real-living-room-glossy.toml",
+    "scenes/real-living-room-moving-light.toml",
+    "scenes/real-classroom.toml",
+    "scenes/real-classroom-glossy.toml",
+    "scenes/real-classroom-mirror.toml",
+];
+
 /// The named presets.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Preset {
     /// The paper's setup: 1280×720, 60 frames (10 warm-up), 4096-spp references, input spp
-    /// 1..512, every built-in scene. Days of CPU time.
+    /// 1..512, every built-in scene and the nine real ones ([`REAL_SCENES`]). Thousands of
+    /// CPU hours: run it on a cluster (README).
     Paper,
+    /// The paper's setup scaled to one 2-core machine: three real scenes and their three
+    /// stand-ins at 480×270, frames 0–15 (10 warm-up), 512-spp references, input spp 1..8.
+    /// Its plan is 4–5 CPU hours on an idle machine (`RESULTS.md` gives the measured time).
+    PaperLite,
     /// Small enough for CI (see `README.md` for the measured time).
     Quick,
 }
@@ -215,12 +235,13 @@ impl Preset {
     pub fn name(self) -> &'static str {
         match self {
             Preset::Paper => "paper",
+            Preset::PaperLite => "paper-lite",
             Preset::Quick => "quick",
         }
     }
 
     pub fn spec(self) -> EvalSpec {
-        let scenes: Vec<String> = crate::scene::builtin_names().into_iter().map(str::to_owned).collect();
+        let builtins = crate::scene::builtin_names().into_iter().map(str::to_owned);
         let figures = FigureSpec {
             framewise_scene: Some("classroom-mirror".into()),
             framewise_spp: vec![1, 2, 8, 14, 20],
@@ -232,7 +253,7 @@ impl Preset {
         };
         let base = EvalSpec {
             preset: self.name().into(),
-            scenes,
+            scenes: builtins.collect(),
             variants: Variant::ALL.to_vec(),
             input_spp: vec![],
             width: 0,
@@ -251,6 +272,17 @@ impl Preset {
         };
         match self {
             Preset::Paper => EvalSpec {
+                scenes: base.scenes.iter().cloned().chain(REAL_SCENES.map(str::to_owned)).collect(),
+                // The figures of the paper's own scenes where they exist (San Miguel only as
+                // its stand-in).
+                figures: FigureSpec {
+                    framewise_scene: Some("real-classroom-mirror".into()),
+                    discard_scene: Some("real-sponza".into()),
+                    comparison_scenes: ["real-sponza", "real-living-room-glossy", "real-classroom-mirror", "courtyard"]
+                        .map(str::to_owned)
+                        .to_vec(),
+                    ..base.figures.clone()
+                },
                 input_spp: vec![1, 2, 4, 8, 16, 32, 64, 128, 256, 512],
                 width: 1280,
                 height: 720,
@@ -259,6 +291,32 @@ impl Preset {
                 reference_spp: 4096,
                 curve_spp: 2048,
                 grid: Grid::Dense,
+                ..base
+            },
+            // Each real scene beside its own stand-in, so the two can be compared; the
+            // Classroom (Mirror) pair is Figure 3's, Sponza's Figure 6's.
+            Preset::PaperLite => EvalSpec {
+                scenes: ["atrium", "living-room", "classroom-mirror"]
+                    .into_iter()
+                    .chain([REAL_SCENES[0], REAL_SCENES[3], REAL_SCENES[8]])
+                    .map(str::to_owned)
+                    .collect(),
+                input_spp: vec![1, 2, 4, 8],
+                width: 480,
+                height: 270,
+                frames: 16,
+                warmup: 10,
+                reference_spp: 512,
+                curve_spp: 256,
+                grid: Grid::Dense,
+                figures: FigureSpec {
+                    framewise_scene: Some("real-classroom-mirror".into()),
+                    discard_scene: Some("real-sponza".into()),
+                    comparison_scenes: ["real-sponza", "real-living-room", "real-classroom-mirror"]
+                        .map(str::to_owned)
+                        .to_vec(),
+                    ..base.figures.clone()
+                },
                 ..base
             },
             Preset::Quick => EvalSpec {
@@ -352,11 +410,20 @@ mod tests {
 
     #[test]
     fn presets_are_valid_and_cover_every_mode_and_builtin() {
-        for p in [Preset::Quick, Preset::Paper] {
+        let builtins = crate::scene::builtin_names();
+        for p in [Preset::Quick, Preset::Paper, Preset::PaperLite] {
             let s = p.spec();
             s.validate().unwrap();
             assert_eq!(s.variants, Variant::ALL.to_vec());
-            assert_eq!(s.scenes.len(), crate::scene::builtin_names().len());
+            let real = s.scenes.iter().filter(|n| REAL_SCENES.contains(&n.as_str())).count();
+            let stand_ins = s.scenes.iter().filter(|n| builtins.contains(&n.as_str())).count();
+            assert_eq!(real + stand_ins, s.scenes.len(), "{p:?}: every scene is a built-in or a real one");
+            let expected = match p {
+                Preset::Quick => (0, builtins.len()),
+                Preset::Paper => (REAL_SCENES.len(), builtins.len()),
+                Preset::PaperLite => (3, 3),
+            };
+            assert_eq!((real, stand_ins), expected, "{p:?}");
         }
         let paper = Preset::Paper.spec();
         assert_eq!((paper.width, paper.height, paper.frames, paper.warmup), (1280, 720, 60, 10));

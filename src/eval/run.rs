@@ -45,7 +45,7 @@ use super::{EvalSpec, Variant};
 use crate::camera::{Eye, StereoRig};
 use crate::kernels::reproject::REASON_COUNT;
 use crate::kernels::{Extent, PlaneBuf, RgbBuf};
-use crate::pipeline::{Mode, Order, Pipeline, PipelineConfig};
+use crate::pipeline::{CameraWalk, Mode, Order, Pipeline, PipelineConfig, Session};
 use crate::render::Renderer;
 
 /// Where a run reports progress and warnings (the CLI shows a progress bar).
@@ -295,10 +295,12 @@ pub fn code_probe() -> Result<u64, String> {
     for v in variants {
         let mut cfg = PipelineConfig::paper(v.mode, 1, tol);
         cfg.order = v.order;
-        let mut p = Pipeline::new(&renderer, cfg, StereoRig::default(), extent).map_err(|e| e.to_string())?;
-        for f in 0..3 {
-            p.render_frame(f, &renderer.scene().camera.pose_at(f as f32)).map_err(|e| e.to_string())?;
+        let pipeline = Pipeline::new(&renderer, cfg, StereoRig::default(), extent).map_err(|e| e.to_string())?;
+        let mut session = Session::new(pipeline, CameraWalk::Path);
+        for _ in 0..3 {
+            session.next_frame().map_err(|e| e.to_string())?;
         }
+        let p = session.pipeline();
         for eye in Eye::BOTH {
             h.image(p.output(eye));
             h.bytes(p.stereo_reasons(eye).as_slice());
@@ -557,10 +559,15 @@ impl Runner<'_> {
         Ok(())
     }
 
-    fn plan_scene(&mut self, name: &str, global_probe: u64) -> Result<ScenePlan, String> {
+    /// Loads the scene `scene_spec` (a built-in name, a manifest or a folder) and plans its
+    /// units. From here on the scene is known by its own name (a manifest's `name`, a folder's
+    /// name), which keys its cache entries and names it in every report.
+    fn plan_scene(&mut self, scene_spec: &str, global_probe: u64) -> Result<ScenePlan, String> {
         let spec = self.spec;
-        self.reporter.status(&format!("{name}: building the scene and its BVH"));
-        let scene = crate::scene::resolve(name).map_err(|e| e.to_string())?;
+        self.reporter.status(&format!("{scene_spec}: building the scene and its BVH"));
+        let scene = crate::scene::resolve(scene_spec).map_err(|e| format!("scene '{scene_spec}': {e}"))?;
+        let name = scene.name.clone();
+        let name = name.as_str();
         for w in &scene.warnings {
             self.warn(format!("{name}: {w}"));
         }
@@ -855,7 +862,8 @@ impl Runner<'_> {
         let spec = self.spec;
         let tol = plan.renderer.scene().tolerances.at_height(self.extent.height());
         let cfg = pipeline_config(spec, c.variant, c.spp, tol);
-        let mut p = Pipeline::new(&plan.renderer, cfg, self.rig, self.extent).map_err(|e| e.to_string())?;
+        let pipeline = Pipeline::new(&plan.renderer, cfg, self.rig, self.extent).map_err(|e| e.to_string())?;
+        let mut session = Session::new(pipeline, CameraWalk::Path);
         let mut result = ConfigResult {
             variant: c.variant,
             spp: c.spp,
@@ -869,8 +877,8 @@ impl Runner<'_> {
         let per_frame = config_work(self.pixels(), 1, c.variant, c.spp);
         let variant = spec.ssim.kernel();
         for f in 0..spec.frames {
-            let head = plan.renderer.scene().camera.pose_at(f as f32);
-            let stats = p.render_frame(f, &head).map_err(|e| format!("{}: frame {f}: {e}", plan.name))?;
+            let stats = session.next_frame().map_err(|e| format!("{}: frame {f}: {e}", plan.name))?;
+            let p = session.pipeline();
             self.counters.samples += stats.trace.samples;
             result.traced_left_pixels += stats.traced_pixels[Eye::Left as usize];
             result.stereo_reasons.push(FrameReasons { frame: f, counts: stats.stereo_reasons[Eye::Left as usize].0 });
@@ -1166,9 +1174,26 @@ fn prepare<'a>(
     }
     reporter.status("probing the code version");
     let global_probe = code_probe()?;
-    let mut plans = Vec::new();
-    for name in &spec.scenes {
-        plans.push(runner.plan_scene(name, global_probe)?);
+    let mut plans: Vec<ScenePlan> = Vec::new();
+    for scene_spec in &spec.scenes {
+        let plan = runner.plan_scene(scene_spec, global_probe)?;
+        if let Some(j) = plans.iter().position(|p| p.name == plan.name) {
+            return Err(EvalError::Failed(format!(
+                "scenes '{}' and '{scene_spec}' are both named '{}': every scene of a run needs its own name",
+                spec.scenes[j], plan.name
+            )));
+        }
+        plans.push(plan);
+    }
+    let figures = &spec.figures;
+    for figure_scene in figures.framewise_scene.iter().chain(&figures.discard_scene).chain(&figures.comparison_scenes) {
+        if !plans.iter().any(|p| &p.name == figure_scene) {
+            let names: Vec<&str> = plans.iter().map(|p| p.name.as_str()).collect();
+            return Err(EvalError::Failed(format!(
+                "figure scene '{figure_scene}' is not one of the run's scenes ({})",
+                names.join(", ")
+            )));
+        }
     }
     Ok((runner, plans, global_probe))
 }

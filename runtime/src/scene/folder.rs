@@ -529,6 +529,15 @@ pub(crate) fn load_parts(
     Ok(FolderParts { obj, scale, units, camera, lights, warnings })
 }
 
+/// The name a scene folder's scene gets: the folder's own name (after resolving `.` and `..`).
+pub fn folder_name(dir: &Path) -> String {
+    dir.canonicalize()
+        .ok()
+        .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+        .or_else(|| dir.file_name().map(|n| n.to_string_lossy().into_owned()))
+        .unwrap_or_else(|| "scene".into())
+}
+
 /// Loads a scene folder (see the module notes).
 pub fn load_folder(dir: &Path, options: &FolderOptions) -> Result<Scene, SceneError> {
     let obj_path = dir.join("scene.obj");
@@ -548,12 +557,7 @@ pub fn load_folder(dir: &Path, options: &FolderOptions) -> Result<Scene, SceneEr
     let size = robust_size(&parts.obj.mesh);
     let camera =
         path_around(&cam, parts.scale, size, options.frames).map_err(|m| SceneError::invalid(&camera_path, m))?;
-    let folder = dir
-        .canonicalize()
-        .ok()
-        .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
-        .or_else(|| dir.file_name().map(|n| n.to_string_lossy().into_owned()))
-        .unwrap_or_else(|| "scene".into());
+    let folder = folder_name(dir);
     let paper = paper_scene(&folder);
     let title = std::fs::read_to_string(dir.join("SOURCE.md"))
         .ok()

@@ -272,13 +272,27 @@ fn apply_override(m: &mut Material, o: &MaterialOverride) {
     }
 }
 
-/// Loads a manifest (see the module documentation).
-pub fn load_manifest(path: &Path) -> Result<Scene, SceneError> {
+fn read_manifest(path: &Path) -> Result<ManifestToml, SceneError> {
     let text = std::fs::read_to_string(path).map_err(|e| SceneError::io(path, e))?;
-    let m: ManifestToml = toml::from_str(&text).map_err(|e| {
+    toml::from_str(&text).map_err(|e| {
         let (line, column) = e.span().map_or((1, 1), |s| line_column(&text, s.start));
         SceneError::Parse { location: Location::at(path, line, column), message: e.message().to_owned() }
-    })?;
+    })
+}
+
+/// A manifest's scene name: its `name`, or the file stem.
+fn name_of(path: &Path, name: Option<String>) -> String {
+    name.unwrap_or_else(|| path.file_stem().map_or_else(|| "manifest".into(), |s| s.to_string_lossy().into_owned()))
+}
+
+/// The name the manifest at `path` gives its scene, read without loading the scene.
+pub fn manifest_name(path: &Path) -> Result<String, SceneError> {
+    Ok(name_of(path, read_manifest(path)?.name))
+}
+
+/// Loads a manifest (see the module documentation).
+pub fn load_manifest(path: &Path) -> Result<Scene, SceneError> {
+    let m = read_manifest(path)?;
     let bad = |key: &str, msg: String| SceneError::invalid(path, format!("{key}: {msg}"));
     let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let mut mesh_path: PathBuf = base.join(&m.mesh);
@@ -447,8 +461,7 @@ pub fn load_manifest(path: &Path) -> Result<Scene, SceneError> {
         }
     }
 
-    let stem = path.file_stem().map_or_else(|| "manifest".into(), |s| s.to_string_lossy().into_owned());
-    let name = m.name.unwrap_or(stem);
+    let name = name_of(path, m.name);
     let mut scene = Scene {
         display_name: m.display_name.unwrap_or_else(|| name.clone()),
         name,

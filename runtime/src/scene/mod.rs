@@ -66,7 +66,7 @@ pub use light::{
 pub use material::{Material, MaterialKind};
 pub use mesh::{Aabb, Mesh};
 pub use path::{CameraKey, CameraPath, CameraPose, DEFAULT_FRAMES, TransformKey, TransformPath};
-pub use resolve::resolve;
+pub use resolve::{resolve, scene_name};
 pub use texture::{Texture, TextureUsage};
 
 /// The frame height per-scene tolerances are set for (the paper's 1280×720).
