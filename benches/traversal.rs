@@ -17,7 +17,9 @@
 //! from fixed seeds; one iteration traces a whole frame of them.
 //!
 //! Run: `cargo bench --bench traversal -- --warm-up-time 1 --measurement-time 3`, with
-//! `--features peer-embree` for the Embree rows
+//! `--features peer-embree` for the Embree rows. To attribute a gap: `STEREOTRACE_BENCH_BVH`
+//! = `fast`, `medium` (default) or `high` sets our tree's build quality, and `EMBREE_ROBUST=1`
+//! puts Embree in its robust mode (watertight triangle tests, like ours)
 //! (add a filter such as `sponza/primary` to pick groups; `threshold` sweeps the packet
 //! single-ray fallback threshold).
 
@@ -116,6 +118,16 @@ fn packets(order: &[(usize, usize)], ray_at: &dyn Fn(usize, usize) -> Option<Ray
         .collect()
 }
 
+/// Our tree's build quality from `STEREOTRACE_BENCH_BVH` (default: medium, as the renderer).
+fn build_quality() -> BuildQuality {
+    match std::env::var("STEREOTRACE_BENCH_BVH").as_deref() {
+        Err(_) | Ok("medium") => BuildQuality::Medium,
+        Ok("fast") => BuildQuality::Fast,
+        Ok("high") => BuildQuality::High,
+        Ok(other) => panic!("STEREOTRACE_BENCH_BVH: expected fast, medium or high, got '{other}'"),
+    }
+}
+
 /// xorshift64* for the diffuse directions.
 struct Rng(u64);
 
@@ -132,8 +144,9 @@ impl Fixture {
     /// `light_clear`: distance from the light point at which shadow rays stop (Sponza's light
     /// point is the centre of its emitting sphere, which is geometry).
     fn new(name: &str, tris: Vec<Tri>, cam: Camera, light: Vec3, light_clear: f32) -> Self {
-        let (bvh, stats) = TriangleBvh::build(&tris, BuildQuality::Medium).expect("valid scene");
-        eprintln!("[{name}] {stats:?}");
+        let quality = build_quality();
+        let (bvh, stats) = TriangleBvh::build(&tris, quality).expect("valid scene");
+        eprintln!("[{name}] {quality:?} build: {stats:?}");
         let otris = bvh
             .triangles_bvh_order()
             .iter()
@@ -192,7 +205,7 @@ impl Fixture {
             primary,
             otris,
             #[cfg(feature = "peer-embree")]
-            embree: embree::EmbreeScene::new(&tris),
+            embree: embree::EmbreeScene::new(&tris, std::env::var_os("EMBREE_ROBUST").is_some_and(|v| v == "1")),
             bvh,
         };
         eprintln!(

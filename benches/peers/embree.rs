@@ -22,6 +22,8 @@ const BUFFER_TYPE_INDEX: c_int = 0;
 const BUFFER_TYPE_VERTEX: c_int = 1;
 const FORMAT_UINT3: c_int = 0x5003;
 const FORMAT_FLOAT3: c_int = 0x9003;
+/// `RTC_SCENE_FLAG_ROBUST` (rtcore_scene.h).
+const SCENE_FLAG_ROBUST: c_int = 1 << 2;
 const BUILD_QUALITY_HIGH: c_int = 2;
 /// `RTC_INTERSECT_CONTEXT_FLAG_COHERENT`: set for the packets of neighbouring pixels.
 const CONTEXT_COHERENT: c_int = 1;
@@ -101,6 +103,7 @@ unsafe extern "C" {
     fn rtcReleaseDevice(device: Device);
     fn rtcNewScene(device: Device) -> Scene;
     fn rtcSetSceneBuildQuality(scene: Scene, quality: c_int);
+    fn rtcSetSceneFlags(scene: Scene, flags: c_int);
     fn rtcCommitScene(scene: Scene);
     fn rtcReleaseScene(scene: Scene);
     fn rtcNewGeometry(device: Device, kind: c_int) -> Geometry;
@@ -134,8 +137,11 @@ unsafe impl Send for EmbreeScene {}
 unsafe impl Sync for EmbreeScene {}
 
 impl EmbreeScene {
-    /// Builds Embree's BVH over `tris` (high build quality, Embree's best for tracing).
-    pub fn new(tris: &[Tri]) -> Self {
+    /// Builds Embree's BVH over `tris` (high build quality, Embree's best for tracing). With
+    /// `robust`, Embree's robust mode (`RTC_SCENE_FLAG_ROBUST`: watertight Plücker triangle
+    /// tests and conservative node tests, the like-for-like peer of our watertight tracer);
+    /// without it, its fast default (Möller–Trumbore).
+    pub fn new(tris: &[Tri], robust: bool) -> Self {
         // SAFETY: each call gets the handles the previous ones returned (checked non-null)
         // and buffers of exactly the declared size, filled before the commit.
         unsafe {
@@ -143,6 +149,9 @@ impl EmbreeScene {
             assert!(!device.is_null(), "rtcNewDevice failed");
             let scene = rtcNewScene(device);
             rtcSetSceneBuildQuality(scene, BUILD_QUALITY_HIGH);
+            if robust {
+                rtcSetSceneFlags(scene, SCENE_FLAG_ROBUST);
+            }
             let geometry = rtcNewGeometry(device, GEOMETRY_TYPE_TRIANGLE);
             let n = tris.len();
             let vertices =
