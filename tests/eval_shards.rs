@@ -62,6 +62,13 @@ fn a_shard_killed_mid_unit_and_run_again_gives_the_same_bytes() {
     child.kill().ok();
     child.wait().unwrap();
     let claims_left = walk_names(&cache).iter().filter(|n| n.ends_with(".claim")).count();
+    // A shard killed between writing an entry and removing its claim leaves the claim of a
+    // finished entry (CI's kill once landed there): plant one, so that case is always tested.
+    let finished = walk_paths(&cache).into_iter().find(|p| p.extension().is_some_and(|x| x == "bin")).unwrap();
+    let host = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap();
+    let mut orphan = finished.into_os_string();
+    orphan.push(".claim");
+    std::fs::write(&orphan, format!("{} {} {:016x}\n", host.trim(), u32::MAX - 1, 1)).unwrap();
     // Run again: the dead holder's claim is taken over at once (same host, no such process).
     let again = finish(spawn_eval(&dir.join("unused"), &cache, &["--shard", "0/1"]));
     let (r, c, k, f) = computed(&again);

@@ -135,6 +135,19 @@ pub fn try_claim(entry: &Path) -> Result<Attempt, String> {
     }
 }
 
+/// Removes the claim of a finished entry when its holder is gone or stale. A holder killed
+/// after writing its entry but before removing its claim leaves such an orphan; the entry
+/// is complete, so nobody will take the claim over, and without this it would outlive the run.
+/// A live holder's claim is left to it (it removes it itself).
+pub fn clear_orphan(entry: &Path) {
+    let path = claim_path(entry);
+    if let Some((holder, age)) = read_claim(&path)
+        && (holder.gone() || age > STALE_CLAIM)
+    {
+        take_over(&path, &holder);
+    }
+}
+
 /// The holder and age of a claim file, if it exists and parses.
 fn read_claim(path: &Path) -> Option<(Holder, Duration)> {
     let text = fs::read_to_string(path).ok()?;
@@ -229,6 +242,23 @@ mod tests {
         let f = fs::OpenOptions::new().write(true).open(claim_path(&entry)).unwrap();
         f.set_modified(SystemTime::now() - STALE_CLAIM - Duration::from_secs(1)).unwrap();
         assert!(matches!(try_claim(&entry).unwrap(), Attempt::Acquired(_)));
+        fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn an_orphan_claim_of_a_finished_entry_is_cleared_and_a_live_one_kept() {
+        let dir = temp_dir("orphan");
+        let entry = dir.join("a.bin");
+        fs::write(&entry, b"done").unwrap();
+        let dead = Holder { host: host(), pid: u32::MAX - 1, token: 5 };
+        fs::write(claim_path(&entry), dead.text()).unwrap();
+        clear_orphan(&entry);
+        assert!(!claim_path(&entry).exists(), "a dead holder's claim is removed");
+        let live = Holder { host: host(), pid: std::process::id(), token: 6 };
+        fs::write(claim_path(&entry), live.text()).unwrap();
+        clear_orphan(&entry);
+        assert_eq!(fs::read_to_string(claim_path(&entry)).unwrap(), live.text(), "a live claim is kept");
+        clear_orphan(&dir.join("no-claim.bin"));
         fs::remove_dir_all(&dir).ok();
     }
 

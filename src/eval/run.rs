@@ -36,7 +36,7 @@ use super::cache::{
     CACHE_FORMAT, Cache, CacheKey, Lookup, Reader, checksum, decode_image, decode_mask, decode_sums, encode_image,
     encode_mask, encode_sums,
 };
-use super::claim::{Attempt, Claim, try_claim};
+use super::claim::{Attempt, Claim, clear_orphan, try_claim};
 use super::curve::{CurvePoint, FrameCurve, FrameView, Measurement, Progressive, SampleSums, measure};
 use super::effective::{EffectiveSpp, Grid, Metric};
 use super::stats::Summary;
@@ -512,6 +512,9 @@ impl Runner<'_> {
         let mut waiting_since: Option<(Instant, Option<Instant>)> = None;
         loop {
             if let Some(v) = load(self) {
+                if !self.merge_only {
+                    clear_orphan(&self.cache.path(key));
+                }
                 return Ok(v);
             }
             if self.merge_only {
