@@ -6,7 +6,9 @@
 #
 #   deploy/slurm/local-cluster.sh WORK COMMAND [ARGS...]
 #
-# WORK holds the cluster's config, spool and logs (emptied first). Needs root. Used by CI
+# WORK holds the cluster's config, spool and logs (emptied first). Needs root. SLURM_PORT
+# (default 6817) is slurmctld's port and slurmd takes the next one, so a second cluster with
+# its own WORK and port can run beside the first (CI's beside a long local run). Used by CI
 # (.ci/slurm.sh) and for the paper-lite run (RESULTS.md), e.g.
 #
 #   deploy/slurm/local-cluster.sh /tmp/slurm env CACHE=... OUT=... WAIT=1 \
@@ -16,6 +18,8 @@ work=${1:?usage: local-cluster.sh WORK COMMAND [ARGS...]}
 shift
 [ $# -gt 0 ] || { echo "usage: local-cluster.sh WORK COMMAND [ARGS...]" >&2; exit 2; }
 start=$(date +%s)
+port=${SLURM_PORT:-6817}
+[[ $port =~ ^[0-9]+$ ]] && [ "$port" -ge 1024 ] && [ "$port" -le 65534 ] || { echo "SLURM_PORT=$port: not a port in 1024..65534" >&2; exit 2; }
 if ! command -v slurmctld > /dev/null || ! command -v munged > /dev/null; then
     apt-get update -qq > /dev/null
     DEBIAN_FRONTEND=noninteractive apt-get install -y -qq slurm-wlm munge > /dev/null
@@ -72,8 +76,8 @@ SlurmctldPidFile=$work/run/slurmctld.pid
 SlurmdPidFile=$work/run/slurmd.pid
 SlurmctldLogFile=$work/log/slurmctld.log
 SlurmdLogFile=$work/log/slurmd.log
-SlurmctldPort=6817
-SlurmdPort=6818
+SlurmctldPort=$port
+SlurmdPort=$((port + 1))
 NodeName=$node CPUs=$(nproc) State=UNKNOWN
 PartitionName=local Nodes=$node Default=YES MaxTime=INFINITE State=UP OverSubscribe=NO
 CONF

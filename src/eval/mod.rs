@@ -224,8 +224,8 @@ pub enum Preset {
     /// CPU hours: run it on a cluster (README).
     Paper,
     /// The paper's setup scaled to one 2-core machine: three real scenes and their three
-    /// stand-ins at 480×270, frames 0–15 (10 warm-up), 512-spp references, input spp 1..8.
-    /// Its plan is 4–5 CPU hours on an idle machine (`RESULTS.md` gives the measured time).
+    /// stand-ins at 320×180, frames 0–15 (10 warm-up), 512-spp references, input spp 1..8.
+    /// Its plan is about 2 CPU hours on an idle machine (`RESULTS.md` gives the measured time).
     PaperLite,
     /// Small enough for CI (see `README.md` for the measured time).
     Quick,
@@ -302,8 +302,8 @@ impl Preset {
                     .map(str::to_owned)
                     .collect(),
                 input_spp: vec![1, 2, 4, 8],
-                width: 480,
-                height: 270,
+                width: 320,
+                height: 180,
                 frames: 16,
                 warmup: 10,
                 reference_spp: 512,
