@@ -277,7 +277,8 @@ const FAR_VERTEX: f64 = 50.0;
 /// The exact answer at `(x, y)` where the tracer's rounding may be wrong: whether, in f64 on
 /// the tracer's own f32 pixel ray, `prim` is hit in front of the eye and no triangle nearer
 /// by more than the two triangles' f32 error scales (`8·2⁻²⁴·max|v − eye|` each: below that
-/// the tracer cannot order them) unless the tracer misses that far triangle there; and a
+/// the tracer cannot order them) unless the tracer misses that far triangle there or it lies
+/// at or in front of the raster's near plane; and a
 /// vertex of `prim` or of the tracer's triangle lies beyond [`FAR_VERTEX`], or the tracer's
 /// triangle is hit within those error scales of `prim` (a near tie the f32 test orders by
 /// rounding).
@@ -321,8 +322,12 @@ fn exact_explains(camera: &CameraModel, tris: &[TriVerts], prim: u32, tracer: u3
     let tracer_misses = |t: &TriVerts| {
         reach(t) > FAR_VERTEX && ray.as_ref().is_none_or(|r| intersect_triangle(r, t, f32::INFINITY).is_none())
     };
+    // A nearer triangle at or in front of the near plane is one the raster does not draw.
+    let clipped = |t: &TriVerts, ti: f64| ti < f64::from(RASTER_NEAR) + error(t);
     tris.iter().enumerate().all(|(i, t)| {
-        i as u32 == prim || hit(t).is_none_or(|ti| ti >= t_prim - (error(mine) + error(t))) || tracer_misses(t)
+        i as u32 == prim
+            || hit(t).is_none_or(|ti| ti >= t_prim - (error(mine) + error(t)) || clipped(t, ti))
+            || tracer_misses(t)
     })
 }
 
