@@ -344,11 +344,11 @@ fn exact_explains(camera: &CameraModel, tris: &[TriVerts], prim: u32, tracer: u3
 /// through the eye, behind it, coincident or degenerate), an extent from 1×1 to 24×16, any
 /// eye separation from the bytes. Both bodies must give the same buffers, and every pixel of
 /// both eyes the tracer's closest hit, unless one of these explains the difference:
-/// - the raster's near plane: the tracer's hit lies nearer than [`RASTER_NEAR`], which the
+/// - the raster's near plane: the tracer's hit lies nearer than `RASTER_NEAR` (10⁻⁶), which the
 ///   raster does not draw by design;
 /// - the tracer's self-intersection guard refused the raster's triangle there (a hit the
 ///   watertight test takes for one within its rounding bound of the eye);
-/// - the tracer's rounding: a vertex lies far from the eye (beyond [`FAR_VERTEX`]) or two
+/// - the tracer's rounding: a vertex lies far from the eye (beyond `FAR_VERTEX`, 50 units) or two
 ///   hits are a near tie, and the exact f64 answer is the raster's.
 pub fn raster(data: &[u8]) {
     let mut bytes = Bytes(data);
