@@ -17,7 +17,7 @@
 
 use std::path::{Path, PathBuf};
 
-use glam::{Mat3, Vec3};
+use glam::{DVec3, Mat3, Vec3};
 
 use crate::camera::{Eye, StereoRig};
 use crate::eval::cache;
@@ -226,13 +226,30 @@ fn guard_rejected(camera: &CameraModel, tris: &[TriVerts], prim: u32, x: usize, 
         && intersect_triangle_line(&r, tri).is_some_and(|h| h.t > 0.0 && h.t <= tracer_t)
 }
 
+/// Vertex `k` of a triangle, in f64.
+fn vertex(tri: &TriVerts, k: usize) -> DVec3 {
+    DVec3::new(tri[3 * k].into(), tri[3 * k + 1].into(), tri[3 * k + 2].into())
+}
+
+/// The distance from `eye` to the farthest vertex of `tri`.
+fn reach(eye: DVec3, tri: &TriVerts) -> f64 {
+    (0..3).map(|k| (vertex(tri, k) - eye).length()).fold(0.0, f64::max)
+}
+
+/// The f32 tracer's error scale on `tri`: its watertight test works on coordinates relative
+/// to the eye, so `t` is known to about `8·2⁻²⁴·max|v − eye|`. Below that the tracer cannot
+/// order two hits or place one on a side of the raster's near plane.
+fn tracer_error(eye: DVec3, tri: &TriVerts) -> f64 {
+    8.0 * f64::from(f32::EPSILON) * 0.5 * reach(eye, tri)
+}
+
 /// The raster's near plane in the fuzz target: the smallest view depth it rasterises.
 const RASTER_NEAR: f32 = 1e-6;
 
 /// Whether the raster's near plane explains a disagreement at `(x, y)`: the tracer's closest
 /// hit, on `tracer` at `tracer_t`, lies at or in front of the near plane, which the raster by
 /// design does not draw (pixel rays have unit view depth, so `t` is the view depth). A hit
-/// within the tracer's f32 error of the plane (`8·2⁻²⁴·max|v − eye|`, ~1e-6 for vertices a
+/// within the tracer's f32 error of the plane ([`tracer_error`], ~1e-6 for vertices a
 /// few units away) may fall on either side of it, so the raster may show any such triangle,
 /// or the nearest hit beyond them all (none: no triangle).
 fn near_plane_explains(
@@ -244,21 +261,19 @@ fn near_plane_explains(
     x: usize,
     y: usize,
 ) -> bool {
-    let centre = Vec3::from(camera.centre);
-    let error = |t: &TriVerts| {
-        let reach = (0..3).map(|k| (Vec3::new(t[3 * k], t[3 * k + 1], t[3 * k + 2]) - centre).length());
-        8.0 * f32::EPSILON * 0.5 * reach.fold(0.0, f32::max)
-    };
+    let eye = DVec3::from(Vec3::from(camera.centre));
+    let error = |t: &TriVerts| tracer_error(eye, t);
+    let near = f64::from(RASTER_NEAR);
     let (Some(r), Some(tracer_tri)) = (pixel_ray(camera, x, y), tris.get(tracer as usize)) else { return false };
-    if tracer_t >= RASTER_NEAR + error(tracer_tri) {
+    if f64::from(tracer_t) >= near + error(tracer_tri) {
         return false;
     }
     let mut beyond = (NO_PRIM, f32::INFINITY);
     for (i, t) in tris.iter().enumerate() {
         let Some(hit) = intersect_triangle(&r, t, f32::INFINITY) else { continue };
-        let (id, e) = (i as u32, error(t));
-        if hit.t < RASTER_NEAR + e {
-            if id == got && hit.t >= RASTER_NEAR - e {
+        let (id, e, hit_t) = (i as u32, error(t), f64::from(hit.t));
+        if hit_t < near + e {
+            if id == got && hit_t >= near - e {
                 return true;
             }
         } else if hit.t < beyond.1 || (hit.t == beyond.1 && id < beyond.0) {
@@ -278,18 +293,17 @@ const FAR_VERTEX: f64 = 50.0;
 /// pixel (`prim` is [`NO_PRIM`]): whether the tracer's triangle has a far vertex and, in f64
 /// on the tracer's own f32 pixel ray, no triangle is hit beyond the near plane. Otherwise: whether, in f64 on
 /// the tracer's own f32 pixel ray, `prim` is hit in front of the eye and no triangle nearer
-/// by more than the two triangles' f32 error scales (`8·2⁻²⁴·max|v − eye|` each: below that
+/// by more than the two triangles' f32 error scales ([`tracer_error`] each: below that
 /// the tracer cannot order them) unless the tracer misses that far triangle there or it lies
 /// at or in front of the raster's near plane; and a
 /// vertex of `prim` or of the tracer's triangle lies beyond [`FAR_VERTEX`], or the tracer's
 /// triangle is hit within those error scales of `prim` (a near tie the f32 test orders by
 /// rounding).
 fn exact_explains(camera: &CameraModel, tris: &[TriVerts], prim: u32, tracer: u32, x: usize, y: usize) -> bool {
-    let o = glam::DVec3::from(Vec3::from(camera.centre));
-    let d = glam::DVec3::from(Vec3::from(camera.ray(x as f32 + 0.5, y as f32 + 0.5)));
-    let vertex = |t: &TriVerts, k: usize| glam::DVec3::new(t[3 * k].into(), t[3 * k + 1].into(), t[3 * k + 2].into());
-    let reach = |t: &TriVerts| (0..3).map(|k| (vertex(t, k) - o).length()).fold(0.0, f64::max);
-    let error = |t: &TriVerts| 8.0 * f64::from(f32::EPSILON) * 0.5 * reach(t);
+    let o = DVec3::from(Vec3::from(camera.centre));
+    let d = DVec3::from(Vec3::from(camera.ray(x as f32 + 0.5, y as f32 + 0.5)));
+    let reach = |t: &TriVerts| reach(o, t);
+    let error = |t: &TriVerts| tracer_error(o, t);
 
     // Möller–Trumbore in f64, edges inclusive (to 1e-12 of the barycentrics).
     let hit = |t: &TriVerts| -> Option<f64> {
