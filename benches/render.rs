@@ -31,7 +31,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 use stereotrace::camera::{Eye, StereoRig};
 use stereotrace::kernels::bvh::Ray;
-use stereotrace::kernels::packet::{PacketHits, RayPacket};
+use stereotrace::kernels::traverse::{PacketHits, RayPacket};
 use stereotrace::kernels::{CameraModel, Extent, RgbBuf};
 use stereotrace::render::bsdf::cosine_hemisphere;
 use stereotrace::render::lights::FrameLights;

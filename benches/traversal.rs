@@ -32,7 +32,7 @@ use glam::Vec3;
 use obvhs::ray::{Ray as ORay, RayHit};
 use obvhs::triangle::Triangle as OTri;
 use stereotrace::kernels::bvh::{BuildQuality, Ray, Tri, TriangleBvh};
-use stereotrace::kernels::packet::{PacketHits, RayPacket};
+use stereotrace::kernels::traverse::{PacketHits, RayPacket};
 
 #[cfg(feature = "peer-embree")]
 #[path = "peers/embree.rs"]

@@ -10,7 +10,7 @@
 use std::ffi::{c_char, c_int, c_uint, c_void};
 
 use stereotrace::kernels::bvh::{Ray, Tri};
-use stereotrace::kernels::packet::RayPacket;
+use stereotrace::kernels::traverse::RayPacket;
 
 type Device = *mut c_void;
 type Scene = *mut c_void;

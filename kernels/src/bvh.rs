@@ -1,4 +1,5 @@
-//! Triangle BVH (obvhs CWBVH) with watertight single-ray closest-hit and occlusion queries.
+//! Triangle BVH (obvhs CWBVH): the build, rays, the watertight triangle test and the robust
+//! node test. Traversal (single rays and packets, closest and any hit) is in [`crate::traverse`].
 //!
 //! # What obvhs does and what this module does
 //! obvhs builds the tree (PLOC + reinsertion → compressed 8-wide BVH, 80-byte
@@ -458,7 +459,7 @@ pub const fn gamma(n: u32) -> f32 {
 /// largest edge function is replaced by `|det|` (for a hit all three have one sign, so each
 /// is at most their sum), and `t·|det|` is compared as `|t_scaled|` (equal up to one
 /// rounding), which saves the maximum of three and a product per candidate. Identical in
-/// [`crate::packet`]'s lane version.
+/// [`crate::traverse`]'s lane version.
 #[inline(always)]
 pub(crate) fn t_rounding_bound(x: [f32; 3], y: [f32; 3], z: [f32; 3], det: f32) -> f32 {
     let max3 = |v: [f32; 3]| v[0].abs().max(v[1].abs()).max(v[2].abs());
@@ -631,70 +632,6 @@ pub fn leaf_range(node: &CwBvhNode, slot: usize) -> (u32, u32) {
     (node.primitive_base_idx + (meta & 0x1F) as u32, (meta >> 5).count_ones())
 }
 
-/// A fixed-capacity stack. `push` beyond the capacity panics (the build guarantees it cannot
-/// happen: see [`MAX_DEPTH`]); it never overflows silently. The storage is left
-/// uninitialised: zeroing the 11 KB packet stack for every packet cost ~8 % of a shadow
-/// packet's time (measured with perf: a memmove of the whole array per call).
-pub(crate) struct FixedStack<T: Copy, const N: usize> {
-    items: [core::mem::MaybeUninit<T>; N],
-    len: usize,
-}
-
-impl<T: Copy, const N: usize> FixedStack<T, N> {
-    #[inline(always)]
-    pub(crate) fn new() -> Self {
-        Self { items: [const { core::mem::MaybeUninit::uninit() }; N], len: 0 }
-    }
-
-    #[inline(always)]
-    pub(crate) fn push(&mut self, v: T) {
-        assert!(self.len < N, "traversal stack overflow: BVH deeper than MAX_DEPTH");
-        self.items[self.len] = core::mem::MaybeUninit::new(v);
-        self.len += 1;
-    }
-
-    #[inline(always)]
-    pub(crate) fn pop(&mut self) -> Option<T> {
-        if self.len == 0 {
-            None
-        } else {
-            self.len -= 1;
-            // SAFETY: every index below `len` was written by `push` (and `T: Copy`, so reading
-            // it out leaves nothing to drop).
-            Some(unsafe { self.items[self.len].assume_init() })
-        }
-    }
-}
-
-/// A set of not-yet-visited inner children of one node, as obvhs's traversal keeps them:
-/// `keys` has bit `slot ^ oct_inv` set for each, visited highest key first.
-#[derive(Clone, Copy, Default)]
-struct Group {
-    base: u32,
-    imask: u32,
-    keys: u32,
-}
-
-/// The group that visits exactly node `root`: key 7 with an empty `imask` resolves to
-/// `base + 0` whatever the octant.
-#[inline(always)]
-fn root_group(root: u32) -> Group {
-    Group { base: root, imask: 0, keys: 0x80 }
-}
-
-/// Closest-hit state of one ray: the BVH slot of the best triangle so far and its hit.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct Best {
-    pub(crate) slot: u32,
-    pub(crate) hit: TriHit,
-}
-
-impl Best {
-    pub(crate) fn none(tmax: f32) -> Self {
-        Best { slot: u32::MAX, hit: TriHit { t: tmax, e: [0.0; 3], det: 1.0 } }
-    }
-}
-
 /// A BVH over a triangle list, with the triangles stored in BVH order.
 #[derive(Clone, Debug)]
 pub struct TriangleBvh {
@@ -796,145 +733,10 @@ impl TriangleBvh {
         self.cwbvh.nodes.is_empty()
     }
 
-    /// Closest hit along the ray, or `None` (also for an invalid ray).
-    #[inline]
-    pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        let r = PreparedRay::new(ray)?;
-        let mut best = Best::none(r.tmax);
-        if !self.is_empty() {
-            self.traverse_closest(&r, 0, &mut best);
-        }
-        self.finish(&best)
-    }
-
-    /// True if any triangle is hit with `tmin ≤ t < tmax` (false for an invalid ray).
-    #[inline]
-    pub fn occluded(&self, ray: &Ray) -> bool {
-        match PreparedRay::new(ray) {
-            Some(r) if !self.is_empty() => self.traverse_any(&r, 0, r.tmax),
-            _ => false,
-        }
-    }
-
-    /// Closest hit by testing every stored triangle (the oracle for tests).
-    pub fn intersect_brute_force(&self, ray: &Ray) -> Option<Hit> {
-        let r = PreparedRay::new(ray)?;
-        let mut best = Best::none(r.tmax);
-        for (i, tri) in self.tris.iter().enumerate() {
-            if let Some(h) = intersect_triangle(&r, tri, best.hit.t) {
-                best = Best { slot: i as u32, hit: h };
-            }
-        }
-        self.finish(&best)
-    }
-
-    #[inline]
-    pub(crate) fn finish(&self, best: &Best) -> Option<Hit> {
-        if best.slot == u32::MAX {
-            return None;
-        }
-        let (u, v) = best.hit.uv();
-        Some(Hit { t: best.hit.t, prim: self.prim_ids[best.slot as usize], u, v })
-    }
-
     #[inline(always)]
     pub(crate) fn tri(&self, slot: u32) -> &TriVerts {
         &self.tris[slot as usize]
     }
-
-    /// Single-ray closest-hit traversal of the subtree at node `root`, improving `best`
-    /// (whose `t` is the current upper bound). Returns true if `best` changed.
-    pub(crate) fn traverse_closest(&self, r: &PreparedRay, root: u32, best: &mut Best) -> bool {
-        let nodes = &self.cwbvh.nodes[..];
-        let mut found = false;
-        let mut stack: FixedStack<Group, MAX_DEPTH> = FixedStack::new();
-        let mut group = root_group(root);
-        loop {
-            if group.keys == 0 {
-                match stack.pop() {
-                    Some(g) => group = g,
-                    None => break,
-                }
-            }
-            let key = 31 - group.keys.leading_zeros();
-            group.keys &= !(1 << key);
-            let idx = inner_child_index(group.base, group.imask, key ^ r.oct_inv);
-            if group.keys != 0 {
-                stack.push(group);
-            }
-            let node = &nodes[idx as usize];
-            let hits = node_hits(node, r, best.hit.t);
-            let imask = node.imask as u32;
-            let mut leaves = hits & !imask;
-            while leaves != 0 {
-                let slot = leaves.trailing_zeros() as usize;
-                leaves &= leaves - 1;
-                let (first, count) = leaf_range(node, slot);
-                for i in first..first + count {
-                    if let Some(h) = intersect_triangle(r, self.tri(i), best.hit.t) {
-                        *best = Best { slot: i, hit: h };
-                        found = true;
-                    }
-                }
-            }
-            group = Group { base: node.child_base_idx, imask, keys: slots_to_keys(hits & imask, r.oct_inv) };
-        }
-        found
-    }
-
-    /// Single-ray any-hit traversal of the subtree at `root` with upper bound `tmax`.
-    pub(crate) fn traverse_any(&self, r: &PreparedRay, root: u32, tmax: f32) -> bool {
-        let nodes = &self.cwbvh.nodes[..];
-        let mut stack: FixedStack<Group, MAX_DEPTH> = FixedStack::new();
-        let mut group = root_group(root);
-        loop {
-            if group.keys == 0 {
-                match stack.pop() {
-                    Some(g) => group = g,
-                    None => return false,
-                }
-            }
-            let key = 31 - group.keys.leading_zeros();
-            group.keys &= !(1 << key);
-            let idx = inner_child_index(group.base, group.imask, key ^ r.oct_inv);
-            if group.keys != 0 {
-                stack.push(group);
-            }
-            let node = &nodes[idx as usize];
-            let hits = node_hits(node, r, tmax);
-            let imask = node.imask as u32;
-            let mut leaves = hits & !imask;
-            while leaves != 0 {
-                let slot = leaves.trailing_zeros() as usize;
-                leaves &= leaves - 1;
-                let (first, count) = leaf_range(node, slot);
-                for i in first..first + count {
-                    if intersect_triangle(r, self.tri(i), tmax).is_some() {
-                        return true;
-                    }
-                }
-            }
-            group = Group { base: node.child_base_idx, imask, keys: slots_to_keys(hits & imask, r.oct_inv) };
-        }
-    }
-}
-
-/// Closest hit over a plain triangle list by brute force (the test oracle; `prim` is the index
-/// into `tris`).
-pub fn intersect_brute_force(tris: &[Tri], ray: &Ray) -> Option<Hit> {
-    let r = PreparedRay::new(ray)?;
-    let mut best: Option<(u32, TriHit)> = None;
-    for (i, t) in tris.iter().enumerate() {
-        let tv = [t[0].x, t[0].y, t[0].z, t[1].x, t[1].y, t[1].z, t[2].x, t[2].y, t[2].z];
-        let tmax = best.map_or(r.tmax, |b| b.1.t);
-        if let Some(h) = intersect_triangle(&r, &tv, tmax) {
-            best = Some((i as u32, h));
-        }
-    }
-    best.map(|(i, h)| {
-        let (u, v) = h.uv();
-        Hit { t: h.t, prim: i, u, v }
-    })
 }
 
 /// obvhs's `build_cwbvh_from_tris` without its debug-build validation (which asserts a depth

@@ -540,8 +540,9 @@ fn coordinate(bytes: &mut Bytes<'_>) -> f32 {
 /// packet (at single-ray thresholds 0, 2 and 8) against its single ray. Builds that refuse
 /// (non-finite or huge vertices) must say so with a `BvhError`.
 pub fn bvh(data: &[u8]) {
-    use crate::bvh::{BuildQuality, Hit, Ray, TriangleBvh, intersect_brute_force};
-    use crate::packet::{PacketHits, RayPacket};
+    use crate::bvh::{BuildQuality, Hit, Ray, TriangleBvh};
+    use crate::traverse::{PacketHits, RayPacket, intersect_brute_force};
+
     let mut bytes = Bytes(data);
     let quality = match bytes.u8() % 3 {
         0 => BuildQuality::Fast,

@@ -22,12 +22,12 @@ pub mod check;
 pub mod frame;
 pub mod fuzzing;
 pub mod gbuffer;
-pub mod packet;
 pub mod raster;
 pub mod reproject;
 pub mod simd;
 pub mod ssim;
 pub mod synth;
+pub mod traverse;
 
 pub use camera::CameraModel;
 pub use frame::{Extent, FrameError, Plane, PlaneBuf, PlaneMut, RgbBuf, RgbPlanes, RgbPlanesMut};

@@ -6,10 +6,9 @@ use std::path::PathBuf;
 
 use glam::Vec3;
 use stereotrace_kernels::bvh::{
-    BuildQuality, BvhError, Hit, MAX_DEPTH, PreparedRay, Ray, Tri, TriangleBvh, intersect_brute_force, node_hits,
-    node_hits_scalar,
+    BuildQuality, BvhError, Hit, MAX_DEPTH, PreparedRay, Ray, Tri, TriangleBvh, node_hits, node_hits_scalar,
 };
-use stereotrace_kernels::packet::{ALL_LANES, PacketHits, RayPacket};
+use stereotrace_kernels::traverse::{ALL_LANES, PacketHits, RayPacket, intersect_brute_force};
 
 const LANES: usize = 8;
 

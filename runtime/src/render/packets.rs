@@ -37,8 +37,8 @@ use super::rng::{Dim, SampleStream};
 use super::{Renderer, Surface, TraceRequest, spawn};
 use crate::kernels::CameraModel;
 use crate::kernels::bvh::{Hit, Ray};
-use crate::kernels::packet::{PacketHits, RayPacket};
 use crate::kernels::simd::{F32s, LANES};
+use crate::kernels::traverse::{PacketHits, RayPacket};
 use crate::scene::MaterialKind;
 
 /// What a group's samples share: the frame's lights, the camera and the request.
@@ -57,7 +57,7 @@ pub(super) struct Pass<'a> {
 /// checked with thread CPU time (best of 7–9 interleaved runs at 640×360; the machine is
 /// shared, so times vary ±10 % and only confirmed the direction). Primary rays of eight
 /// neighbouring pixels are coherent: packets save 8–11 % of all instructions of a render.
-pub(super) const PRIMARY: u32 = crate::kernels::packet::SINGLE_RAY_THRESHOLD;
+pub(super) const PRIMARY: u32 = crate::kernels::traverse::SINGLE_RAY_THRESHOLD;
 /// Shadow rays from the primary hits: coherent toward a sun, much less toward several area
 /// lights (each lane picks its own light). Threshold 4 is the compromise: against 2 it saves
 /// 0–4 % of the instructions (atrium 4.1 %); against single rays it saves 0.8 % on the

@@ -1,145 +1,13 @@
-//! 8-lane ray packets traversing the CWBVH of [`TriangleBvh`]: closest hit and occlusion.
-//!
-//! # How a packet is traced
-//! 1. **Lanes.** Each active lane is prepared exactly as a single ray ([`PreparedRay`]), then
-//!    transposed to structure-of-arrays `F32s`. Invalid lanes (NaN, zero or infinite
-//!    directions, see [`Ray::is_valid`]) drop out of the active mask and report a miss.
-//! 2. **Classes.** Active lanes are grouped by [`PreparedRay::class`]: the sign octant of
-//!    the direction and its dominant axis. Inside a class every lane picks the same near/far
-//!    child planes and the watertight test's axis permutation is uniform, so both are scalar
-//!    decisions instead of per-lane blends. Coherent packets (a 8×1 or 4×2 tile of primary
-//!    rays, shadow rays toward one light) are almost always one class.
-//! 3. **Node test** (ray-parallel): per child slot, its six quantised planes are broadcast and
-//!    tested against the eight lanes at once with the same conservative slab arithmetic as
-//!    the single-ray test (`q·(e·inv) + (p − o)·inv ∓ δ`, see [`crate::bvh`]), against
-//!    each lane's current `tfar` (closest hit so far). The result is a lane mask per child.
-//! 4. **Order and stack.** Leaf children are intersected immediately (shrinking `tfar`
-//!    before anything is pushed). Inner children with a non-empty lane mask are pushed in
-//!    ascending `slot ^ oct_inv` key, so the child nearest for the class octant is popped first
-//!    (obvhs's CWBVH stores children so that this key order is front to back). An entry is
-//!    `(node, lane mask, per-lane entry distance)`; on pop, lanes whose entry distance is
-//!    beyond their current `tfar` are removed, and the entry is skipped if none are left.
-//!    The stack has a fixed `7·MAX_DEPTH + 1` entries (at most seven siblings wait per
-//!    level), which the build's depth guarantee makes sufficient.
-//! 5. **Fallback.** When a popped entry (or a class at the start) has at most
-//!    [`SINGLE_RAY_THRESHOLD`] live lanes, its subtree is finished by the single-ray
-//!    traversal, one lane at a time, starting at that node with the lane's current best hit.
-//! 6. **Triangles** are tested eight lanes at a time with the watertight test written in the
-//!    same operation order as the scalar [`crate::bvh::intersect_triangle`], including the
-//!    double-precision recomputation of edge functions that round to zero (done per lane, in
-//!    scalar code, which is rare). So a lane's `t`, `u` and `v` equal the single-ray results
-//!    bit for bit; only which of two triangles at exactly the same `t` wins may differ.
-//!
-//! Inactive lanes are never written: their entries of [`PacketHits`] keep whatever the caller
-//! put there.
-//!
-//! # Threshold
-//! [`SINGLE_RAY_THRESHOLD`] = 2 lanes. Measured by sweeping the threshold (0, 1, 2, 3, 4, 6)
-//! over primary and shadow rays in 8×1 tiles at 1280×720 on Sponza and on the bench's 700k
-//! procedural scene, one thread, thread CPU time, best of 15 interleaved repetitions (the
-//! machine is shared, so wall time varies 2× between runs). Thresholds 0–2 were within 1 % of
-//! each other (Sponza primary 8.73 / 8.73 / 8.66 Mrays/s, shadow 9.35 / 9.46 / 9.42;
-//! procedural primary 9.41 / 9.50 / 9.39, shadow 6.97 / 7.16 / 7.17), 3 was 1–3 % slower and
-//! 4–6 were 3–19 % slower. Of the equal choices, 2 is kept for the less coherent packets
-//! (secondary rays) that the sweep does not cover, where dropping to single rays earlier
-//! helps. The bench's `traversal/threshold` group repeats the sweep.
-//!
-//! # Cost of the pieces (measured the same way)
-//! * Preparing lanes one at a time in scalar code and transposing took a third of a shadow
-//!   packet's time; the SIMD preparation in `Lanes::new` made shadow packets ~2× faster.
-//! * The packet stack (281 entries × 40 bytes) is left uninitialised: zero-initialising it per
-//!   packet was the largest single cost after that (an 11 KB memset/memmove per packet).
+//! The body: packets of eight rays, one traversal loop generic over the search (see the
+//! module notes of [`super`]).
 
+use super::scalar::{AnyHit, Best};
+use super::{ALL_LANES, FixedStack, PACKET_STACK, PacketHits, RayPacket, SINGLE_RAY_THRESHOLD};
 use crate::bvh::{
-    Best, FixedStack, Hit, MAX_DEPTH, MAX_DIR, MAX_ORIGIN, MIN_DIR, NODE_PAD, PreparedRay, RCP_CLAMP, Ray, TriHit,
-    TriVerts, TriangleBvh, bytes_to_f32s, child_planes, edge_f64, gamma, inner_child_index, leaf_range, node_extent,
-    occupied_slots,
+    MAX_DIR, MAX_ORIGIN, MIN_DIR, NODE_PAD, PreparedRay, RCP_CLAMP, TriHit, TriVerts, TriangleBvh, bytes_to_f32s,
+    child_planes, edge_f64, gamma, inner_child_index, leaf_range, node_extent, occupied_slots,
 };
 use crate::simd::{F32s, LANES};
-
-/// Lanes at or below which a packet continues as single rays (see the module notes).
-pub const SINGLE_RAY_THRESHOLD: u32 = 2;
-
-/// Lane mask with every lane active.
-pub const ALL_LANES: u32 = (1 << LANES) - 1;
-
-const PACKET_STACK: usize = 7 * MAX_DEPTH + 1;
-
-/// Eight rays, structure of arrays. Lane `i` is the ray `origin[·][i] + t·dir[·][i]`,
-/// `t ∈ [tmin[i], tmax[i])`.
-#[derive(Clone, Copy, Debug)]
-pub struct RayPacket {
-    /// Origins x, y, z.
-    pub origin: [F32s; 3],
-    /// Directions x, y, z (any non-zero length).
-    pub dir: [F32s; 3],
-    /// Nearest accepted `t` per lane.
-    pub tmin: F32s,
-    /// Farthest `t` per lane (exclusive).
-    pub tmax: F32s,
-}
-
-impl RayPacket {
-    /// Transposes eight rays.
-    pub fn from_rays(rays: &[Ray; LANES]) -> Self {
-        let c = |f: &dyn Fn(&Ray) -> f32| F32s::from(core::array::from_fn::<f32, LANES, _>(|i| f(&rays[i])));
-        RayPacket {
-            origin: [c(&|r| r.origin.x), c(&|r| r.origin.y), c(&|r| r.origin.z)],
-            dir: [c(&|r| r.dir.x), c(&|r| r.dir.y), c(&|r| r.dir.z)],
-            tmin: c(&|r| r.tmin),
-            tmax: c(&|r| r.tmax),
-        }
-    }
-
-    /// Lane `i` as a single ray.
-    pub fn ray(&self, i: usize) -> Ray {
-        let g = |v: &F32s| v.to_array()[i];
-        Ray {
-            origin: glam::Vec3::new(g(&self.origin[0]), g(&self.origin[1]), g(&self.origin[2])),
-            dir: glam::Vec3::new(g(&self.dir[0]), g(&self.dir[1]), g(&self.dir[2])),
-            tmin: g(&self.tmin),
-            tmax: g(&self.tmax),
-        }
-    }
-}
-
-/// Closest hits of a packet, structure of arrays. A miss is `prim == u32::MAX`, `t = inf`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PacketHits {
-    /// Ray parameter of each lane's hit.
-    pub t: [f32; LANES],
-    /// Triangle index of each lane's hit (`u32::MAX`: miss).
-    pub prim: [u32; LANES],
-    /// Barycentric weight of `v1`.
-    pub u: [f32; LANES],
-    /// Barycentric weight of `v2`.
-    pub v: [f32; LANES],
-}
-
-impl Default for PacketHits {
-    fn default() -> Self {
-        Self::NONE
-    }
-}
-
-impl PacketHits {
-    /// Every lane a miss.
-    pub const NONE: PacketHits =
-        PacketHits { t: [f32::INFINITY; LANES], prim: [u32::MAX; LANES], u: [0.0; LANES], v: [0.0; LANES] };
-
-    /// Lane `i` as a hit record.
-    pub fn get(&self, i: usize) -> Option<Hit> {
-        (self.prim[i] != u32::MAX).then(|| Hit { t: self.t[i], prim: self.prim[i], u: self.u[i], v: self.v[i] })
-    }
-
-    fn set(&mut self, i: usize, hit: Option<Hit>) {
-        let h = hit.unwrap_or(Hit::NONE);
-        self.t[i] = h.t;
-        self.prim[i] = h.prim;
-        self.u[i] = h.u;
-        self.v[i] = h.v;
-    }
-}
 
 /// The prepared lanes of a packet, structure of arrays: lane `i` holds exactly the values
 /// of [`PreparedRay::new`] for that lane's ray (computed here with the same IEEE operations in
@@ -268,6 +136,109 @@ impl LaneBest {
         put(&mut self.e2, b.hit.e[2]);
         put(&mut self.det, b.hit.det);
         put(&mut self.slot, f32::from_bits(b.slot));
+    }
+}
+
+/// What a packet search keeps per lane: its far bounds, which lanes still search, what a
+/// triangle hit does, and the single-ray fallback.
+trait PacketSearch {
+    /// Each lane's far bound (exclusive).
+    fn tfar(&self) -> F32s;
+    /// The lanes of a popped entry (`mask`, with entry distances `tnear`) worth descending.
+    fn live(&self, mask: u32, tnear: F32s) -> u32;
+    /// The lanes of `mask` still searching.
+    fn searching(&self, mask: u32) -> u32;
+    /// Tests the triangle in BVH slot `slot` against `lanes` and records their hits.
+    fn triangle(&mut self, l: &Lanes, k: [usize; 3], tri: &TriVerts, slot: u32, lanes: u32);
+    /// Finishes lane `i` in the subtree at `node` as a single ray.
+    fn single(&mut self, bvh: &TriangleBvh, l: &Lanes, i: usize, node: u32);
+    /// True when no lane searches any more.
+    fn done(&self) -> bool;
+}
+
+impl PacketSearch for LaneBest {
+    #[inline(always)]
+    fn tfar(&self) -> F32s {
+        self.t
+    }
+
+    /// Lanes whose entry distance lies beyond their closest hit so far drop out.
+    #[inline(always)]
+    fn live(&self, mask: u32, tnear: F32s) -> u32 {
+        mask & tnear.simd_le(self.t).to_bitmask()
+    }
+
+    #[inline(always)]
+    fn searching(&self, mask: u32) -> u32 {
+        mask
+    }
+
+    #[inline(always)]
+    fn triangle(&mut self, l: &Lanes, k: [usize; 3], tri: &TriVerts, slot: u32, lanes: u32) {
+        let (h, t, e, det) = intersect_triangle_lanes(l, k, tri, self.t, lanes);
+        if h != 0 {
+            let sel = mask_of(h);
+            self.t = sel.select(t, self.t);
+            self.e1 = sel.select(e[1], self.e1);
+            self.e2 = sel.select(e[2], self.e2);
+            self.det = sel.select(det, self.det);
+            self.slot = sel.select(F32s::splat(f32::from_bits(slot)), self.slot);
+        }
+    }
+
+    #[inline(always)]
+    fn single(&mut self, bvh: &TriangleBvh, l: &Lanes, i: usize, node: u32) {
+        let mut b = self.lane(i);
+        if bvh.traverse(&l.lane(i), node, &mut b) {
+            self.set_lane(i, &b);
+        }
+    }
+
+    #[inline(always)]
+    fn done(&self) -> bool {
+        false
+    }
+}
+
+/// Any hit (occlusion) for a packet: the lanes not yet occluded, and every lane's `tmax`.
+struct LanesAlive {
+    alive: u32,
+    tfar: F32s,
+}
+
+impl PacketSearch for LanesAlive {
+    #[inline(always)]
+    fn tfar(&self) -> F32s {
+        self.tfar
+    }
+
+    #[inline(always)]
+    fn live(&self, mask: u32, _: F32s) -> u32 {
+        mask & self.alive
+    }
+
+    #[inline(always)]
+    fn searching(&self, mask: u32) -> u32 {
+        mask & self.alive
+    }
+
+    #[inline(always)]
+    fn triangle(&mut self, l: &Lanes, k: [usize; 3], tri: &TriVerts, _: u32, lanes: u32) {
+        let (h, ..) = intersect_triangle_lanes(l, k, tri, self.tfar, lanes);
+        self.alive &= !h;
+    }
+
+    #[inline(always)]
+    fn single(&mut self, bvh: &TriangleBvh, l: &Lanes, i: usize, node: u32) {
+        let r = l.lane(i);
+        if bvh.traverse(&r, node, &mut AnyHit { tmax: r.tmax }) {
+            self.alive &= !(1 << i);
+        }
+    }
+
+    #[inline(always)]
+    fn done(&self) -> bool {
+        self.alive == 0
     }
 }
 
@@ -456,20 +427,8 @@ impl TriangleBvh {
             slot: F32s::splat(f32::from_bits(u32::MAX)),
         };
         if !self.is_empty() {
-            let mut rest = l.valid;
-            while rest != 0 {
-                let class = l.class[rest.trailing_zeros() as usize];
-                let group = lanes_of_class(&l, rest, class);
-                rest &= !group;
-                if group.count_ones() <= threshold {
-                    for i in lane_iter(group) {
-                        let mut b = best.lane(i);
-                        self.traverse_closest(&l.lane(i), 0, &mut b);
-                        best.set_lane(i, &b);
-                    }
-                } else {
-                    self.packet_closest(&l, group, &mut best, threshold);
-                }
+            for group in classes(&l) {
+                self.packet_search(&l, group, &mut best, threshold);
             }
         }
         let mut hit_mask = 0;
@@ -491,21 +450,10 @@ impl TriangleBvh {
         let l = Lanes::new(rays, active);
         let mut occluded = 0;
         if !self.is_empty() {
-            let mut rest = l.valid;
-            while rest != 0 {
-                let class = l.class[rest.trailing_zeros() as usize];
-                let group = lanes_of_class(&l, rest, class);
-                rest &= !group;
-                if group.count_ones() <= threshold {
-                    for i in lane_iter(group) {
-                        let r = l.lane(i);
-                        if self.traverse_any(&r, 0, r.tmax) {
-                            occluded |= 1 << i;
-                        }
-                    }
-                } else {
-                    occluded |= self.packet_any(&l, group, threshold);
-                }
+            for group in classes(&l) {
+                let mut search = LanesAlive { alive: group, tfar: l.tmax };
+                self.packet_search(&l, group, &mut search, threshold);
+                occluded |= group & !search.alive;
             }
         }
         #[cfg(feature = "check-scalar")]
@@ -515,95 +463,39 @@ impl TriangleBvh {
         occluded
     }
 
-    fn packet_closest(&self, l: &Lanes, group: u32, best: &mut LaneBest, threshold: u32) {
-        let r0 = l.lane(group.trailing_zeros() as usize);
-        let (oct_inv, k) = (r0.oct_inv, r0.k);
-        let nodes = self.nodes();
-        let mut stack: FixedStack<Entry, PACKET_STACK> = FixedStack::new();
-        stack.push(Entry { node: 0, mask: group, tnear: l.tmin.to_array() });
-        let mut masks = [0u32; 8];
-        let mut tnear = [F32s::ZERO; 8];
-        while let Some(entry) = stack.pop() {
-            let m = entry.mask & F32s::from(entry.tnear).simd_le(best.t).to_bitmask();
-            if m == 0 {
-                continue;
+    /// The lanes of `group` (one class) through the tree for `search`: as single rays when
+    /// there are at most `threshold` of them, else as a packet whose entries drop to single
+    /// rays once at most `threshold` lanes are left in them.
+    fn packet_search<S: PacketSearch>(&self, l: &Lanes, group: u32, search: &mut S, threshold: u32) {
+        if group.count_ones() <= threshold {
+            for i in lane_iter(group) {
+                search.single(self, l, i, 0);
             }
-            if m.count_ones() <= threshold {
-                for i in lane_iter(m) {
-                    let mut b = best.lane(i);
-                    if self.traverse_closest(&l.lane(i), entry.node, &mut b) {
-                        best.set_lane(i, &b);
-                    }
-                }
-                continue;
-            }
-            let node = &nodes[entry.node as usize];
-            let hit_children = node_lanes(node, l, oct_inv, best.t, m, &mut masks, &mut tnear);
-            let imask = node.imask as u32;
-            let mut leaves = hit_children & !imask;
-            while leaves != 0 {
-                let slot = leaves.trailing_zeros() as usize;
-                leaves &= leaves - 1;
-                let (first, count) = leaf_range(node, slot);
-                let lm = masks[slot];
-                for i in first..first + count {
-                    let (h, t, e, det) = intersect_triangle_lanes(l, k, self.tri(i), best.t, lm);
-                    if h != 0 {
-                        let sel = mask_of(h);
-                        best.t = sel.select(t, best.t);
-                        best.e1 = sel.select(e[1], best.e1);
-                        best.e2 = sel.select(e[2], best.e2);
-                        best.det = sel.select(det, best.det);
-                        best.slot = sel.select(F32s::splat(f32::from_bits(i)), best.slot);
-                    }
-                }
-            }
-            let inner = hit_children & imask;
-            if inner != 0 {
-                for key in 0..8u32 {
-                    let slot = key ^ oct_inv;
-                    if inner & (1 << slot) != 0 {
-                        let s = slot as usize;
-                        stack.push(Entry {
-                            node: inner_child_index(node.child_base_idx, imask, slot),
-                            mask: masks[s],
-                            tnear: tnear[s].to_array(),
-                        });
-                    }
-                }
-            }
+            return;
         }
-    }
-
-    fn packet_any(&self, l: &Lanes, group: u32, threshold: u32) -> u32 {
         let r0 = l.lane(group.trailing_zeros() as usize);
         let (oct_inv, k) = (r0.oct_inv, r0.k);
         let nodes = self.nodes();
-        let tfar = l.tmax;
-        let mut alive = group;
         let mut stack: FixedStack<Entry, PACKET_STACK> = FixedStack::new();
         stack.push(Entry { node: 0, mask: group, tnear: l.tmin.to_array() });
         let mut masks = [0u32; 8];
         let mut tnear = [F32s::ZERO; 8];
         while let Some(entry) = stack.pop() {
-            let m = entry.mask & alive;
+            let m = search.live(entry.mask, F32s::from(entry.tnear));
             if m == 0 {
                 continue;
             }
             if m.count_ones() <= threshold {
                 for i in lane_iter(m) {
-                    let r = l.lane(i);
-                    if self.traverse_any(&r, entry.node, r.tmax) {
-                        alive &= !(1 << i);
-                    }
+                    search.single(self, l, i, entry.node);
                 }
-                if alive == 0 {
+                if search.done() {
                     break;
                 }
                 continue;
             }
             let node = &nodes[entry.node as usize];
-            let hit_children = node_lanes(node, l, oct_inv, tfar, m, &mut masks, &mut tnear);
+            let hit_children = node_lanes(node, l, oct_inv, search.tfar(), m, &mut masks, &mut tnear);
             let imask = node.imask as u32;
             let mut leaves = hit_children & !imask;
             while leaves != 0 {
@@ -611,15 +503,14 @@ impl TriangleBvh {
                 leaves &= leaves - 1;
                 let (first, count) = leaf_range(node, slot);
                 for i in first..first + count {
-                    let lm = masks[slot] & alive;
+                    let lm = search.searching(masks[slot]);
                     if lm == 0 {
                         break;
                     }
-                    let (h, ..) = intersect_triangle_lanes(l, k, self.tri(i), tfar, lm);
-                    alive &= !h;
+                    search.triangle(l, k, self.tri(i), i, lm);
                 }
             }
-            if alive == 0 {
+            if search.done() {
                 break;
             }
             let inner = hit_children & imask;
@@ -637,7 +528,6 @@ impl TriangleBvh {
                 }
             }
         }
-        group & !alive
     }
 
     #[cfg(feature = "check-scalar")]
@@ -679,6 +569,20 @@ fn lanes_of_class(l: &Lanes, candidates: u32, class: u32) -> u32 {
     m
 }
 
+/// The valid lanes of a packet split by class (see the module notes), lowest lane's first.
+#[inline(always)]
+fn classes(l: &Lanes) -> impl Iterator<Item = u32> + '_ {
+    let mut rest = l.valid;
+    core::iter::from_fn(move || {
+        if rest == 0 {
+            return None;
+        }
+        let group = lanes_of_class(l, rest, l.class[rest.trailing_zeros() as usize]);
+        rest &= !group;
+        Some(group)
+    })
+}
+
 /// Indices of the set bits of `mask`, lowest first.
 #[inline(always)]
 fn lane_iter(mask: u32) -> impl Iterator<Item = usize> {
@@ -697,7 +601,7 @@ fn lane_iter(mask: u32) -> impl Iterator<Item = usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bvh::{BuildQuality, PreparedRay, intersect_triangle};
+    use crate::bvh::{BuildQuality, Hit, PreparedRay, Ray, intersect_triangle};
     use glam::Vec3;
 
     fn rng(seed: u64) -> impl FnMut() -> f32 {
