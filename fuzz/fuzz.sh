@@ -26,9 +26,10 @@ command -v cargo-fuzz > /dev/null || cargo install cargo-fuzz --locked
 targets=("$@")
 [ ${#targets[@]} -gt 0 ] || mapfile -t targets < <(cargo fuzz list)
 export RUSTFLAGS="-C target-cpu=x86-64-v3"
-# One core per fuzzer, and no cross-thread wake-ups per input (the kernels split their tiny
-# fuzz frames into bands on the rayon pool): several times the executions per second. The
-# results do not depend on the thread count (the kernels' tests check that).
+# One core per fuzzer: every target makes its fuzzing thread rayon's whole global pool
+# (`fuzzing::run_on_this_thread`), so the kernels' bands run inline with no cross-thread
+# wake-up per input. The results do not depend on the thread count (the kernels' tests check
+# that). Pools a target builds itself get one thread.
 export RAYON_NUM_THREADS="${RAYON_NUM_THREADS:-1}"
 mkdir -p target/fuzz-logs
 for t in "${targets[@]}"; do

@@ -26,6 +26,16 @@ use crate::reproject::{self, Reason, ReprojectInput, ReprojectOutput, ReprojectP
 use crate::simd::LANES;
 use crate::synth::{AnalyticScene, SynthFrame, camera_at};
 
+/// Makes the calling thread rayon's whole global pool, so the kernels' parallel bands run
+/// inline on it. A fuzz target calls this once at start-up (libFuzzer runs every input on
+/// that thread): with a separate one-thread pool, every input woke the worker and put the
+/// caller to sleep (~75k context switches per second, two cores busy for one fuzzer's
+/// work). Results do not depend on the thread count (the kernels' tests check that).
+pub fn run_on_this_thread() {
+    // Refused only if a global pool already exists, which then serves as it is.
+    let _ = rayon::ThreadPoolBuilder::new().num_threads(1).use_current_thread().build_global();
+}
+
 /// Fuzz input read front to back: zeros once exhausted, so every input is complete. Also the
 /// reader of the fuzz entry points above the kernels (`stereotrace::fuzzing`).
 pub struct Bytes<'a>(pub &'a [u8]);
