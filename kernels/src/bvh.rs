@@ -79,7 +79,7 @@ use obvhs::ploc::PlocBuilder;
 use obvhs::splits::split_aabbs_preset;
 use obvhs::triangle::Triangle as ObvhsTriangle;
 
-use crate::simd::F32s;
+use crate::simd::{F32s, LANES};
 
 /// Largest accepted `|coordinate|` of a triangle vertex (2²⁴ m ≈ 16 800 km).
 pub const MAX_COORD: f32 = 16_777_216.0;
@@ -392,6 +392,104 @@ pub fn intersect_triangle_line(r: &PreparedRay, tri: &TriVerts) -> Option<TriHit
     watertight(r, tri).map(|w| w.hit)
 }
 
+/// [`intersect_triangle`] of one ray against the eight triangles in BVH slots
+/// `first .. first + 8` (`planes` as [`TriangleBvh`] keeps them), for the slots in `lanes`
+/// (bit `i`: slot `first + i`): the same operations in the same order per lane, so each
+/// lane's hit, `t`, edge functions and determinant equal the scalar test's bit for bit.
+/// Returns the hit with the smallest `t` (the lowest slot on equal `t`, as testing the slots
+/// one by one with a shrinking `tmax` finds) and its slot offset.
+///
+/// # Panics
+/// If `first + 8` exceeds a plane's length (the planes are padded by eight).
+#[inline(always)]
+pub fn intersect_triangles_lanes(
+    r: &PreparedRay,
+    planes: &[Vec<f32>; 9],
+    first: usize,
+    lanes: u32,
+    tmax: f32,
+) -> Option<(u32, TriHit)> {
+    let [kx, ky, kz] = r.k;
+    let load = |vertex: usize, axis: usize| -> F32s {
+        let p = &planes[3 * vertex + axis][first..first + LANES];
+        F32s::from(<[f32; LANES]>::try_from(p).expect("eight lanes"))
+    };
+    let sp = F32s::splat;
+    let [ox, oy, oz] = r.origin_k.map(sp);
+    let [sx, sy, sz] = r.shear.map(sp);
+    let a_z = load(0, kz) - oz;
+    let b_z = load(1, kz) - oz;
+    let c_z = load(2, kz) - oz;
+    let ax = (load(0, kx) - ox) - sx * a_z;
+    let ay = (load(0, ky) - oy) - sy * a_z;
+    let bx = (load(1, kx) - ox) - sx * b_z;
+    let by = (load(1, ky) - oy) - sy * b_z;
+    let cx = (load(2, kx) - ox) - sx * c_z;
+    let cy = (load(2, ky) - oy) - sy * c_z;
+    let mut u = cx * by - cy * bx;
+    let mut v = ax * cy - ay * cx;
+    let mut w = bx * ay - by * ax;
+    let zero = F32s::ZERO;
+    let on_edge = (u.simd_eq(zero) | v.simd_eq(zero) | w.simd_eq(zero)).to_bitmask() & lanes;
+    if on_edge != 0 {
+        recompute_edges_lanes(on_edge, [ax, ay, bx, by, cx, cy], &mut u, &mut v, &mut w);
+    }
+    let neg = u.simd_lt(zero) | v.simd_lt(zero) | w.simd_lt(zero);
+    let pos = u.simd_gt(zero) | v.simd_gt(zero) | w.simd_gt(zero);
+    let det = u + v + w;
+    let candidates = (!(neg & pos) & det.simd_ne(zero)).to_bitmask() & lanes;
+    if candidates == 0 {
+        return None;
+    }
+    let (z0, z1, z2) = (sz * a_z, sz * b_z, sz * c_z);
+    let t_scaled = u * z0 + v * z1 + w * z2;
+    let t = t_scaled / det;
+    let in_range = (t.simd_ge(sp(r.tmin)) & t.simd_lt(sp(tmax))).to_bitmask() & candidates;
+    if in_range == 0 {
+        return None;
+    }
+    let max3 = |a: F32s, b: F32s, c: F32s| a.abs().max(b.abs()).max(c.abs());
+    let (max_x, max_y, max_z, max_e) = (max3(ax, bx, cx), max3(ay, by, cy), max3(z0, z1, z2), det.abs());
+    let g = |n| sp(gamma(n));
+    let delta_z = g(3) * max_z;
+    let delta_x = g(5) * (max_x + max_z);
+    let delta_y = g(5) * (max_y + max_z);
+    let delta_e = sp(2.0) * (g(2) * max_x * max_y + delta_y * max_x + delta_x * max_y);
+    let bound = sp(3.0) * (g(3) * max_e * max_z + delta_e * max_z + delta_z * max_e);
+    let mut hits = t_scaled.abs().simd_gt(bound).to_bitmask() & in_range;
+    if hits == 0 {
+        return None;
+    }
+    let (t, u, v, w, det) = (t.to_array(), u.to_array(), v.to_array(), w.to_array(), det.to_array());
+    let mut best = hits.trailing_zeros() as usize;
+    hits &= hits - 1;
+    while hits != 0 {
+        let i = hits.trailing_zeros() as usize;
+        hits &= hits - 1;
+        if t[i] < t[best] {
+            best = i;
+        }
+    }
+    Some((best as u32, TriHit { t: t[best], e: [u[best], v[best], w[best]], det: det[best] }))
+}
+
+/// Lanes whose f32 edge functions hit exactly zero get all three recomputed in f64, as the
+/// scalar test does.
+#[cold]
+#[inline(never)]
+fn recompute_edges_lanes(lanes: u32, c: [F32s; 6], u: &mut F32s, v: &mut F32s, w: &mut F32s) {
+    let [ax, ay, bx, by, cx, cy] = c.map(|x| x.to_array());
+    let (mut ua, mut va, mut wa) = (u.to_array(), v.to_array(), w.to_array());
+    for i in 0..LANES {
+        if lanes & (1 << i) != 0 {
+            ua[i] = edge_f64(cx[i], cy[i], bx[i], by[i]);
+            va[i] = edge_f64(ax[i], ay[i], cx[i], cy[i]);
+            wa[i] = edge_f64(bx[i], by[i], ax[i], ay[i]);
+        }
+    }
+    (*u, *v, *w) = (F32s::from(ua), F32s::from(va), F32s::from(wa));
+}
+
 /// The shared body's result: the hit, `t·det`, and the sheared vertex coordinates the
 /// rounding bound needs.
 struct Watertight {
@@ -638,6 +736,10 @@ pub struct TriangleBvh {
     cwbvh: CwBvh,
     /// Triangles in `cwbvh.primitive_indices` order.
     tris: Vec<TriVerts>,
+    /// The same triangles as nine coordinate planes (`planes[3·vertex + axis][slot]`), padded
+    /// with [`LANES`] zeros, so a single ray tests eight consecutive slots with one vector
+    /// load per coordinate ([`intersect_triangles_lanes`]).
+    planes: Box<[Vec<f32>; 9]>,
     /// `primitive_indices` (BVH slot → caller's triangle index), kept as its own array.
     prim_ids: Vec<u32>,
     stats: BuildStats,
@@ -695,7 +797,10 @@ impl TriangleBvh {
             obvhs_time,
             total_time: start.elapsed(),
         };
-        Ok((Self { cwbvh, tris: tris_bvh, prim_ids, stats }, stats))
+        let planes = Box::new(core::array::from_fn(|c| {
+            tris_bvh.iter().map(|t| t[c]).chain(core::iter::repeat_n(0.0, LANES)).collect::<Vec<f32>>()
+        }));
+        Ok((Self { cwbvh, tris: tris_bvh, planes, prim_ids, stats }, stats))
     }
 
     /// The build statistics.
@@ -736,6 +841,12 @@ impl TriangleBvh {
     #[inline(always)]
     pub(crate) fn tri(&self, slot: u32) -> &TriVerts {
         &self.tris[slot as usize]
+    }
+
+    /// The triangles as coordinate planes (see the field).
+    #[inline(always)]
+    pub(crate) fn planes(&self) -> &[Vec<f32>; 9] {
+        &self.planes
     }
 }
 
@@ -911,6 +1022,58 @@ mod tests {
                 let r = PreparedRay::new(&Ray::new(target - d, d)).unwrap();
                 let h = intersect_triangle(&r, &tv, f32::INFINITY);
                 assert_eq!(h.map(|h| h.t), Some(1.0), "{target} {d}");
+            }
+        }
+    }
+
+    /// The eight-triangle lane test equals the scalar test slot by slot: the same hit, `t`,
+    /// edge functions and determinant bit for bit, the nearest hit (first slot on equal `t`)
+    /// returned, for random triangles, slivers, triangles sharing edges and vertices with
+    /// rays through them (the f64 fallback), masked lanes and any `tmax`.
+    #[test]
+    fn triangle_lanes_equal_the_scalar_test() {
+        let mut rng = crate::synth::Rng::new(11);
+        let mut unit = || rng.next_f32();
+        for case in 0..4000 {
+            // A fan of triangles around a shared vertex, some duplicated (equal t), some random.
+            let centre = Vec3::new(unit(), unit(), unit()) * 4.0 - 2.0;
+            let tris: Vec<TriVerts> = (0..13)
+                .map(|i| {
+                    let a = centre + (Vec3::new(unit(), unit(), unit()) - 0.5) * [2.0, 1e-3, 0.0][case % 3];
+                    let b = centre + (Vec3::new(unit(), unit(), unit()) - 0.5) * 2.0;
+                    let c = if i % 4 == 3 { centre } else { centre + (Vec3::new(unit(), unit(), unit()) - 0.5) * 2.0 };
+                    [a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z]
+                })
+                .chain([[0.0; 9]; LANES])
+                .collect();
+            let mut tris = tris;
+            tris[5] = tris[2];
+            let planes: [Vec<f32>; 9] = core::array::from_fn(|c| tris.iter().map(|t| t[c]).collect());
+            // Rays from random points, through the shared vertex or a random point.
+            let origin = centre + (Vec3::new(unit(), unit(), unit()) - 0.5) * 8.0;
+            let target = if case % 2 == 0 { centre } else { centre + (Vec3::new(unit(), unit(), unit()) - 0.5) };
+            let tmin = [0.0, 0.5][case % 2];
+            let Some(r) = PreparedRay::new(&Ray::segment(origin, target - origin, tmin, f32::INFINITY)) else {
+                continue;
+            };
+            let tmax = [f32::INFINITY, 1.0, 0.999][case % 3];
+            for first in [0, 5] {
+                let lanes = [0xFF, 0b1010_0110, 0][case % 3] as u32;
+                let mut expected: Option<(u32, TriHit)> = None;
+                for i in 0..LANES as u32 {
+                    if lanes & (1 << i) == 0 {
+                        continue;
+                    }
+                    let bound = expected.map_or(tmax, |e| e.1.t);
+                    if let Some(h) = intersect_triangle(&r, &tris[first + i as usize], bound) {
+                        expected = Some((i, h));
+                    }
+                }
+                let got = intersect_triangles_lanes(&r, &planes, first, lanes, tmax);
+                let bits = |h: Option<(u32, TriHit)>| {
+                    h.map(|(i, h)| (i, h.t.to_bits(), h.e.map(f32::to_bits), h.det.to_bits()))
+                };
+                assert_eq!(bits(got), bits(expected), "case {case}, first {first}");
             }
         }
     }

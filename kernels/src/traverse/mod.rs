@@ -4,7 +4,7 @@
 //! | file | what |
 //! |---|---|
 //! | `mod.rs` | packet types, the search kinds, the fixed stack |
-//! | `scalar.rs` | the references: single-ray traversal (`TriangleBvh::intersect`, `occluded`) and brute force over every triangle ([`intersect_brute_force`], `TriangleBvh::intersect_brute_force`), the oracle of both traversals |
+//! | `scalar.rs` | single-ray traversal (`TriangleBvh::intersect`, `occluded`; a node's hit leaves are tested eight triangles at a time, [`crate::bvh::intersect_triangles_lanes`]) and brute force over every triangle with the scalar test ([`intersect_brute_force`], `TriangleBvh::intersect_brute_force`), the oracle of both traversals |
 //! | `simd.rs` | the body: packets of eight rays (`TriangleBvh::intersect_packet`, `occluded_packet`) |
 //!
 //! The BVH, rays, the watertight triangle test and the robust node test are in
