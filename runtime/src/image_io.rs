@@ -38,11 +38,19 @@ pub fn write_exr(path: &Path, img: &RgbBuf) -> Result<(), ImageError> {
             format!("pixel ({x}, {y}) is {:?}: not writing a non-finite image", view.get(x, y)),
         ));
     }
-    exr::prelude::write_rgb_file(path, e.width(), e.height(), |x, y| {
+    use exr::prelude::{Encoding, Image, LineOrder, SpecificChannels, Vec2, WritableImage};
+    // The encoder's default (RLE, 64×64 tiles), with the tiles in increasing order: in the
+    // default `Unspecified` order the parallel encoder writes them as they finish, and the
+    // same image gives different files.
+    let encoding = Encoding { line_order: LineOrder::Increasing, ..Encoding::FAST_LOSSLESS };
+    let channels = SpecificChannels::rgb(|Vec2(x, y)| {
         let [r, g, b] = view.get(x, y);
         (r, g, b)
-    })
-    .map_err(|err| ImageError::new(path, format!("cannot write EXR: {err}")))
+    });
+    Image::from_encoded_channels((e.width(), e.height()), encoding, channels)
+        .write()
+        .to_file(path)
+        .map_err(|err| ImageError::new(path, format!("cannot write EXR: {err}")))
 }
 
 /// The extent of an EXR's first layer, read from its header alone, after checking every
@@ -128,6 +136,32 @@ mod tests {
         assert_eq!(read_exr(&path).unwrap(), img);
         let err = read_exr(&dir.join("missing.exr")).unwrap_err();
         assert!(err.to_string().contains("missing.exr"), "{err}");
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    /// The same image always gives the same bytes (the encoder compresses tiles in parallel;
+    /// without a fixed line order it wrote them in whatever order they finished, so two
+    /// renders with identical pixels gave different files).
+    #[test]
+    fn exr_files_of_the_same_image_are_identical() {
+        let dir = std::env::temp_dir().join(format!("stereotrace-exr-bytes-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let e = Extent::new(640, 360).unwrap();
+        let mut img = RgbBuf::new(e, 0.0);
+        for y in 0..e.height() {
+            for x in 0..e.width() {
+                img.set(x, y, [(x * y % 97) as f32 * 0.37, (x + y) as f32 * 1e-3, ((x ^ y) % 13) as f32]);
+            }
+        }
+        let bytes = |i: usize| {
+            let path = dir.join(format!("{i}.exr"));
+            write_exr(&path, &img).unwrap();
+            std::fs::read(&path).unwrap()
+        };
+        let first = bytes(0);
+        for i in 1..12 {
+            assert!(bytes(i) == first, "write {i} differs from the first");
+        }
         std::fs::remove_dir_all(&dir).ok();
     }
 
