@@ -51,34 +51,35 @@ fn mix(stats: &[Stats; 3], m: &[[f64; 3]; 3], c: usize) -> Stats {
 }
 
 /// 2-D window statistics of one channel at `(px, py)` by the direct formula; `None` if the
-/// window holds an unusable sample.
+/// window holds an unusable sample. The window is gathered once (clamped indices, one row
+/// slice per tap row), then summed twice in row-major order.
 fn window_stats(a: &Plane<'_>, b: &Plane<'_>, px: usize, py: usize, w: &[f64; TAPS]) -> Option<Stats> {
-    let (width, height) = (a.width(), a.height());
-    let tap = |kx: usize, ky: usize| {
-        let x = clamp_index(px as isize + kx as isize - RADIUS as isize, width);
-        let y = clamp_index(py as isize + ky as isize - RADIUS as isize, height);
-        (w[kx] * w[ky], a.get(x, y), b.get(x, y))
-    };
-    let (mut mx, mut my) = (0.0, 0.0);
+    let clamped = |p: usize, k: usize, n: usize| clamp_index(p as isize + k as isize - RADIUS as isize, n);
+    let xs: [usize; TAPS] = core::array::from_fn(|k| clamped(px, k, a.width()));
+    let mut window = [[0.0f64; 2]; TAPS * TAPS];
     for ky in 0..TAPS {
-        for kx in 0..TAPS {
-            let (wt, u, v) = tap(kx, ky);
+        let y = clamped(py, ky, a.height());
+        let (row_a, row_b) = (a.row(y), b.row(y));
+        for (kx, &x) in xs.iter().enumerate() {
+            let (u, v) = (row_a[x], row_b[x]);
             if !usable(u) || !usable(v) {
                 return None;
             }
-            mx += wt * f64::from(u);
-            my += wt * f64::from(v);
+            window[ky * TAPS + kx] = [f64::from(u), f64::from(v)];
         }
     }
+    let weighted = || (0..TAPS * TAPS).map(|k| (w[k % TAPS] * w[k / TAPS], window[k]));
+    let (mut mx, mut my) = (0.0, 0.0);
+    for (wt, [u, v]) in weighted() {
+        mx += wt * u;
+        my += wt * v;
+    }
     let (mut vx, mut vy, mut cxy) = (0.0, 0.0, 0.0);
-    for ky in 0..TAPS {
-        for kx in 0..TAPS {
-            let (wt, u, v) = tap(kx, ky);
-            let (du, dv) = (f64::from(u) - mx, f64::from(v) - my);
-            vx += wt * du * du;
-            vy += wt * dv * dv;
-            cxy += wt * du * dv;
-        }
+    for (wt, [u, v]) in weighted() {
+        let (du, dv) = (u - mx, v - my);
+        vx += wt * du * du;
+        vy += wt * dv * dv;
+        cxy += wt * du * dv;
     }
     Some([mx, my, vx, vy, cxy])
 }
