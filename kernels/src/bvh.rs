@@ -415,48 +415,13 @@ pub fn intersect_triangles_lanes(
         F32s::from(<[f32; LANES]>::try_from(p).expect("eight lanes"))
     };
     let sp = F32s::splat;
-    let [ox, oy, oz] = r.origin_k.map(sp);
-    let [sx, sy, sz] = r.shear.map(sp);
-    let a_z = load(0, kz) - oz;
-    let b_z = load(1, kz) - oz;
-    let c_z = load(2, kz) - oz;
-    let ax = (load(0, kx) - ox) - sx * a_z;
-    let ay = (load(0, ky) - oy) - sy * a_z;
-    let bx = (load(1, kx) - ox) - sx * b_z;
-    let by = (load(1, ky) - oy) - sy * b_z;
-    let cx = (load(2, kx) - ox) - sx * c_z;
-    let cy = (load(2, ky) - oy) - sy * c_z;
-    let mut u = cx * by - cy * bx;
-    let mut v = ax * cy - ay * cx;
-    let mut w = bx * ay - by * ax;
-    let zero = F32s::ZERO;
-    let on_edge = (u.simd_eq(zero) | v.simd_eq(zero) | w.simd_eq(zero)).to_bitmask() & lanes;
-    if on_edge != 0 {
-        recompute_edges_lanes(on_edge, [ax, ay, bx, by, cx, cy], &mut u, &mut v, &mut w);
-    }
-    let neg = u.simd_lt(zero) | v.simd_lt(zero) | w.simd_lt(zero);
-    let pos = u.simd_gt(zero) | v.simd_gt(zero) | w.simd_gt(zero);
-    let det = u + v + w;
-    let candidates = (!(neg & pos) & det.simd_ne(zero)).to_bitmask() & lanes;
-    if candidates == 0 {
-        return None;
-    }
-    let (z0, z1, z2) = (sz * a_z, sz * b_z, sz * c_z);
-    let t_scaled = u * z0 + v * z1 + w * z2;
-    let t = t_scaled / det;
-    let in_range = (t.simd_ge(sp(r.tmin)) & t.simd_lt(sp(tmax))).to_bitmask() & candidates;
-    if in_range == 0 {
-        return None;
-    }
-    let max3 = |a: F32s, b: F32s, c: F32s| a.abs().max(b.abs()).max(c.abs());
-    let (max_x, max_y, max_z, max_e) = (max3(ax, bx, cx), max3(ay, by, cy), max3(z0, z1, z2), det.abs());
-    let g = |n| sp(gamma(n));
-    let delta_z = g(3) * max_z;
-    let delta_x = g(5) * (max_x + max_z);
-    let delta_y = g(5) * (max_y + max_z);
-    let delta_e = sp(2.0) * (g(2) * max_x * max_y + delta_y * max_x + delta_x * max_y);
-    let bound = sp(3.0) * (g(3) * max_e * max_z + delta_e * max_z + delta_z * max_e);
-    let mut hits = t_scaled.abs().simd_gt(bound).to_bitmask() & in_range;
+    let vertices = [
+        [load(0, kx), load(0, ky), load(0, kz)],
+        [load(1, kx), load(1, ky), load(1, kz)],
+        [load(2, kx), load(2, ky), load(2, kz)],
+    ];
+    let (mut hits, t, [u, v, w], det) =
+        watertight_lanes(vertices, r.origin_k.map(sp), r.shear.map(sp), sp(r.tmin), sp(tmax), lanes);
     if hits == 0 {
         return None;
     }
@@ -471,6 +436,74 @@ pub fn intersect_triangles_lanes(
         }
     }
     Some((best as u32, TriHit { t: t[best], e: [u[best], v[best], w[best]], det: det[best] }))
+}
+
+/// [`intersect_triangle`] in eight lanes, operation for operation, shared by single rays
+/// against eight triangles ([`intersect_triangles_lanes`]) and packets of eight rays against
+/// one triangle. `vertices` are already permuted to the ray's axes (`[x, y, z]` = the
+/// coordinates along `k`); origin and shear are the [`PreparedRay`]'s, per lane. Returns the
+/// lanes of `m` hit with `tmin ≤ t < tmax` (and passing the rounding check), then `t`, the
+/// edge functions and the determinant, meaningful in the hit lanes only.
+#[inline(always)]
+pub(crate) fn watertight_lanes(
+    vertices: [[F32s; 3]; 3],
+    origin_k: [F32s; 3],
+    shear: [F32s; 3],
+    tmin: F32s,
+    tmax: F32s,
+    m: u32,
+) -> (u32, F32s, [F32s; 3], F32s) {
+    let [[a_x, a_y, a_zk], [b_x, b_y, b_zk], [c_x, c_y, c_zk]] = vertices;
+    let [ox, oy, oz] = origin_k;
+    let [sx, sy, sz] = shear;
+    // Relative to the origin, then sheared so the ray is the +z axis.
+    let a_z = a_zk - oz;
+    let b_z = b_zk - oz;
+    let c_z = c_zk - oz;
+    let ax = (a_x - ox) - sx * a_z;
+    let ay = (a_y - oy) - sy * a_z;
+    let bx = (b_x - ox) - sx * b_z;
+    let by = (b_y - oy) - sy * b_z;
+    let cx = (c_x - ox) - sx * c_z;
+    let cy = (c_y - oy) - sy * c_z;
+    let mut u = cx * by - cy * bx;
+    let mut v = ax * cy - ay * cx;
+    let mut w = bx * ay - by * ax;
+    let zero = F32s::ZERO;
+    let on_edge = (u.simd_eq(zero) | v.simd_eq(zero) | w.simd_eq(zero)).to_bitmask() & m;
+    if on_edge != 0 {
+        recompute_edges_lanes(on_edge, [ax, ay, bx, by, cx, cy], &mut u, &mut v, &mut w);
+    }
+    let neg = u.simd_lt(zero) | v.simd_lt(zero) | w.simd_lt(zero);
+    let pos = u.simd_gt(zero) | v.simd_gt(zero) | w.simd_gt(zero);
+    let det = u + v + w;
+    let candidates = (!(neg & pos) & det.simd_ne(zero)).to_bitmask() & m;
+    if candidates == 0 {
+        return (0, zero, [zero; 3], zero);
+    }
+    let (z0, z1, z2) = (sz * a_z, sz * b_z, sz * c_z);
+    let t_scaled = u * z0 + v * z1 + w * z2;
+    let t = t_scaled / det;
+    let in_range = (t.simd_ge(tmin) & t.simd_lt(tmax)).to_bitmask() & candidates;
+    if in_range == 0 {
+        return (0, t, [u, v, w], det);
+    }
+    let bound = t_rounding_bound_lanes([ax, bx, cx], [ay, by, cy], [z0, z1, z2], det);
+    let hits = t_scaled.abs().simd_gt(bound).to_bitmask() & in_range;
+    (hits, t, [u, v, w], det)
+}
+
+/// [`t_rounding_bound`] for every lane, operation for operation.
+#[inline(always)]
+fn t_rounding_bound_lanes(x: [F32s; 3], y: [F32s; 3], z: [F32s; 3], det: F32s) -> F32s {
+    let max3 = |v: [F32s; 3]| v[0].abs().max(v[1].abs()).max(v[2].abs());
+    let (max_x, max_y, max_z, max_e) = (max3(x), max3(y), max3(z), det.abs());
+    let g = |n| F32s::splat(gamma(n));
+    let delta_z = g(3) * max_z;
+    let delta_x = g(5) * (max_x + max_z);
+    let delta_y = g(5) * (max_y + max_z);
+    let delta_e = F32s::splat(2.0) * (g(2) * max_x * max_y + delta_y * max_x + delta_x * max_y);
+    F32s::splat(3.0) * (g(3) * max_e * max_z + delta_e * max_z + delta_z * max_e)
 }
 
 /// Lanes whose f32 edge functions hit exactly zero get all three recomputed in f64, as the

@@ -5,7 +5,7 @@ use super::scalar::{AnyHit, Best};
 use super::{ALL_LANES, FixedStack, PACKET_STACK, PacketHits, RayPacket, SINGLE_RAY_THRESHOLD};
 use crate::bvh::{
     MAX_DIR, MAX_ORIGIN, MIN_DIR, NODE_PAD, PreparedRay, RCP_CLAMP, TriHit, TriVerts, TriangleBvh, bytes_to_f32s,
-    child_planes, edge_f64, gamma, inner_child_index, leaf_range, node_extent, occupied_slots,
+    child_planes, inner_child_index, leaf_range, node_extent, occupied_slots, watertight_lanes,
 };
 use crate::simd::{F32s, LANES};
 
@@ -258,7 +258,7 @@ fn mask_of(bits: u32) -> F32s {
 }
 
 /// Watertight test of one triangle against the lanes in `m` (all of one class, permutation
-/// `k`); the SIMD twin of [`crate::bvh::intersect_triangle`]. Returns the lanes hit with
+/// `k`): [`crate::bvh::intersect_triangle`] in lanes. Returns the lanes hit with
 /// `tmin ≤ t < tmax` and the hit data (meaningful in those lanes only).
 #[inline(always)]
 fn intersect_triangle_lanes(
@@ -269,73 +269,8 @@ fn intersect_triangle_lanes(
     m: u32,
 ) -> (u32, F32s, [F32s; 3], F32s) {
     let [kx, ky, kz] = k;
-    let [ox, oy, oz] = l.origin_k;
-    let [sx, sy, sz] = l.shear;
-    let sp = F32s::splat;
-    let a_z = sp(tri[kz]) - oz;
-    let b_z = sp(tri[3 + kz]) - oz;
-    let c_z = sp(tri[6 + kz]) - oz;
-    let ax = (sp(tri[kx]) - ox) - sx * a_z;
-    let ay = (sp(tri[ky]) - oy) - sy * a_z;
-    let bx = (sp(tri[3 + kx]) - ox) - sx * b_z;
-    let by = (sp(tri[3 + ky]) - oy) - sy * b_z;
-    let cx = (sp(tri[6 + kx]) - ox) - sx * c_z;
-    let cy = (sp(tri[6 + ky]) - oy) - sy * c_z;
-    let mut u = cx * by - cy * bx;
-    let mut v = ax * cy - ay * cx;
-    let mut w = bx * ay - by * ax;
-    let zero = F32s::ZERO;
-    let on_edge = (u.simd_eq(zero) | v.simd_eq(zero) | w.simd_eq(zero)).to_bitmask() & m;
-    if on_edge != 0 {
-        recompute_edges_f64(on_edge, [ax, ay, bx, by, cx, cy], &mut u, &mut v, &mut w);
-    }
-    let neg = u.simd_lt(zero) | v.simd_lt(zero) | w.simd_lt(zero);
-    let pos = u.simd_gt(zero) | v.simd_gt(zero) | w.simd_gt(zero);
-    let det = u + v + w;
-    let cand = (!(neg & pos) & det.simd_ne(zero)).to_bitmask() & m;
-    if cand == 0 {
-        return (0, zero, [zero; 3], zero);
-    }
-    let (z0, z1, z2) = (sz * a_z, sz * b_z, sz * c_z);
-    let t_scaled = u * z0 + v * z1 + w * z2;
-    let t = t_scaled / det;
-    let in_range = (t.simd_ge(l.tmin) & t.simd_lt(tmax)).to_bitmask() & cand;
-    if in_range == 0 {
-        return (0, t, [u, v, w], det);
-    }
-    let bound = t_rounding_bound_lanes([ax, bx, cx], [ay, by, cy], [z0, z1, z2], det);
-    let hit = t_scaled.abs().simd_gt(bound).to_bitmask() & in_range;
-    (hit, t, [u, v, w], det)
-}
-
-/// [`crate::bvh::t_rounding_bound`] for every lane, operation for operation.
-#[inline(always)]
-fn t_rounding_bound_lanes(x: [F32s; 3], y: [F32s; 3], z: [F32s; 3], det: F32s) -> F32s {
-    let max3 = |v: [F32s; 3]| v[0].abs().max(v[1].abs()).max(v[2].abs());
-    let (max_x, max_y, max_z, max_e) = (max3(x), max3(y), max3(z), det.abs());
-    let g = |n| F32s::splat(gamma(n));
-    let delta_z = g(3) * max_z;
-    let delta_x = g(5) * (max_x + max_z);
-    let delta_y = g(5) * (max_y + max_z);
-    let delta_e = F32s::splat(2.0) * (g(2) * max_x * max_y + delta_y * max_x + delta_x * max_y);
-    F32s::splat(3.0) * (g(3) * max_e * max_z + delta_e * max_z + delta_z * max_e)
-}
-
-/// Lanes whose f32 edge functions hit exactly zero get all three recomputed in f64, exactly
-/// as the scalar reference does.
-#[cold]
-#[inline(never)]
-fn recompute_edges_f64(lanes: u32, c: [F32s; 6], u: &mut F32s, v: &mut F32s, w: &mut F32s) {
-    let [ax, ay, bx, by, cx, cy] = c.map(|x| x.to_array());
-    let (mut ua, mut va, mut wa) = (u.to_array(), v.to_array(), w.to_array());
-    for i in 0..LANES {
-        if lanes & (1 << i) != 0 {
-            ua[i] = edge_f64(cx[i], cy[i], bx[i], by[i]);
-            va[i] = edge_f64(ax[i], ay[i], cx[i], cy[i]);
-            wa[i] = edge_f64(bx[i], by[i], ax[i], ay[i]);
-        }
-    }
-    (*u, *v, *w) = (F32s::from(ua), F32s::from(va), F32s::from(wa));
+    let vertex = |i: usize| [F32s::splat(tri[3 * i + kx]), F32s::splat(tri[3 * i + ky]), F32s::splat(tri[3 * i + kz])];
+    watertight_lanes([vertex(0), vertex(1), vertex(2)], l.origin_k, l.shear, l.tmin, tmax, m)
 }
 
 /// Slab constants of one node for all lanes (the SIMD twin of `node_slabs`).
