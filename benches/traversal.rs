@@ -22,6 +22,12 @@
 //! puts Embree in its robust mode (watertight triangle tests, like ours)
 //! (add a filter such as `sponza/primary` to pick groups; `threshold` sweeps the packet
 //! single-ray fallback threshold).
+//!
+//! Tree quality: `STEREOTRACE_BENCH_TREES=1 cargo bench --bench traversal -- tree` builds one
+//! tree per obvhs parameter set of `tree_settings` on each scene (three builds, the median
+//! build time printed with the tree's size and depth) and traces the same single rays
+//! (primary, shadow, diffuse) through it, in groups `traversal/{scene}/tree/{setting}`. It is
+//! off by default: the builds take minutes whatever criterion's filter selects.
 
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
@@ -31,7 +37,7 @@ use criterion::{Criterion, SamplingMode, Throughput, criterion_group, criterion_
 use glam::Vec3;
 use obvhs::ray::{Ray as ORay, RayHit};
 use obvhs::triangle::Triangle as OTri;
-use stereotrace::kernels::bvh::{BuildQuality, Ray, Tri, TriangleBvh};
+use stereotrace::kernels::bvh::{BuildQuality, BvhBuildParams, Ray, Tri, TriangleBvh};
 use stereotrace::kernels::traverse::{PacketHits, RayPacket};
 
 #[cfg(feature = "peer-embree")]
@@ -70,6 +76,8 @@ impl Camera {
 type Packet = (RayPacket, u32);
 
 struct Fixture {
+    /// The scene's triangles (for rebuilding the tree with other parameters).
+    tris: Vec<Tri>,
     bvh: TriangleBvh,
     /// The same triangles in Embree (feature `peer-embree`).
     #[cfg(feature = "peer-embree")]
@@ -207,6 +215,7 @@ impl Fixture {
             #[cfg(feature = "peer-embree")]
             embree: embree::EmbreeScene::new(&tris, std::env::var_os("EMBREE_ROBUST").is_some_and(|v| v == "1")),
             bvh,
+            tris,
         };
         eprintln!(
             "[{name}] {} primary rays, {} hits (= shadow and diffuse rays), {} shadow rays occluded",
@@ -420,5 +429,66 @@ fn traversal(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, traversal);
+/// The obvhs parameter sets of the tree sweep: its presets, and the medium preset with one
+/// setting changed at a time.
+fn tree_settings() -> Vec<(&'static str, BvhBuildParams)> {
+    use obvhs::ploc::PlocSearchDistance;
+    let medium = BuildQuality::Medium.params();
+    vec![
+        ("fastest", BvhBuildParams::fastest_build()),
+        ("fast", BuildQuality::Fast.params()),
+        ("medium", medium),
+        ("medium_leaf_1", BvhBuildParams { max_prims_per_leaf: 1, ..medium }),
+        ("medium_leaf_2", BvhBuildParams { max_prims_per_leaf: 2, ..medium }),
+        ("medium_reinsertion_0", BvhBuildParams { reinsertion_batch_ratio: 0.0, ..medium }),
+        ("medium_reinsertion_0.2", BvhBuildParams { reinsertion_batch_ratio: 0.2, ..medium }),
+        ("medium_reinsertion_1", BvhBuildParams { reinsertion_batch_ratio: 1.0, ..medium }),
+        ("medium_search_32", BvhBuildParams { ploc_search_distance: PlocSearchDistance::VeryHigh, ..medium }),
+        ("medium_presplit", BvhBuildParams { pre_split: true, ..medium }),
+        ("high", BuildQuality::High.params()),
+        ("very_slow", BvhBuildParams::very_slow_build()),
+    ]
+}
+
+/// The tree sweep (see the module docs): build time and single-ray rates per parameter set.
+fn trees(c: &mut Criterion) {
+    if std::env::var_os("STEREOTRACE_BENCH_TREES").is_none_or(|v| v != "1") {
+        eprintln!("SKIPPED tree sweep: set STEREOTRACE_BENCH_TREES=1");
+        return;
+    }
+    let have_sponza = shared_dir().is_some_and(|d| d.join("scenes/sponza/scene.obj").is_file());
+    let scenes: Vec<(&str, &Fixture)> =
+        [("sponza", if have_sponza { sponza() } else { None }), ("procedural700k", Some(procedural()))]
+            .into_iter()
+            .filter_map(|(name, f)| f.map(|f| (name, f)))
+            .collect();
+    for (scene, f) in scenes {
+        for (setting, params) in tree_settings() {
+            let mut builds: Vec<_> =
+                (0..3).map(|_| TriangleBvh::build_with(&f.tris, &params).expect("valid scene")).collect();
+            builds.sort_by_key(|(_, stats)| stats.total_time);
+            let (bvh, stats) = builds.swap_remove(1);
+            drop(builds);
+            eprintln!(
+                "[{scene}] tree {setting}: build median {:.1} ms (obvhs {:.1} ms), {} nodes, {} references, depth {}",
+                stats.total_time.as_secs_f64() * 1e3,
+                stats.obvhs_time.as_secs_f64() * 1e3,
+                stats.nodes,
+                stats.references,
+                stats.depth
+            );
+            let mut g = c.benchmark_group(format!("traversal/{scene}/tree/{setting}"));
+            g.sampling_mode(SamplingMode::Flat).sample_size(10);
+            g.throughput(Throughput::Elements(f.primary.len() as u64));
+            g.bench_function("primary", |b| b.iter(|| trace_single(&bvh, black_box(&f.primary))));
+            g.throughput(Throughput::Elements(f.shadow.len() as u64));
+            g.bench_function("shadow", |b| b.iter(|| occlude_single(&bvh, black_box(&f.shadow))));
+            g.throughput(Throughput::Elements(f.diffuse.len() as u64));
+            g.bench_function("diffuse", |b| b.iter(|| trace_single(&bvh, black_box(&f.diffuse))));
+            g.finish();
+        }
+    }
+}
+
+criterion_group!(benches, traversal, trees);
 criterion_main!(benches);

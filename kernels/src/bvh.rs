@@ -67,7 +67,7 @@ use core::fmt;
 use std::time::{Duration, Instant};
 
 use glam::{Vec3, Vec3A};
-use obvhs::BvhBuildParams;
+pub use obvhs::BvhBuildParams;
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::Bvh2;
 use obvhs::bvh2::node::Bvh2Node;
@@ -118,7 +118,9 @@ pub enum BuildQuality {
 }
 
 impl BuildQuality {
-    fn params(self) -> BvhBuildParams {
+    /// The obvhs parameters of this preset (a starting point for
+    /// [`TriangleBvh::build_with`]).
+    pub fn params(self) -> BvhBuildParams {
         match self {
             BuildQuality::Fast => BvhBuildParams::fast_build(),
             BuildQuality::Medium => BvhBuildParams::medium_build(),
@@ -140,6 +142,11 @@ pub enum BvhError {
         /// How many were given.
         count: usize,
     },
+    /// Build parameters outside what [`TriangleBvh::build_with`] accepts.
+    BadParams {
+        /// Which parameter, and what it must be.
+        reason: &'static str,
+    },
 }
 
 impl fmt::Display for BvhError {
@@ -151,6 +158,7 @@ impl fmt::Display for BvhError {
             BvhError::TooManyTriangles { count } => {
                 write!(f, "{count} triangles: at most {} are supported", i32::MAX)
             }
+            BvhError::BadParams { reason } => write!(f, "BVH build parameters: {reason}"),
         }
     }
 }
@@ -170,8 +178,8 @@ pub struct BuildStats {
     pub depth: usize,
     /// Depth of obvhs's PLOC tree (equal to `depth` unless the median fallback replaced it).
     pub ploc_depth: usize,
-    /// The preset used.
-    pub quality: BuildQuality,
+    /// The preset used (`None` for parameters given to [`TriangleBvh::build_with`]).
+    pub quality: Option<BuildQuality>,
     /// True if PLOC's tree was deeper than [`MAX_DEPTH`] and the median-split fallback was used.
     pub median_fallback: bool,
     /// Time in obvhs's builder (PLOC, reinsertion, CWBVH conversion), without the fallback.
@@ -782,6 +790,34 @@ impl TriangleBvh {
     /// Builds the BVH. Empty input gives an empty BVH (every query misses). Degenerate and
     /// zero-area triangles are accepted (they are never hit).
     pub fn build(tris: &[Tri], quality: BuildQuality) -> Result<(Self, BuildStats), BvhError> {
+        Self::build_from(tris, &quality.params(), Some(quality))
+    }
+
+    /// [`build`](Self::build) with obvhs's parameters given one by one, for tuning the tree
+    /// (the traversal bench sweeps them). A CWBVH leaf holds at most 3 triangles per child, so
+    /// `max_prims_per_leaf` above 3 acts as 3; `Bvh2`-only fields
+    /// (`post_collapse_reinsertion_batch_ratio_multiplier`, `collapse_traversal_cost`) are
+    /// ignored, as obvhs ignores them for a CWBVH.
+    ///
+    /// # Errors
+    /// Those of [`build`](Self::build), and [`BvhError::BadParams`] for
+    /// `max_prims_per_leaf == 0` or a reinsertion ratio that is not finite or outside
+    /// `[0, 16]` (16 passes over every node are already far past any gain).
+    pub fn build_with(tris: &[Tri], params: &BvhBuildParams) -> Result<(Self, BuildStats), BvhError> {
+        if params.max_prims_per_leaf == 0 {
+            return Err(BvhError::BadParams { reason: "max_prims_per_leaf must be at least 1" });
+        }
+        if !(0.0..=16.0).contains(&params.reinsertion_batch_ratio) {
+            return Err(BvhError::BadParams { reason: "reinsertion_batch_ratio must be within [0, 16]" });
+        }
+        Self::build_from(tris, params, None)
+    }
+
+    fn build_from(
+        tris: &[Tri],
+        params: &BvhBuildParams,
+        quality: Option<BuildQuality>,
+    ) -> Result<(Self, BuildStats), BvhError> {
         let start = Instant::now();
         if tris.len() > i32::MAX as usize {
             return Err(BvhError::TooManyTriangles { count: tris.len() });
@@ -799,7 +835,7 @@ impl TriangleBvh {
             CwBvh::default()
         } else {
             let t0 = Instant::now();
-            let bvh = build_cwbvh_ploc(tris, quality);
+            let bvh = build_cwbvh_ploc(tris, params);
             obvhs_time = t0.elapsed();
             ploc_depth = cwbvh_depth(&bvh);
             if ploc_depth > MAX_DEPTH {
@@ -885,8 +921,7 @@ impl TriangleBvh {
 
 /// obvhs's `build_cwbvh_from_tris` without its debug-build validation (which asserts a depth
 /// below 32 and would panic on the degenerate trees the median fallback exists for).
-fn build_cwbvh_ploc(tris: &[Tri], quality: BuildQuality) -> CwBvh {
-    let config = quality.params();
+fn build_cwbvh_ploc(tris: &[Tri], config: &BvhBuildParams) -> CwBvh {
     let mut aabbs: Vec<Aabb> =
         tris.iter().map(|t| Aabb::from_points(&[Vec3A::from(t[0]), Vec3A::from(t[1]), Vec3A::from(t[2])])).collect();
     let mut indices: Vec<u32> = (0..tris.len() as u32).collect();

@@ -6,7 +6,8 @@ use std::path::PathBuf;
 
 use glam::Vec3;
 use stereotrace_kernels::bvh::{
-    BuildQuality, BvhError, Hit, MAX_DEPTH, PreparedRay, Ray, Tri, TriangleBvh, node_hits, node_hits_scalar,
+    BuildQuality, BvhBuildParams, BvhError, Hit, MAX_DEPTH, PreparedRay, Ray, Tri, TriangleBvh, node_hits,
+    node_hits_scalar,
 };
 use stereotrace_kernels::traverse::{ALL_LANES, PacketHits, RayPacket, intersect_brute_force};
 
@@ -176,10 +177,41 @@ fn every_build_quality_agrees() {
     tris.extend(soup(&mut rng, 40, 10.0, 12.0));
     for q in [BuildQuality::Fast, BuildQuality::Medium, BuildQuality::High] {
         let (bvh, stats) = TriangleBvh::build(&tris, q).unwrap();
-        assert_eq!(stats.quality, q);
+        assert_eq!(stats.quality, Some(q));
         assert!(stats.references >= tris.len());
         let rays = random_rays(&mut rng, &tris, 600, 10.0);
         check_scene(&bvh, &tris, &rays, None);
+    }
+}
+
+/// Hand-set parameters: every leaf size, no reinsertion and a lot of it, pre-splits, agree
+/// with brute force; parameters the build cannot honour are refused with their reason.
+#[test]
+fn build_parameters_agree_or_are_refused() {
+    let mut rng = Rng::new(12);
+    let mut tris = soup(&mut rng, 600, 10.0, 0.8);
+    tris.extend(soup(&mut rng, 30, 10.0, 12.0));
+    let medium = BuildQuality::Medium.params();
+    for params in [
+        BvhBuildParams { max_prims_per_leaf: 1, ..medium },
+        BvhBuildParams { max_prims_per_leaf: 2, reinsertion_batch_ratio: 0.0, ..medium },
+        BvhBuildParams { max_prims_per_leaf: 64, reinsertion_batch_ratio: 2.0, pre_split: true, ..medium },
+        BvhBuildParams::fastest_build(),
+        BvhBuildParams::very_slow_build(),
+    ] {
+        let (bvh, stats) = TriangleBvh::build_with(&tris, &params).unwrap();
+        assert_eq!(stats.quality, None);
+        let rays = random_rays(&mut rng, &tris, 400, 10.0);
+        check_scene(&bvh, &tris, &rays, None);
+    }
+    for (params, reason) in [
+        (BvhBuildParams { max_prims_per_leaf: 0, ..medium }, "max_prims_per_leaf"),
+        (BvhBuildParams { reinsertion_batch_ratio: f32::NAN, ..medium }, "reinsertion_batch_ratio"),
+        (BvhBuildParams { reinsertion_batch_ratio: -0.1, ..medium }, "reinsertion_batch_ratio"),
+        (BvhBuildParams { reinsertion_batch_ratio: 17.0, ..medium }, "reinsertion_batch_ratio"),
+    ] {
+        let err = TriangleBvh::build_with(&tris, &params).unwrap_err();
+        assert!(matches!(err, BvhError::BadParams { .. }) && err.to_string().contains(reason), "{err}");
     }
 }
 
