@@ -955,6 +955,25 @@ fn tobj_never_panics_on_garbage() {
 // ---------------------------------------------------------------------------------------------
 // Textures
 
+/// A grey JPEG whose header claims 20036×18757 texels (the file stays a few hundred bytes)
+/// took gigabytes to decode and convert to f32 (found by fuzzing, `fuzz/corpus/image`); it
+/// is now refused from its header, for both uses.
+#[test]
+fn a_texture_claiming_too_many_texels_is_refused_before_decoding() {
+    let dir = TempDir::new("huge-jpeg");
+    let mut bytes = Vec::new();
+    image::GrayImage::new(8, 8).write_to(&mut std::io::Cursor::new(&mut bytes), image::ImageFormat::Jpeg).unwrap();
+    let sof = bytes.windows(2).position(|w| w == [0xFF, 0xC0]).expect("a baseline JPEG");
+    // After the marker: length (2 bytes), precision (1), height (2), width (2).
+    bytes[sof + 5..sof + 9].copy_from_slice(&[0x49, 0x45, 0x4E, 0x44]);
+    let p = dir.0.join("huge.jpg");
+    std::fs::write(&p, &bytes).unwrap();
+    for usage in [TextureUsage::Albedo, TextureUsage::Mask] {
+        let e = Texture::load(&p, usage).unwrap_err().to_string();
+        assert!(e.contains("huge.jpg") && e.contains("20036x18757") && e.contains("refused before decoding"), "{e}");
+    }
+}
+
 #[test]
 fn textures_decode_srgb_and_put_v_zero_at_the_bottom() {
     let dir = TempDir::new("png");

@@ -18,6 +18,12 @@ use glam::{Vec2, Vec3, Vec4};
 
 use super::error::SceneError;
 
+/// The most texels a texture file may have (8192×8192): textures are stored as f32, so this
+/// is up to 1 GiB for RGBA. Checked from the file's header before anything is decoded: a
+/// JPEG of a few hundred bytes can claim 20036×18757 texels, whose decoding and conversion
+/// would allocate gigabytes (found by fuzzing).
+pub const MAX_TEXTURE_TEXELS: u64 = 1 << 26;
+
 /// What a texture file is used for; decides how it is decoded.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum TextureUsage {
@@ -104,15 +110,23 @@ impl Texture {
         Self { name: name.into(), width: 1, height: 1, channels: 3, data: rgb.to_array().to_vec() }
     }
 
-    /// Loads an image file (PNG or JPEG) for `usage`; see the module conventions.
+    /// Loads an image file (PNG or JPEG) for `usage`; see the module conventions. Files of
+    /// more than [`MAX_TEXTURE_TEXELS`] texels are refused from their header.
     pub fn load(path: &Path, usage: TextureUsage) -> Result<Self, SceneError> {
         let img_err = |m: String| SceneError::Image { path: path.to_path_buf(), message: m };
         let bytes = std::fs::read(path).map_err(|e| SceneError::io(path, e))?;
-        let img = image::ImageReader::new(std::io::Cursor::new(&bytes))
-            .with_guessed_format()
-            .map_err(|e| img_err(e.to_string()))?
-            .decode()
-            .map_err(|e| img_err(e.to_string()))?;
+        let reader = || {
+            image::ImageReader::new(std::io::Cursor::new(&bytes))
+                .with_guessed_format()
+                .map_err(|e| img_err(e.to_string()))
+        };
+        let (w, h) = reader()?.into_dimensions().map_err(|e| img_err(e.to_string()))?;
+        if u64::from(w) * u64::from(h) > MAX_TEXTURE_TEXELS {
+            return Err(img_err(format!(
+                "texture of {w}x{h} texels refused before decoding: at most {MAX_TEXTURE_TEXELS} (8192x8192) are supported"
+            )));
+        }
+        let img = reader()?.decode().map_err(|e| img_err(e.to_string()))?;
         let name = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
         let (w, h) = (img.width(), img.height());
         let has_alpha = img.color().has_alpha();
