@@ -91,6 +91,12 @@ struct Fixture {
     shadow_8x1: Vec<Packet>,
     shadow_4x2: Vec<Packet>,
     diffuse: Vec<Ray>,
+    /// Shadow and diffuse rays in stream order ([`stream_order`]), single and as 8-ray
+    /// packets of consecutive rays.
+    shadow_stream: Vec<Ray>,
+    shadow_stream_8: Vec<Packet>,
+    diffuse_stream: Vec<Ray>,
+    diffuse_stream_8: Vec<Packet>,
 }
 
 /// Pixel order of a tile of `tw × th` pixels.
@@ -123,6 +129,50 @@ fn packets(order: &[(usize, usize)], ray_at: &dyn Fn(usize, usize) -> Option<Ray
             (RayPacket::from_rays(&rays), active)
         })
         .filter(|p| p.1 != 0)
+        .collect()
+}
+
+/// Ray-stream order: direction octant first, then the Morton code of the origin (10 bits per
+/// axis over the origins' bounding box), so rays next to each other in the order start near
+/// each other and visit a node's children in the same order.
+fn stream_order(rays: &[Ray]) -> Vec<Ray> {
+    let (lo, hi) = rays
+        .iter()
+        .fold((Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)), |(lo, hi), r| (lo.min(r.origin), hi.max(r.origin)));
+    let scale = Vec3::splat(1023.0) / (hi - lo).max(Vec3::splat(1e-20));
+    assert!(rays.len() < 1 << 24, "stream_order packs ray indices in 24 bits");
+    // One u64 per ray: 3 octant bits, 30 Morton bits, then the ray's index.
+    let mut keyed: Vec<u64> = rays
+        .iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let q = ((r.origin - lo) * scale).as_uvec3();
+            let octant = u64::from(r.dir.x < 0.0) | u64::from(r.dir.y < 0.0) << 1 | u64::from(r.dir.z < 0.0) << 2;
+            let morton = spread_bits(q.x) | spread_bits(q.y) << 1 | spread_bits(q.z) << 2;
+            (octant << 30 | morton) << 24 | i as u64
+        })
+        .collect();
+    keyed.sort_unstable();
+    keyed.iter().map(|&k| rays[(k & 0xff_ffff) as usize]).collect()
+}
+
+/// The low 10 bits of `v`, spread to every third bit (a 3-D Morton code's one axis).
+fn spread_bits(v: u32) -> u64 {
+    let mut x = u64::from(v.min(1023));
+    x = (x | x << 16) & 0x0300_00ff;
+    x = (x | x << 8) & 0x0300_f00f;
+    x = (x | x << 4) & 0x030c_30c3;
+    (x | x << 2) & 0x0924_9249
+}
+
+/// Packets of eight consecutive rays (the last one partial).
+fn consecutive_packets(rays: &[Ray]) -> Vec<Packet> {
+    rays.chunks(8)
+        .map(|c| {
+            let mut lanes = [Ray::new(Vec3::ZERO, Vec3::X); 8];
+            lanes[..c.len()].copy_from_slice(c);
+            (RayPacket::from_rays(&lanes), (1u32 << c.len()) - 1)
+        })
         .collect()
 }
 
@@ -184,7 +234,7 @@ impl Fixture {
             at(x, y).map(|(p, _)| Ray::segment(p, light - p, 1e-4, 1.0 - light_clear.max(1e-4) / (light - p).length()))
         };
         let mut rng = Rng(0x5EED_0000_0000_0001);
-        let diffuse = hits
+        let diffuse: Vec<Ray> = hits
             .iter()
             .flatten()
             .map(|&(p, n)| {
@@ -198,17 +248,21 @@ impl Fixture {
                 Ray::segment(p, d, 1e-4, f32::INFINITY)
             })
             .collect();
+        let shadow: Vec<Ray> =
+            (0..HEIGHT).flat_map(|y| (0..WIDTH).map(move |x| (x, y))).filter_map(|(x, y)| shadow_ray(x, y)).collect();
+        let (shadow_stream, diffuse_stream) = (stream_order(&shadow), stream_order(&diffuse));
         let primary_at = |x: usize, y: usize| Some(cam.ray(x, y));
         let (o8, o42) = (tile_pixels(8, 1), tile_pixels(4, 2));
         let fixture = Fixture {
             primary_8x1: packets(&o8, &primary_at),
             primary_4x2: packets(&o42, &primary_at),
-            shadow: (0..HEIGHT)
-                .flat_map(|y| (0..WIDTH).map(move |x| (x, y)))
-                .filter_map(|(x, y)| shadow_ray(x, y))
-                .collect(),
+            shadow,
             shadow_8x1: packets(&o8, &shadow_ray),
             shadow_4x2: packets(&o42, &shadow_ray),
+            shadow_stream_8: consecutive_packets(&shadow_stream),
+            shadow_stream,
+            diffuse_stream_8: consecutive_packets(&diffuse_stream),
+            diffuse_stream,
             diffuse,
             primary,
             otris,
@@ -223,6 +277,12 @@ impl Fixture {
             fixture.shadow.len(),
             fixture.shadow.iter().filter(|r| fixture.bvh.occluded(r)).count()
         );
+        // Reordering changes the order of the rays, never their hits.
+        let (bvh, threshold) = (&fixture.bvh, 2);
+        assert_eq!(occlude_single(bvh, &fixture.shadow_stream), occlude_single(bvh, &fixture.shadow));
+        assert_eq!(occlude_packets(bvh, &fixture.shadow_stream_8, threshold), occlude_single(bvh, &fixture.shadow));
+        assert_eq!(trace_single(bvh, &fixture.diffuse_stream), trace_single(bvh, &fixture.diffuse));
+        assert_eq!(trace_packets(bvh, &fixture.diffuse_stream_8, threshold), trace_single(bvh, &fixture.diffuse));
         #[cfg(feature = "peer-embree")]
         eprintln!(
             "[{name}] Embree on the same rays: {} primary hits, {} shadow rays occluded, {} diffuse hits (ours: {})",
@@ -389,6 +449,10 @@ fn bench_scene(c: &mut Criterion, name: &str, available: bool, fixture: &dyn Fn(
     g.bench_function("packet_8x1", |b| b.iter(|| occlude_packets(&f().bvh, black_box(&f().shadow_8x1), 2)));
     g.bench_function("packet_4x2", |b| b.iter(|| occlude_packets(&f().bvh, black_box(&f().shadow_4x2), 2)));
     g.bench_function("single", |b| b.iter(|| occlude_single(&f().bvh, black_box(&f().shadow))));
+    g.bench_function("single_stream_order", |b| b.iter(|| occlude_single(&f().bvh, black_box(&f().shadow_stream))));
+    g.bench_function("packet_stream_order", |b| {
+        b.iter(|| occlude_packets(&f().bvh, black_box(&f().shadow_stream_8), 2))
+    });
     g.bench_function("obvhs_single", |b| b.iter(|| obvhs_occlude(f(), black_box(&f().shadow))));
     #[cfg(feature = "peer-embree")]
     {
@@ -402,6 +466,12 @@ fn bench_scene(c: &mut Criterion, name: &str, available: bool, fixture: &dyn Fn(
     g.sampling_mode(SamplingMode::Flat).sample_size(10);
     g.throughput(Throughput::Elements(f().diffuse.len() as u64));
     g.bench_function("single", |b| b.iter(|| trace_single(&f().bvh, black_box(&f().diffuse))));
+    g.bench_function("single_stream_order", |b| b.iter(|| trace_single(&f().bvh, black_box(&f().diffuse_stream))));
+    g.bench_function("packet_stream_order", |b| {
+        b.iter(|| trace_packets(&f().bvh, black_box(&f().diffuse_stream_8), 2))
+    });
+    // What the reordering itself costs per ray (keys and sort, as a renderer would pay it).
+    g.bench_function("stream_order_sort", |b| b.iter(|| stream_order(black_box(&f().diffuse)).len()));
     g.bench_function("obvhs_single", |b| b.iter(|| obvhs_single(f(), black_box(&f().diffuse))));
     #[cfg(feature = "peer-embree")]
     g.bench_function("embree_single", |b| b.iter(|| f().embree.intersect(black_box(&f().diffuse))));
