@@ -106,6 +106,17 @@ pub fn manifest(data: &[u8]) {
     }
 }
 
+/// Lets panics that the code under test catches itself pass, for the `image` target.
+///
+/// `libfuzzer-sys` installs a panic hook that aborts at once, so that a panic counts as a
+/// crash before anything can catch it. [`Texture::load`] catches its JPEG decoder's panics
+/// and returns an error (its contract), which that hook would report as a crash. With the
+/// default hook back, a panic that escapes the entry point still aborts the process
+/// (`libfuzzer-sys` catches it at the top and aborts), so no escaping panic is missed.
+pub fn let_caught_panics_pass() {
+    drop(std::panic::take_hook());
+}
+
 /// Fuzzes image decoding: the first byte picks the format and one reader, EXR (its header,
 /// then read whole; or as an environment map), PNG or JPEG (as an albedo or as a mask
 /// texture); the rest is the file.

@@ -955,6 +955,23 @@ fn tobj_never_panics_on_garbage() {
 // ---------------------------------------------------------------------------------------------
 // Textures
 
+/// A 531-byte JPEG on which zune-jpeg 0.5.15 panics in its AVX2 IDCT (an out-of-range
+/// block slice is unwrapped; found by fuzzing, `fuzz/corpus/image`, whose first byte is the
+/// target's format selector). Loading it must give an image error, for both uses, instead
+/// of unwinding into the scene loader.
+#[test]
+fn a_jpeg_that_panics_the_decoder_gives_an_image_error() {
+    let input = include_bytes!("../fuzz/corpus/image/1e9caa97027758c204a5a31e7722e4d3da2a82cf");
+    let dir = TempDir::new("panicking-jpeg");
+    let p = dir.0.join("corrupt.jpg");
+    std::fs::write(&p, &input[1..]).unwrap();
+    for usage in [TextureUsage::Albedo, TextureUsage::Mask] {
+        let e = Texture::load(&p, usage).unwrap_err();
+        assert!(matches!(e, SceneError::Image { .. }), "{e:?}");
+        assert!(e.to_string().contains("corrupt.jpg") && e.to_string().contains("the decoder failed"), "{e}");
+    }
+}
+
 /// A grey JPEG whose header claims 20036×18757 texels (the file stays a few hundred bytes)
 /// took gigabytes to decode and convert to f32 (found by fuzzing, `fuzz/corpus/image`); it
 /// is now refused from its header, for both uses.

@@ -54,6 +54,15 @@ impl fmt::Debug for Texture {
     }
 }
 
+/// The message of a caught panic (`&str` or `String` payloads; others are not printable).
+fn panic_message(payload: &(dyn std::any::Any + Send)) -> &str {
+    payload
+        .downcast_ref::<&str>()
+        .copied()
+        .or_else(|| payload.downcast_ref::<String>().map(String::as_str))
+        .unwrap_or("panicked")
+}
+
 /// sRGB transfer function, decoded to linear (IEC 61966-2-1).
 #[inline]
 pub fn srgb_to_linear(c: f32) -> f32 {
@@ -111,7 +120,9 @@ impl Texture {
     }
 
     /// Loads an image file (PNG or JPEG) for `usage`; see the module conventions. Files of
-    /// more than [`MAX_TEXTURE_TEXELS`] texels are refused from their header.
+    /// more than [`MAX_TEXTURE_TEXELS`] texels are refused from their header. A decoder that
+    /// panics on a corrupt file gives [`SceneError::Image`] too (the process's panic hook
+    /// still prints the decoder's message first).
     pub fn load(path: &Path, usage: TextureUsage) -> Result<Self, SceneError> {
         let img_err = |m: String| SceneError::Image { path: path.to_path_buf(), message: m };
         let bytes = std::fs::read(path).map_err(|e| SceneError::io(path, e))?;
@@ -126,7 +137,15 @@ impl Texture {
                 "texture of {w}x{h} texels refused before decoding: at most {MAX_TEXTURE_TEXELS} (8192x8192) are supported"
             )));
         }
-        let img = reader()?.decode().map_err(|e| img_err(e.to_string()))?;
+        // The JPEG decoder can panic on a corrupt stream (zune-jpeg 0.5.15 unwraps an
+        // out-of-range block slice in its AVX2 IDCT; found by fuzzing). A scene load must
+        // fail with an error instead, so a panic while decoding becomes one. The decoder
+        // only touches its own buffers, so nothing is left half-updated.
+        let decoded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            reader()?.decode().map_err(|e| img_err(e.to_string()))
+        }));
+        let img = decoded
+            .unwrap_or_else(|panic| Err(img_err(format!("the decoder failed: {}", panic_message(panic.as_ref())))))?;
         let name = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
         let (w, h) = (img.width(), img.height());
         let has_alpha = img.color().has_alpha();
