@@ -46,7 +46,9 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::camera::Eye;
-use crate::kernels::bvh::{BuildQuality, BuildStats, Hit, PreparedRay, Ray, TriangleBvh, intersect_triangle};
+use crate::kernels::bvh::{
+    BuildQuality, BuildStats, BvhBuildParams, Hit, PreparedRay, Ray, TriangleBvh, intersect_triangle,
+};
 pub use crate::kernels::gbuffer::GBufferBuf;
 use crate::kernels::gbuffer::{NO_NORMAL, encode_normal};
 use crate::kernels::simd::{F32s, LANES};
@@ -172,13 +174,31 @@ pub struct TraceRequest {
 }
 
 impl Renderer {
-    /// Builds the BVH for `scene` (validated first).
+    /// Builds the BVH for `scene` (validated first) with the default [`BuildQuality`].
     pub fn new(scene: Scene) -> Result<Self, RenderError> {
         scene.validate().map_err(|e| RenderError::Invalid(e.to_string()))?;
-        let (bvh, bvh_stats) = TriangleBvh::build(&scene.mesh.positions, BuildQuality::default())?;
+        let built = TriangleBvh::build(&scene.mesh.positions, BuildQuality::default())?;
+        Ok(Self::with_bvh(scene, built))
+    }
+
+    /// [`Renderer::new`] with the tree built from obvhs's parameters `params`: an engine that
+    /// loads a scene once and traces it for many frames can pay a longer build for faster
+    /// traversal (BENCHMARKS.md, "the tree's build parameters", measures the trade). Images
+    /// are the same with any tree except which triangle wins an exact tie in `t`.
+    ///
+    /// # Errors
+    /// Those of [`Renderer::new`], and `RenderError::Bvh` for parameters the builder refuses.
+    pub fn with_bvh_params(scene: Scene, params: &BvhBuildParams) -> Result<Self, RenderError> {
+        scene.validate().map_err(|e| RenderError::Invalid(e.to_string()))?;
+        let built = TriangleBvh::build_with(&scene.mesh.positions, params)?;
+        Ok(Self::with_bvh(scene, built))
+    }
+
+    /// The renderer of a validated `scene` over its built tree.
+    fn with_bvh(scene: Scene, (bvh, bvh_stats): (TriangleBvh, BuildStats)) -> Self {
         let bits = effects::bits_for(scene.effects);
         let raster_near = (scene.bounds().extent().length() * 1e-6).max(1e-9);
-        Ok(Self { scene, bvh, bvh_stats, bits, bounces: 1, raster_near })
+        Self { scene, bvh, bvh_stats, bits, bounces: 1, raster_near }
     }
 
     /// Chooses the estimator: `1` (the default) is the paper's, one primary and one secondary
