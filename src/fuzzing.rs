@@ -110,11 +110,14 @@ pub fn manifest(data: &[u8]) {
 ///
 /// `libfuzzer-sys` installs a panic hook that aborts at once, so that a panic counts as a
 /// crash before anything can catch it. [`Texture::load`] catches its JPEG decoder's panics
-/// and returns an error (its contract), which that hook would report as a crash. With the
-/// default hook back, a panic that escapes the entry point still aborts the process
-/// (`libfuzzer-sys` catches it at the top and aborts), so no escaping panic is missed.
+/// and returns an error (its contract), which that hook would report as a crash. The hook
+/// put in its place prints the panic's message and nothing else: the default hook captures
+/// and symbolises a backtrace for each one under cargo-fuzz's `RUST_BACKTRACE=1`, and a
+/// 40-minute run catches ~500 decoder panics. A panic that escapes the
+/// entry point still aborts the process (`libfuzzer-sys` catches it at the top and aborts),
+/// so no escaping panic is missed; `cargo test` replays the input with the full message.
 pub fn let_caught_panics_pass() {
-    drop(std::panic::take_hook());
+    std::panic::set_hook(Box::new(|info| eprintln!("{info}")));
 }
 
 /// Fuzzes image decoding: the first byte picks the format and one reader, EXR (its header,
