@@ -7,7 +7,8 @@
 //! paper's spatiotemporal mode with a per-frame budget and prints what each frame did.
 //!
 //! `cargo run --release --example embed [BUDGET_MS]` (default 15 ms). Exits non-zero if an
-//! image holds a non-finite or negative value or the left eye traced more than the right.
+//! image holds a non-finite or negative value, if the left eye traced a pixel its stereo
+//! reprojection kept, or if that reprojection discarded more than 5 % of the left eye.
 
 use std::time::{Duration, Instant};
 
@@ -112,8 +113,16 @@ fn main() -> Result<(), String> {
             100.0 * s.traced_pixels[1] as f64 / pixels,
             if s.budget_met { "met" } else { "over" },
         );
-        if s.traced_pixels[0] > s.traced_pixels[1] {
-            return Err(format!("frame {frame}: the left eye traced more than the right"));
+        // What must hold whatever the machine's load (so not "left traced less than right":
+        // the left eye's disocclusions are traced even when the budget leaves the right eye
+        // nothing beyond its own, which a loaded machine showed): the left eye traces only
+        // what its stereo reprojection discarded, and in this room that is a few pixels.
+        let left_wanted = s.wanted_pixels[0];
+        if s.traced_pixels[0] > left_wanted {
+            return Err(format!("frame {frame}: the left eye traced pixels its stereo reprojection kept"));
+        }
+        if left_wanted as f64 > 0.05 * pixels {
+            return Err(format!("frame {frame}: stereo reprojection discarded {left_wanted} left-eye pixels"));
         }
     }
     for eye in Eye::BOTH {
