@@ -63,9 +63,8 @@
 //! figures predate the fused multiply-adds below; the tests' bounds, 1e-6 against the f64
 //! reference and the brute-force oracle with the HDR cases included, hold at both builds.)
 //! The mean is that accurate because many voxels average their rounding away: on an image
-//! of a few pixels it is only as good as a voxel, within [`CHECK_TOLERANCE`] (a 2×1 image
-//! whose accepted voxels had small cancellation errors was 1.8e-6 off, found by a property
-//! test).
+//! of a few pixels it is only as good as a voxel, within [`CHECK_TOLERANCE`] (a property
+//! test found a 2×1 image 1.8e-6 off).
 //!
 //! Variances are clamped at 0, `σd²` at `2(σx² + σy² + C2)` (what keeps the structure term
 //! ≥ −1; the tighter exact bound `2(σx² + σy²)` would trust the possibly ill-conditioned
