@@ -1,5 +1,6 @@
-//! SSIM + RMSE at 1280×720 RGB: the f64 scalar reference and the fused f32x8 kernel in one
-//! group, the kernel on 1 and 2 threads, both variants, throughput in pixels.
+//! SSIM + RMSE at 1280×720 RGB: the f64 scalar reference and the fused SIMD kernel in one
+//! group, the kernel with every instruction set this CPU has (8-lane AVX2, 16-lane AVX-512)
+//! on 1 and 2 threads, both variants, throughput in pixels.
 //!
 //! Two inputs, built outside the timed loop from fixed seeds:
 //! * `ldr`: uniform noise in [0, 1) against itself plus noise (no refinement happens);
@@ -14,6 +15,7 @@ use std::hint::black_box;
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use rayon::ThreadPool;
 use stereotrace::kernels::frame::{Extent, RgbBuf};
+use stereotrace::kernels::isa::Isa;
 use stereotrace::kernels::ssim::{self, SsimParams, SsimVariant};
 
 const WIDTH: usize = 1280;
@@ -107,13 +109,20 @@ fn bench_ssim(c: &mut Criterion) {
             group.bench_function(BenchmarkId::new(format!("{v}/scalar"), 1), |bench| {
                 bench.iter(|| ssim::ssim_scalar(black_box(&a.view()), black_box(&b.view()), &params).unwrap())
             });
-            for threads in [1, 2] {
-                let pool = pool(threads);
-                group.bench_function(BenchmarkId::new(format!("{v}/simd"), threads), |bench| {
-                    pool.install(|| {
-                        bench.iter(|| ssim::ssim(black_box(&a.view()), black_box(&b.view()), &params).unwrap())
-                    })
-                });
+            // Every instruction set this CPU has, in the same run (AVX2: 8 lanes; AVX-512:
+            // 16 lanes, what `ssim` picks on such a CPU unless STEREOTRACE_ISA=avx2).
+            for isa in Isa::ALL.into_iter().filter(|isa| isa.is_supported()) {
+                for threads in [1, 2] {
+                    let pool = pool(threads);
+                    let id = BenchmarkId::new(format!("{v}/simd-{}", isa.name()), threads);
+                    group.bench_function(id, |bench| {
+                        pool.install(|| {
+                            bench.iter(|| {
+                                ssim::ssim_with(black_box(&a.view()), black_box(&b.view()), &params, isa).unwrap()
+                            })
+                        })
+                    });
+                }
             }
         }
         group.finish();

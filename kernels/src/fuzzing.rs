@@ -22,6 +22,7 @@ use crate::camera::{CameraModel, look_at_perspective};
 use crate::check::same_bits;
 use crate::frame::{Extent, FrameError, PlaneBuf, RgbBuf};
 use crate::gbuffer::SurfaceLayout;
+use crate::isa::Isa;
 use crate::reproject::{self, Reason, ReprojectInput, ReprojectOutput, ReprojectParams, TapPolicy, Tolerances};
 use crate::simd::LANES;
 use crate::synth::{AnalyticScene, SynthFrame, camera_at};
@@ -512,7 +513,13 @@ pub fn ssim(data: &[u8]) {
         let reference = s::ssim_scalar(&a.view(), &b.view(), &params).expect("validated input");
         s::assert_agrees(&fast, &reference, s::CHECK_TOLERANCE);
     }
-    let swapped = s::ssim_unchecked(&b.view(), &a.view(), &params).expect("validated input");
+    let swapped = s::ssim_unchecked(&b.view(), &a.view(), &params, Isa::active()).expect("validated input");
+    // Every other instruction set this CPU has: the same voxels (counts exactly), the means
+    // equal up to the order in which lanes sum a row.
+    for isa in Isa::ALL.into_iter().filter(|&isa| isa != Isa::active() && isa.is_supported()) {
+        let other = s::ssim_unchecked(&a.view(), &b.view(), &params, isa).expect("validated input");
+        s::assert_isas_agree(&fast, &other);
+    }
     // Bit for bit, except that voxels refined in f64 (ill-conditioned in the first pass) sum
     // in an order that depends on the argument order: the last bits may differ there (found
     // by the fuzzer in CI; the input is a seed).

@@ -22,6 +22,8 @@ pub mod check;
 pub mod frame;
 pub mod fuzzing;
 pub mod gbuffer;
+pub mod isa;
+mod lanes;
 pub mod raster;
 pub mod reproject;
 pub mod simd;

@@ -19,11 +19,23 @@ pub fn check_cpu() -> Result<(), String> {
             ));
         }
     }
+    // A typo or an instruction set this CPU lacks is an error here, not a silent fallback.
+    stereotrace_kernels::isa::Isa::from_env().map_err(|e| e.to_string())?;
     Ok(())
 }
 
-/// A one-line description of the SIMD level compiled in, for benchmark and driver output.
-pub fn simd_level() -> &'static str {
+/// A one-line description of the SIMD level: the level compiled in, and the wider bodies
+/// chosen at run time where the CPU has them ([`stereotrace_kernels::isa`]), for benchmark
+/// and driver output.
+pub fn simd_level() -> String {
+    match stereotrace_kernels::isa::Isa::active() {
+        stereotrace_kernels::isa::Isa::Avx512 => format!("{}, AVX-512 bodies at run time", build_level()),
+        stereotrace_kernels::isa::Isa::Avx2 => build_level().to_string(),
+    }
+}
+
+/// The SIMD level compiled in.
+fn build_level() -> &'static str {
     if cfg!(target_feature = "avx512f") {
         "x86-64-v4 (AVX-512)"
     } else if cfg!(all(target_feature = "avx2", target_feature = "fma")) {

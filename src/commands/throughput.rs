@@ -67,7 +67,7 @@ pub struct ThroughputReport {
     pub gbuffer_pass: String,
     pub spp: u32,
     pub frames_measured: usize,
-    pub simd_level: &'static str,
+    pub simd_level: String,
     pub stereo_fps: f64,
     pub frame: Spread,
     pub gbuffer: Spread,

@@ -240,7 +240,7 @@ pub struct TradeoffReport {
     pub warmup: u32,
     pub reference_spp: u32,
     pub curve_spp: u32,
-    pub simd_level: &'static str,
+    pub simd_level: String,
     pub rows: Vec<TradeoffRow>,
     pub warnings: Vec<String>,
 }

@@ -113,6 +113,7 @@ mod scalar;
 mod simd;
 
 use crate::frame::{FrameError, RgbPlanes, same_extent};
+use crate::isa::Isa;
 
 pub use scalar::exact_voxel;
 
@@ -300,7 +301,8 @@ fn check(a: &RgbPlanes<'_>, b: &RgbPlanes<'_>) -> Result<(), FrameError> {
 }
 
 /// SSIM ([`SsimParams::variant`]) and RMSE of `a` against `b`: the fused SIMD kernel, run in
-/// row bands on the current rayon pool. Symmetric in its arguments: bit for bit, except in the
+/// row bands on the current rayon pool, with the instruction set of [`Isa::active`] (16 lanes
+/// on AVX-512 CPUs, 8 otherwise; [`ssim_with`] picks one). Symmetric in its arguments: bit for bit, except in the
 /// last bits where voxels were refined (`SsimResult::refined`). See the module docs for the
 /// definition, the numerics and what is excluded.
 ///
@@ -318,7 +320,19 @@ fn check(a: &RgbPlanes<'_>, b: &RgbPlanes<'_>) -> Result<(), FrameError> {
 /// # Ok::<(), stereotrace_kernels::FrameError>(())
 /// ```
 pub fn ssim(a: &RgbPlanes<'_>, b: &RgbPlanes<'_>, params: &SsimParams) -> Result<SsimResult, FrameError> {
-    let result = ssim_unchecked(a, b, params)?;
+    ssim_with(a, b, params, Isa::active())
+}
+
+/// [`ssim`] with the body for `isa` (the 8-lane body where this CPU lacks `isa`:
+/// [`Isa::is_supported`]). The bodies compute every voxel to the same bits; the means can
+/// differ in their last bits, because lanes sum the voxels of a row in a different order.
+pub fn ssim_with(
+    a: &RgbPlanes<'_>,
+    b: &RgbPlanes<'_>,
+    params: &SsimParams,
+    isa: Isa,
+) -> Result<SsimResult, FrameError> {
+    let result = ssim_unchecked(a, b, params, isa)?;
     #[cfg(feature = "check-scalar")]
     {
         let reference = ssim_scalar(a, b, params).expect("validated input");
@@ -333,9 +347,10 @@ pub(crate) fn ssim_unchecked(
     a: &RgbPlanes<'_>,
     b: &RgbPlanes<'_>,
     params: &SsimParams,
+    isa: Isa,
 ) -> Result<SsimResult, FrameError> {
     check(a, b)?;
-    Ok(simd::run(a, b, params))
+    Ok(simd::run(a, b, params, isa))
 }
 
 /// The scalar reference of [`ssim`]: f64 throughout, whole-image planes (allocates about
@@ -370,6 +385,35 @@ pub fn assert_agrees(fast: &SsimResult, reference: &SsimResult, tol: f64) {
     assert!(
         close(fast.rmse, reference.rmse, tol * reference.rmse.abs() + RMSE_FLOOR),
         "RMSE differs: fast {fast:?}, reference {reference:?}"
+    );
+}
+
+/// How far the means of two instruction sets' bodies may differ ([`assert_isas_agree`]). Every
+/// voxel and squared difference has the same bits in both; each lane sums at most 8 voxels of
+/// a tile row (30 squares of an RMSE row) in f32 before the f64 sum, in an order that depends
+/// on the lane count. With `u = 2⁻²⁴` and voxels in [−1, 1] the mean moves by at most
+/// `2 · 7u ≈ 8.3e-7`, and the RMSE by at most `29u ≈ 1.7e-6` relative; this leaves 2× margin.
+pub const ISA_TOLERANCE: f64 = 4e-6;
+
+/// Panics unless two instruction sets' results ([`ssim_with`]) count the same voxels, samples,
+/// non-finite samples and refined voxels, and their means agree to [`ISA_TOLERANCE`].
+pub fn assert_isas_agree(a: &SsimResult, b: &SsimResult) {
+    assert_eq!(
+        (a.voxels, a.rmse_samples, a.non_finite, a.refined),
+        (b.voxels, b.rmse_samples, b.non_finite, b.refined),
+        "instruction sets count differently: {a:?} vs {b:?}"
+    );
+    let close = |x: f64, y: f64, t: f64| (x.is_nan() && y.is_nan()) || (x - y).abs() <= t;
+    assert!(close(a.ssim, b.ssim, ISA_TOLERANCE), "instruction sets' SSIM differs: {a:?} vs {b:?}");
+    for c in 0..3 {
+        assert!(
+            close(a.per_channel[c], b.per_channel[c], ISA_TOLERANCE),
+            "instruction sets' SSIM channel {c} differs: {a:?} vs {b:?}"
+        );
+    }
+    assert!(
+        close(a.rmse, b.rmse, ISA_TOLERANCE * a.rmse.abs() + RMSE_FLOOR),
+        "instruction sets' RMSE differs: {a:?} vs {b:?}"
     );
 }
 

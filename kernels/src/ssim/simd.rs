@@ -1,4 +1,5 @@
-//! The fused f32x8 kernel.
+//! The fused SIMD kernel, written once against [`Lanes`] and compiled at 8 lanes (`f32x8`,
+//! the baseline) and at 16 (AVX-512, chosen at run time: [`crate::isa`]).
 //!
 //! Work unit: a *tile* of at most [`BLOCK_ROWS`] rows × [`TILE`] columns of output voxels
 //! (all three channels). For each input row the tile needs (its rows ± 5, clamped), the row
@@ -32,38 +33,35 @@ use super::{
 use crate::bands::{SharedRows, for_each_band};
 use crate::frame::{PlaneMut, RgbPlanes};
 
-/// The lane type: the crate's 8 lanes ([`crate::simd::F32s`]: AVX at x86-64-v3, two SSE
-/// halves at the SSE2 baseline). The kernel is written against `V` and `LANES` only. 16
-/// lanes (`wide::f32x16` under `target_feature = "avx512f"`) were tried with
-/// `target-cpu=native` on the Zen 4 CI machine: 12.7–14.1 ms per 1280×720 frame against
-/// 11.4–11.7 ms for 8 lanes in the same build (which already gains AVX-512's 32 registers),
-/// so the kernel stays at 8.
-type V = crate::simd::F32s;
-use crate::simd::{LANES, lane_offsets};
+use crate::isa::Isa;
+use crate::lanes::Lanes;
+use crate::simd::F32s;
 
-/// Loads `LANES` floats from `a[i..]` (callers use constant trip counts, so the bounds
+/// Loads one vector from `a[i..]` (callers use constant trip counts, so the bounds
 /// checks fold away).
 #[inline(always)]
-fn load<const N: usize>(a: &[f32; N], i: usize) -> V {
-    V::from(<[f32; LANES]>::try_from(&a[i..i + LANES]).expect("LANES elements"))
+fn load<V: Lanes, const N: usize>(a: &[f32; N], i: usize) -> V {
+    V::load(&a[i..])
 }
 
 #[inline(always)]
-fn store<const N: usize>(a: &mut [f32; N], i: usize, v: V) {
-    a[i..i + LANES].copy_from_slice(&v.to_array());
+fn store<V: Lanes, const N: usize>(a: &mut [f32; N], i: usize, v: V) {
+    v.store(&mut a[i..]);
 }
 
-/// Output columns per tile: a multiple of [`LANES`] and at most 64 (pending voxels are one
+/// Output columns per tile: a multiple of every body's lane count (16) and at most 64 (pending voxels are one
 /// `u64` bit mask per row and channel).
 pub(super) const TILE: usize = 64;
 /// Output rows per tile (and per local shift).
 pub(super) const BLOCK_ROWS: usize = 64;
 /// Columns of halo on each side of a row segment: at least [`RADIUS`], and `SEG` a multiple
-/// of [`LANES`].
+/// of every body's lane count.
 const PAD: usize = 8;
 const SEG: usize = TILE + 2 * PAD;
 /// Product planes per channel: `x'`, `y'`, `x'² + y'²`, `(d − s_d)²`.
 const PLANES: usize = 4;
+/// The narrowest lane count a body uses (sizes the per-vector arrays).
+const MIN_LANES: usize = 8;
 /// Output rows per vertical pass. The vertical pass loads each ring row once for `KB`
 /// output rows instead of once per output row (11 loads per output vector become
 /// `(KB + 10) / KB`): 1 → 4 took 22% off the kernel's time; 8 was no faster than 4.
@@ -92,7 +90,7 @@ const BOUND_UNITS: f64 = 64.0;
 const SCREEN_SLACK: f64 = 1.0 / 1024.0;
 
 /// Splatted constants.
-struct Consts {
+struct Consts<V> {
     /// `w[k]`: the weight at offsets ±k.
     w: [V; RADIUS + 1],
     m: [[V; 3]; 3],
@@ -111,7 +109,8 @@ struct Consts {
     screen_limit_lum: V,
 }
 
-impl Consts {
+impl<V: Lanes> Consts<V> {
+    #[inline(always)]
     fn new() -> Self {
         let g = gaussian_weights();
         let m = channel_mixing_matrix();
@@ -155,20 +154,30 @@ struct Tile {
 }
 
 impl Tile {
-    /// Vectors of a row whose lanes all lie inside the image.
+    /// Vectors of `lanes` lanes in a row whose lanes all lie inside the image.
     #[inline(always)]
-    fn full_vectors(&self) -> usize {
-        (self.c1 - self.c0) / LANES
+    fn full_vectors(&self, lanes: usize) -> usize {
+        (self.c1 - self.c0) / lanes
     }
 }
 
-struct Ctx<'a> {
+/// The two images and what every band reads of them.
+struct Frame<'a> {
     a: &'a RgbPlanes<'a>,
     b: &'a RgbPlanes<'a>,
     variant: SsimVariant,
     width: usize,
     height: usize,
-    k: Consts,
+}
+
+/// A band's view: the frame and the constants splatted at the band's lane width.
+struct Ctx<'a, V> {
+    a: &'a RgbPlanes<'a>,
+    b: &'a RgbPlanes<'a>,
+    variant: SsimVariant,
+    width: usize,
+    height: usize,
+    k: Consts<V>,
 }
 
 /// Horizontally filtered rows of one product plane: `[row % RING][column − c0]`.
@@ -185,7 +194,7 @@ struct Scratch {
     /// Vertically filtered statistics of the current output rows:
     /// `[row − o][channel][plane][column − c0]`.
     vbuf: [[[[f32; TILE]; PLANES]; 3]; KB],
-    /// Voxels still to be computed after a pass: `[row − r0][channel]`, bit = column − c0.
+    /// Voxels<V> still to be computed after a pass: `[row − r0][channel]`, bit = column − c0.
     pending: [[u64; 3]; BLOCK_ROWS],
 }
 
@@ -226,32 +235,31 @@ impl Sums {
 }
 
 #[inline(always)]
-fn widen_add(acc: &mut f64x4, v: V) {
+fn widen_add<V: Lanes>(acc: &mut f64x4, v: V) {
     let a = v.to_array();
-    for q in a.chunks_exact(4) {
+    for q in a.as_ref().chunks_exact(4) {
         *acc += f64x4::new([q[0] as f64, q[1] as f64, q[2] as f64, q[3] as f64]);
     }
 }
 
 /// All-ones lanes for the set bits of `bits` (bit i = lane i).
 #[inline(always)]
-fn bits_mask(bits: u32) -> V {
-    let lane = V::from(core::array::from_fn::<f32, LANES, _>(|i| if bits >> i & 1 == 1 { 1.0 } else { 0.0 }));
-    lane.simd_eq(V::ONE)
+fn bits_mask<V: Lanes>(bits: u32) -> V {
+    V::from_bitmask(bits)
 }
 
 #[inline(always)]
-fn count(mask: V) -> u32 {
+fn count<V: Lanes>(mask: V) -> u32 {
     mask.to_bitmask().count_ones()
 }
 
-/// Bit mask of the lanes of one vector.
-const LANE_BITS: u64 = (1 << LANES) - 1;
-pub(super) fn run(a: &RgbPlanes<'_>, b: &RgbPlanes<'_>, params: &SsimParams) -> SsimResult {
+/// The kernel on the current rayon pool with the body for `isa` (the 8-lane body where this
+/// CPU lacks `isa`).
+pub(super) fn run(a: &RgbPlanes<'_>, b: &RgbPlanes<'_>, params: &SsimParams, isa: Isa) -> SsimResult {
     let (width, height) = (a.extent().width(), a.extent().height());
     let band_rows = params.band_rows.max(1).max(height.div_ceil(MAX_BANDS));
     let bands = height.div_ceil(band_rows);
-    let ctx = Ctx { a, b, variant: params.variant, width, height, k: Consts::new() };
+    let frame = Frame { a, b, variant: params.variant, width, height };
     let mut slots = [Partial::default(); MAX_BANDS];
     {
         // One slot per band, written by that band only (so the sums are added in a fixed
@@ -263,7 +271,7 @@ pub(super) fn run(a: &RgbPlanes<'_>, b: &RgbPlanes<'_>, params: &SsimParams) -> 
             band_rows,
             |rows| {
                 let band = rows.start / band_rows;
-                let partial = band_sums(&ctx, rows);
+                let partial = band_sums_with(isa, &frame, rows);
                 // SAFETY: `for_each_band` runs every band once, so slot `band` has one writer.
                 let slot = unsafe { shared.row(band) };
                 slot[0] = partial;
@@ -274,7 +282,38 @@ pub(super) fn run(a: &RgbPlanes<'_>, b: &RgbPlanes<'_>, params: &SsimParams) -> 
     slots[..bands].iter().fold(Partial::default(), |acc, p| acc.merged(p)).finish(params.variant)
 }
 
-fn band_sums(ctx: &Ctx<'_>, rows: core::ops::Range<usize>) -> Partial {
+/// One band's sums with the body for `isa`.
+fn band_sums_with(isa: Isa, frame: &Frame<'_>, rows: core::ops::Range<usize>) -> Partial {
+    #[cfg(target_arch = "x86_64")]
+    if isa == Isa::Avx512 && isa.is_supported() {
+        // SAFETY: the CPU has every feature the function enables (checked on this line).
+        return unsafe { band_sums_avx512(frame, rows) };
+    }
+    let _ = isa;
+    band_sums::<F32s>(frame, rows)
+}
+
+/// [`band_sums`] at 16 lanes, compiled for AVX-512 (everything below it is inlined into it,
+/// so the whole band runs with these features; see [`crate::lanes::avx512`]).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512bw,avx512dq,avx512vl")]
+fn band_sums_avx512(frame: &Frame<'_>, rows: core::ops::Range<usize>) -> Partial {
+    band_sums::<crate::lanes::avx512::F32x16>(frame, rows)
+}
+
+/// The sums of the rows `rows`, tile by tile. This and everything it calls are inlined into
+/// the instruction set's entry above, so that the lane type's operations compile to single
+/// instructions of that set.
+#[inline(always)]
+fn band_sums<V: Lanes>(frame: &Frame<'_>, rows: core::ops::Range<usize>) -> Partial {
+    let ctx = &Ctx::<V> {
+        a: frame.a,
+        b: frame.b,
+        variant: frame.variant,
+        width: frame.width,
+        height: frame.height,
+        k: Consts::new(),
+    };
     let mut p = Partial::default();
     let mut s = Scratch::new();
     let mut r0 = rows.start;
@@ -283,7 +322,7 @@ fn band_sums(ctx: &Ctx<'_>, rows: core::ops::Range<usize>) -> Partial {
         let mut c0 = 0;
         while c0 < ctx.width {
             let c1 = (c0 + TILE).min(ctx.width);
-            tile(ctx, &mut s, &Tile { r0, r1, c0, c1, nv: (c1 - c0).div_ceil(LANES) }, &mut p);
+            tile(ctx, &mut s, &Tile { r0, r1, c0, c1, nv: (c1 - c0).div_ceil(V::LANES) }, &mut p);
             c0 = c1;
         }
         r0 = r1;
@@ -303,7 +342,7 @@ fn median(v: &mut [f32]) -> f32 {
 
 /// The first pass's shifts: per channel, the median of `(x + y)/2` and of `x − y` over a
 /// 3×3 grid of the tile's usable samples.
-fn initial_shifts(ctx: &Ctx<'_>, t: &Tile) -> Shifts {
+fn initial_shifts<V: Lanes>(ctx: &Ctx<'_, V>, t: &Tile) -> Shifts {
     let rows = [t.r0, (t.r0 + t.r1 - 1) / 2, t.r1 - 1];
     let cols = [t.c0, (t.c0 + t.c1 - 1) / 2, t.c1 - 1];
     let mut sh = Shifts::default();
@@ -326,7 +365,8 @@ fn initial_shifts(ctx: &Ctx<'_>, t: &Tile) -> Shifts {
     sh
 }
 
-fn tile(ctx: &Ctx<'_>, s: &mut Scratch, t: &Tile, p: &mut Partial) {
+#[inline(always)]
+fn tile<V: Lanes>(ctx: &Ctx<'_, V>, s: &mut Scratch, t: &Tile, p: &mut Partial) {
     let rows = t.r1 - t.r0;
     s.pending[..rows].iter_mut().for_each(|r| *r = [0; 3]);
     let mut sums = Sums::default();
@@ -400,7 +440,15 @@ impl Worst {
 
 /// One pass over a tile. Pass 0 considers every voxel; later passes only the pending ones.
 /// Returns the shifts for the next pass if voxels are still pending.
-fn run_pass(ctx: &Ctx<'_>, s: &mut Scratch, t: &Tile, pass: usize, shifts: &Shifts, sums: &mut Sums) -> Option<Shifts> {
+#[inline(always)]
+fn run_pass<V: Lanes>(
+    ctx: &Ctx<'_, V>,
+    s: &mut Scratch,
+    t: &Tile,
+    pass: usize,
+    shifts: &Shifts,
+    sums: &mut Sums,
+) -> Option<Shifts> {
     let first = t.r0.saturating_sub(RADIUS);
     let last = (t.r1 + RADIUS).min(ctx.height);
     let mut next_out = t.r0;
@@ -416,9 +464,9 @@ fn run_pass(ctx: &Ctx<'_>, s: &mut Scratch, t: &Tile, pass: usize, shifts: &Shif
         }
         let src = segment(ctx, &mut s.seg, t.c0, y);
         if pass == 0 && (t.r0..t.r1).contains(&y) {
-            products::<true>(&mut s.prod, &src, shifts, &own, sums);
+            products::<V, true>(&mut s.prod, &src, shifts, &own, sums);
         } else {
-            products::<false>(&mut s.prod, &src, shifts, &own, sums);
+            products::<V, false>(&mut s.prod, &src, shifts, &own, sums);
         }
         horizontal(&ctx.k, s, y % RING);
         // Output rows go out `KB` at a time, as soon as the last one's window is complete
@@ -429,10 +477,10 @@ fn run_pass(ctx: &Ctx<'_>, s: &mut Scratch, t: &Tile, pass: usize, shifts: &Shif
                 break;
             }
             match n {
-                1 => emit_rows::<1>(ctx, s, t, pass, shifts, next_out, sums, &mut worst),
-                2 => emit_rows::<2>(ctx, s, t, pass, shifts, next_out, sums, &mut worst),
-                3 => emit_rows::<3>(ctx, s, t, pass, shifts, next_out, sums, &mut worst),
-                _ => emit_rows::<KB>(ctx, s, t, pass, shifts, next_out, sums, &mut worst),
+                1 => emit_rows::<V, 1>(ctx, s, t, pass, shifts, next_out, sums, &mut worst),
+                2 => emit_rows::<V, 2>(ctx, s, t, pass, shifts, next_out, sums, &mut worst),
+                3 => emit_rows::<V, 3>(ctx, s, t, pass, shifts, next_out, sums, &mut worst),
+                _ => emit_rows::<V, KB>(ctx, s, t, pass, shifts, next_out, sums, &mut worst),
             }
             next_out += n;
         }
@@ -442,7 +490,7 @@ fn run_pass(ctx: &Ctx<'_>, s: &mut Scratch, t: &Tile, pass: usize, shifts: &Shif
 
 /// Hints the row segment of row `y` starting at column `c0` into the cache.
 #[inline(always)]
-fn prefetch_segment(ctx: &Ctx<'_>, c0: usize, y: usize) {
+fn prefetch_segment<V: Lanes>(ctx: &Ctx<'_, V>, c0: usize, y: usize) {
     let start = c0.saturating_sub(PAD);
     let end = (c0 + TILE + PAD).min(ctx.width);
     for planes in [ctx.a, ctx.b] {
@@ -476,7 +524,12 @@ fn prefetch(p: *const f32) {
 /// for interior tiles, copied with replicate clamping into `seg` at the borders. (Copying
 /// every segment cost 7%: six small `memcpy` calls per row.)
 #[inline(always)]
-fn segment<'s>(ctx: &Ctx<'s>, seg: &'s mut [[[f32; SEG]; 3]; 2], c0: usize, y: usize) -> [[&'s [f32; SEG]; 3]; 2] {
+fn segment<'s, V: Lanes>(
+    ctx: &Ctx<'s, V>,
+    seg: &'s mut [[[f32; SEG]; 3]; 2],
+    c0: usize,
+    y: usize,
+) -> [[&'s [f32; SEG]; 3]; 2] {
     // (Written out: `[_; N].map` here was not inlined and cost 4%.)
     let (a, b) = (&ctx.a, &ctx.b);
     let rows = [[a.r().row(y), a.g().row(y), a.b().row(y)], [b.r().row(y), b.g().row(y), b.b().row(y)]];
@@ -510,26 +563,26 @@ fn segment<'s>(ctx: &Ctx<'s>, seg: &'s mut [[[f32; SEG]; 3]; 2], c0: usize, y: u
 /// swaps `x'` and `y'`, and only the unfused form gives the same bits both ways (the kernel
 /// is symmetric bit for bit).
 #[inline(always)]
-fn products<const COUNT: bool>(
+fn products<V: Lanes, const COUNT: bool>(
     prod: &mut [[[f32; SEG]; PLANES]; 3],
     src: &[[&[f32; SEG]; 3]; 2],
     sh: &Shifts,
-    own: &OwnColumns,
+    own: &OwnColumns<V>,
     sums: &mut Sums,
 ) {
     let max = V::splat(MAX_SAMPLE);
     let nan = V::splat(f32::NAN);
-    let mut sq = V::ZERO;
+    let mut sq = V::zero();
     // Lanes of the tile's own columns that hold an unusable sample in this row.
-    let mut bad = V::ZERO;
+    let mut bad = V::zero();
     for c in 0..3 {
         let shift = V::splat(sh.s[c]);
         let dshift = V::splat(sh.sd[c]);
         let (xs, ys) = (src[0][c], src[1][c]);
         let [px, py, ps, pd] = &mut prod[c];
-        for v in 0..SEG / LANES {
-            let i = v * LANES;
-            let (x, y) = (load(xs, i), load(ys, i));
+        for v in 0..SEG / V::LANES {
+            let i = v * V::LANES;
+            let (x, y): (V, V) = (load(xs, i), load(ys, i));
             // `abs ≤ MAX` is false for NaN: every unusable sample becomes NaN.
             let (ux, uy) = (x.abs().simd_le(max), y.abs().simd_le(max));
             let x = ux.select(x, nan);
@@ -545,9 +598,9 @@ fn products<const COUNT: bool>(
                 let inside = own.mask[v];
                 bad |= inside & !(ux & uy);
                 // NaN where a sample is unusable: then `bad` is set and the row is recounted.
-                // At most 3·SEG/LANES terms per lane in f32 before the f64 sum: relative
+                // At most 3·SEG/8 terms per lane in f32 before the f64 sum: relative
                 // error ≤ 1.5e-6.
-                sq += inside.select(d * d, V::ZERO);
+                sq += inside.select(d * d, V::zero());
             }
         }
     }
@@ -563,41 +616,42 @@ fn products<const COUNT: bool>(
 }
 
 /// The tile's own columns within a row segment.
-struct OwnColumns {
+struct OwnColumns<V> {
     /// Per segment vector: all-ones in the lanes of columns `c0 ..< c1`.
-    mask: [V; SEG / LANES],
+    mask: [V; SEG / MIN_LANES],
     /// `c1 − c0`.
     count: u64,
 }
 
-impl OwnColumns {
+impl<V: Lanes> OwnColumns<V> {
+    #[inline(always)]
     fn new(t: &Tile) -> Self {
         let width = V::splat((t.c1 - t.c0) as f32);
-        let mut mask = [V::ZERO; SEG / LANES];
-        for (v, m) in mask.iter_mut().enumerate() {
-            let col = lane_offsets() + V::splat(v as f32 * LANES as f32 - PAD as f32);
-            *m = col.simd_ge(V::ZERO) & col.simd_lt(width);
+        let mut mask = [V::zero(); SEG / MIN_LANES];
+        for (v, m) in mask.iter_mut().enumerate().take(SEG / V::LANES) {
+            let col = V::lane_offsets() + V::splat(v as f32 * V::LANES as f32 - PAD as f32);
+            *m = col.simd_ge(V::zero()) & col.simd_lt(width);
         }
         Self { mask, count: (t.c1 - t.c0) as u64 }
     }
 }
 
 /// The RMSE sums and unusable-sample counts of a row with unusable samples.
-#[cold]
-fn count_row(src: &[[&[f32; SEG]; 3]; 2], own: &OwnColumns, sums: &mut Sums) {
+#[inline(always)]
+fn count_row<V: Lanes>(src: &[[&[f32; SEG]; 3]; 2], own: &OwnColumns<V>, sums: &mut Sums) {
     let max = V::splat(MAX_SAMPLE);
-    let mut sq = V::ZERO;
+    let mut sq = V::zero();
     for c in 0..3 {
-        for v in 0..SEG / LANES {
-            let i = v * LANES;
-            let (x, y) = (load(src[0][c], i), load(src[1][c], i));
+        for v in 0..SEG / V::LANES {
+            let i = v * V::LANES;
+            let (x, y): (V, V) = (load(src[0][c], i), load(src[1][c], i));
             let (ux, uy) = (x.abs().simd_le(max), y.abs().simd_le(max));
             let inside = own.mask[v];
             let both = ux & uy & inside;
             sums.non_finite += u64::from(count(!ux & inside) + count(!uy & inside));
             sums.sq_n += u64::from(count(both));
             let d = x - y;
-            sq += both.select(d * d, V::ZERO);
+            sq += both.select(d * d, V::zero());
         }
     }
     widen_add(&mut sums.sq, sq);
@@ -605,26 +659,26 @@ fn count_row(src: &[[&[f32; SEG]; 3]; 2], own: &OwnColumns, sums: &mut Sums) {
 
 /// Lane mask of vector `j` of a tile (lanes inside the image).
 #[inline(always)]
-fn lanes(t: &Tile, j: usize) -> V {
-    let inside = (t.c1 - t.c0 - j * LANES).min(LANES);
-    lane_offsets().simd_lt(V::splat(inside as f32))
+fn lanes<V: Lanes>(t: &Tile, j: usize) -> V {
+    let inside = (t.c1 - t.c0 - j * V::LANES).min(V::LANES);
+    V::lane_offsets().simd_lt(V::splat(inside as f32))
 }
 
 /// The horizontal 11-tap pass of every product plane into ring slot `slot` (whole tile).
 #[inline(always)]
-fn horizontal(k: &Consts, s: &mut Scratch, slot: usize) {
+fn horizontal<V: Lanes>(k: &Consts<V>, s: &mut Scratch, slot: usize) {
     let w = &k.w;
     for c in 0..3 {
         for q in 0..PLANES {
             let src = &s.prod[c][q];
             let dst = &mut s.ring[c][q][slot];
-            for j in 0..TILE / LANES {
-                let i = PAD + j * LANES;
+            for j in 0..TILE / V::LANES {
+                let i = PAD + j * V::LANES;
                 let mut acc = w[0] * load(src, i);
                 for (r, &wr) in w.iter().enumerate().skip(1) {
-                    acc = wr.mul_add(load(src, i - r) + load(src, i + r), acc);
+                    acc = wr.mul_add(load::<V, SEG>(src, i - r) + load(src, i + r), acc);
                 }
-                store(dst, j * LANES, acc);
+                store(dst, j * V::LANES, acc);
             }
         }
     }
@@ -633,21 +687,21 @@ fn horizontal(k: &Consts, s: &mut Scratch, slot: usize) {
 /// The vertical 11-tap pass of every plane for the `K` output rows `o .. o + K` into `vbuf`
 /// (whole tile); `slots[i]` is the ring slot of input row `o − 5 + i` (clamped).
 #[inline(always)]
-fn vertical<const K: usize>(k: &Consts, s: &mut Scratch, slots: &[usize; RING]) {
+fn vertical<V: Lanes, const K: usize>(k: &Consts<V>, s: &mut Scratch, slots: &[usize; RING]) {
     let w = &k.w;
     for c in 0..3 {
         for q in 0..PLANES {
             let ring = &s.ring[c][q];
             let vbuf = &mut s.vbuf;
-            for j in 0..TILE / LANES {
-                let col = j * LANES;
+            for j in 0..TILE / V::LANES {
+                let col = j * V::LANES;
                 // Every row loaded once, before any store: the compiler cannot tell that the
                 // stores into `vbuf` leave the ring alone, and would reload otherwise.
-                let mut at = [V::ZERO; RING];
+                let mut at = [V::zero(); RING];
                 for (i, v) in at.iter_mut().enumerate().take(K + 2 * RADIUS) {
                     *v = load(&ring[slots[i] % RING], col);
                 }
-                let mut out = [V::ZERO; K];
+                let mut out = [V::zero(); K];
                 for (r, o) in out.iter_mut().enumerate() {
                     let mut acc = w[0] * at[r + 5];
                     acc = w[1].mul_add(at[r + 4] + at[r + 6], acc);
@@ -668,14 +722,14 @@ fn vertical<const K: usize>(k: &Consts, s: &mut Scratch, slots: &[usize; RING]) 
 /// instruction instead of three): NaN lanes may come out as numbers, but they are excluded
 /// by the separate finiteness mask, never by these results.
 #[inline(always)]
-fn max0(v: V) -> V {
-    v.fast_max(V::ZERO)
+fn max0<V: Lanes>(v: V) -> V {
+    v.fast_max(V::zero())
 }
 
 /// Filtered statistics of one vector of voxels in one channel: `x = E[x']`, `y = E[y']`,
 /// `s = E[x'² + y'²]`, `d = E[(d − s_d)²]`.
 #[derive(Clone, Copy)]
-struct Stats {
+struct Stats<V> {
     x: V,
     y: V,
     s: V,
@@ -683,14 +737,14 @@ struct Stats {
 }
 
 #[inline(always)]
-fn stats(planes: &[[f32; TILE]; PLANES], col: usize) -> Stats {
+fn stats<V: Lanes>(planes: &[[f32; TILE]; PLANES], col: usize) -> Stats<V> {
     Stats { x: load(&planes[0], col), y: load(&planes[1], col), s: load(&planes[2], col), d: load(&planes[3], col) }
 }
 
 /// The window statistics of one channel's voxels: for the 2-D window of the channel itself
 /// ([`own`]) or mixed over the 3-D window ([`mix`]).
 #[derive(Clone, Copy)]
-struct Window {
+struct Window<V> {
     /// Unshifted means and `μx − μy`.
     mx: V,
     my: V,
@@ -705,7 +759,7 @@ struct Window {
 
 /// The channel's own 2-D window.
 #[inline(always)]
-fn own(st: &Stats, shift: V, dshift: V) -> Window {
+fn own<V: Lanes>(st: &Stats<V>, shift: V, dshift: V) -> Window<V> {
     let md = st.x - st.y;
     let mdp = md - dshift;
     Window {
@@ -715,8 +769,8 @@ fn own(st: &Stats, shift: V, dshift: V) -> Window {
         // Unfused, for the symmetry (see [`products`]).
         vs: max0(st.s - (st.x * st.x + st.y * st.y)),
         vd: max0(mdp.mul_neg_add(mdp, st.d)),
-        bs: V::ZERO,
-        bd: V::ZERO,
+        bs: V::zero(),
+        bd: V::zero(),
     }
 }
 
@@ -726,7 +780,7 @@ const PAIRS: [(usize, usize); 3] = [(1, 0), (2, 0), (2, 1)];
 /// For channel `c`, `q₃ − q_c = Σ_{c'≠c} M[c][c']·(q_c' − q_c)` from the pair differences
 /// `d` (signed accordingly); zero (exactly) when the channels agree.
 #[inline(always)]
-fn spread(m: &[[V; 3]; 3], c: usize, d: &[V; 3]) -> V {
+fn spread<V: Lanes>(m: &[[V; 3]; 3], c: usize, d: &[V; 3]) -> V {
     match c {
         0 => m[0][1].mul_add(d[0], m[0][2] * d[1]),
         1 => m[1][0].mul_neg_add(d[0], m[1][2] * d[2]),
@@ -736,7 +790,7 @@ fn spread(m: &[[V; 3]; 3], c: usize, d: &[V; 3]) -> V {
 
 /// `Σ_{c'≠c} M[c][c']·p(c, c')` for a symmetric pair quantity `p`.
 #[inline(always)]
-fn side(m: &[[V; 3]; 3], c: usize, p: &[V; 3]) -> V {
+fn side<V: Lanes>(m: &[[V; 3]; 3], c: usize, p: &[V; 3]) -> V {
     match c {
         0 => m[0][1].mul_add(p[0], m[0][2] * p[1]),
         1 => m[1][0].mul_add(p[0], m[1][2] * p[2]),
@@ -752,14 +806,14 @@ fn side(m: &[[V; 3]; 3], c: usize, p: &[V; 3]) -> V {
 /// (μ₃ − μ_c)²`, well conditioned because `M[c][c] ≥ 0.27` (the subtracted square is at
 /// most 73% of the sum).
 #[inline(always)]
-fn mix(m: &[[V; 3]; 3], st: &[Stats; 3], w: &[Window; 3], ds: &[V; 3]) -> [Window; 3] {
-    let mut dx = [V::ZERO; 3];
-    let mut dy = [V::ZERO; 3];
-    let mut dd = [V::ZERO; 3];
-    let mut pxy = [V::ZERO; 3];
-    let mut pd = [V::ZERO; 3];
-    let mut dvs = [V::ZERO; 3];
-    let mut dvd = [V::ZERO; 3];
+fn mix<V: Lanes>(m: &[[V; 3]; 3], st: &[Stats<V>; 3], w: &[Window<V>; 3], ds: &[V; 3]) -> [Window<V>; 3] {
+    let mut dx = [V::zero(); 3];
+    let mut dy = [V::zero(); 3];
+    let mut dd = [V::zero(); 3];
+    let mut pxy = [V::zero(); 3];
+    let mut pd = [V::zero(); 3];
+    let mut dvs = [V::zero(); 3];
+    let mut dvd = [V::zero(); 3];
     for (i, &(a, b)) in PAIRS.iter().enumerate() {
         dx[i] = (st[a].x - st[b].x) + ds[i];
         dy[i] = (st[a].y - st[b].y) + ds[i];
@@ -775,7 +829,7 @@ fn mix(m: &[[V; 3]; 3], st: &[Stats; 3], w: &[Window; 3], ds: &[V; 3]) -> [Windo
 }
 
 /// The pair differences [`mix`] works from.
-struct Diffs {
+struct Diffs<V> {
     dx: [V; 3],
     dy: [V; 3],
     dd: [V; 3],
@@ -788,7 +842,7 @@ struct Diffs {
 /// Channel `c`'s 3-D window from its 2-D window `w`. (A function, not a closure: closures
 /// returning a window were not inlined, which cost 20%.)
 #[inline(always)]
-fn mixed(m: &[[V; 3]; 3], c: usize, w: &Window, d: &Diffs) -> Window {
+fn mixed<V: Lanes>(m: &[[V; 3]; 3], c: usize, w: &Window<V>, d: &Diffs<V>) -> Window<V> {
     let (ex, ey, ed) = (spread(m, c, &d.dx), spread(m, c, &d.dy), spread(m, c, &d.dd));
     let bs = max0(side(m, c, &d.pxy) - (ex * ex + ey * ey));
     let bd = max0(ed.mul_neg_add(ed, side(m, c, &d.pd)));
@@ -804,7 +858,7 @@ fn mixed(m: &[[V; 3]; 3], c: usize, w: &Window, d: &Diffs) -> Window {
 }
 
 /// The map value of one window and the parts of it the refinement test reuses.
-struct Mapped {
+struct Mapped<V> {
     /// Clamped to [−1, 1].
     val: V,
     lum_den: V,
@@ -814,7 +868,7 @@ struct Mapped {
 
 /// The map in the difference form (module docs).
 #[inline(always)]
-fn map(k: &Consts, w: &Window) -> Mapped {
+fn map<V: Lanes>(k: &Consts<V>, w: &Window<V>) -> Mapped<V> {
     let lum_den = (w.mx * w.mx + w.my * w.my) + k.c1;
     let lum_num = w.md.mul_neg_add(w.md, lum_den);
     let cs_den = w.vs + k.c2;
@@ -823,13 +877,13 @@ fn map(k: &Consts, w: &Window) -> Mapped {
     // the structure term needs to stay ≥ −1.
     let vdc = w.vd.fast_min(cs_den + cs_den);
     let cs_num = cs_den - vdc;
-    let val = ((lum_num * cs_num) / (lum_den * cs_den)).fast_max(-V::ONE).fast_min(V::ONE);
+    let val = ((lum_num * cs_num) / (lum_den * cs_den)).fast_max(-V::one()).fast_min(V::one());
     Mapped { val, lum_den, vdc }
 }
 
 /// The magnitudes cancelled in a window's statistics: their rounding errors scale with them.
 #[derive(Clone, Copy)]
-struct Mags {
+struct Mags<V> {
     /// Cancelled to get `vs` (`E[x'² + y'²]`).
     s: V,
     /// Cancelled to get `vd`. `md` comes from two separately rounded means, so `mdp²`
@@ -840,7 +894,7 @@ struct Mags {
 }
 
 #[inline(always)]
-fn own_mags(st: &Stats, w: &Window, dshift: V) -> Mags {
+fn own_mags<V: Lanes>(st: &Stats<V>, w: &Window<V>, dshift: V) -> Mags<V> {
     let m = st.x.abs() + st.y.abs();
     let mdp = w.md - dshift;
     Mags { s: st.s, d: (mdp + mdp).abs().mul_add(m, st.d), m }
@@ -848,10 +902,10 @@ fn own_mags(st: &Stats, w: &Window, dshift: V) -> Mags {
 
 /// The magnitudes of the 3-D windows: they mix like the statistics they belong to.
 #[inline(always)]
-fn mix_mags(m: &[[V; 3]; 3], g: &[Mags; 3], win: &[Window; 3]) -> [Mags; 3] {
-    let mut ds = [V::ZERO; 3];
-    let mut dd = [V::ZERO; 3];
-    let mut dm = [V::ZERO; 3];
+fn mix_mags<V: Lanes>(m: &[[V; 3]; 3], g: &[Mags<V>; 3], win: &[Window<V>; 3]) -> [Mags<V>; 3] {
+    let mut ds = [V::zero(); 3];
+    let mut dd = [V::zero(); 3];
+    let mut dm = [V::zero(); 3];
     for (i, &(a, b)) in PAIRS.iter().enumerate() {
         ds[i] = g[a].s - g[b].s;
         dd[i] = g[a].d - g[b].d;
@@ -878,7 +932,7 @@ fn mix_mags(m: &[[V; 3]; 3], g: &[Mags; 3], win: &[Window; 3]) -> [Mags; 3] {
 /// `6γu·(|μx'| + |μy'|)·|md| / (μx² + μy² + C1)` (small unless the shift is far from the
 /// local mean). Each is tested against half of [`REFINE_THRESHOLD`], without a division.
 #[inline(always)]
-fn flags(k: &Consts, w: &Window, g: &Mags, mp: &Mapped) -> (V, [V; 4]) {
+fn flags<V: Lanes>(k: &Consts<V>, w: &Window<V>, g: &Mags<V>, mp: &Mapped<V>) -> (V, [V; 4]) {
     // The estimate must not trust `vs` itself: where its error exceeds it (a badly shifted
     // window), the computed `cs_den` can be far too large and would hide everything.
     let cs_lo = max0(k.bound.mul_neg_add(g.s, w.vs)) + k.c2;
@@ -896,10 +950,17 @@ fn flags(k: &Consts, w: &Window, g: &Mags, mp: &Mapped) -> (V, [V; 4]) {
 /// monotonic in those bounds. Only vectors it fires on pay for the exact test (none on LDR
 /// content), so the refined voxels are the same as with the exact test everywhere.
 #[inline(always)]
-fn screen(k: &Consts, st: &[Stats; 3], own: &[Window; 3], win: &[Window; 3], mp: &[Mapped; 3], sd: &[V; 3]) -> V {
+fn screen<V: Lanes>(
+    k: &Consts<V>,
+    st: &[Stats<V>; 3],
+    own: &[Window<V>; 3],
+    win: &[Window<V>; 3],
+    mp: &[Mapped<V>; 3],
+    sd: &[V; 3],
+) -> V {
     let max3 = |a: [V; 3]| a[0].fast_max(a[1]).fast_max(a[2]);
-    let mut mag_m = [V::ZERO; 3];
-    let mut mdp = [V::ZERO; 3];
+    let mut mag_m = [V::zero(); 3];
+    let mut mdp = [V::zero(); 3];
     for c in 0..3 {
         mag_m[c] = st[c].x.abs() + st[c].y.abs();
         mdp[c] = (own[c].md - sd[c]).abs();
@@ -908,7 +969,7 @@ fn screen(k: &Consts, st: &[Stats; 3], own: &[Window; 3], win: &[Window; 3], mp:
     let ms = max3([st[0].s, st[1].s, st[2].s]) * k.slack;
     let mdp = max3(mdp);
     let md = (mdp + mdp).mul_add(mm, max3([st[0].d, st[1].d, st[2].d])) * k.slack;
-    let mut fire = V::ZERO;
+    let mut fire = V::zero();
     for c in 0..3 {
         let (s, d) = (ms + win[c].bs, md + win[c].bd);
         let lo = max0(k.bound.mul_neg_add(s, win[c].vs)) + k.c2;
@@ -923,7 +984,13 @@ fn screen(k: &Consts, st: &[Stats; 3], own: &[Window; 3], win: &[Window; 3], mp:
 /// The windows of one vector of voxels in all three channels: each channel's own and the
 /// ones the map uses (mixed for the 3-D variant).
 #[inline(always)]
-fn windows(k: &Consts, variant: SsimVariant, st: &[Stats; 3], sh: &Shifts, ds: &[V; 3]) -> ([Window; 3], [Window; 3]) {
+fn windows<V: Lanes>(
+    k: &Consts<V>,
+    variant: SsimVariant,
+    st: &[Stats<V>; 3],
+    sh: &Shifts,
+    ds: &[V; 3],
+) -> ([Window<V>; 3], [Window<V>; 3]) {
     // (Plain arrays, not `core::array::from_fn` or `[_; 3].map`: those closures are not
     // always inlined here, which cost 60%.)
     let own = [
@@ -942,7 +1009,7 @@ fn windows(k: &Consts, variant: SsimVariant, st: &[Stats; 3], sh: &Shifts, ds: &
 /// after [`products`], which makes its channel's `x'² + y'²` plane NaN wherever a window
 /// holds it, so that one plane tells (usable samples cannot overflow any statistic).
 #[inline(always)]
-fn finite(variant: SsimVariant, st: &[Stats; 3]) -> [V; 3] {
+fn finite<V: Lanes>(variant: SsimVariant, st: &[Stats<V>; 3]) -> [V; 3] {
     match variant {
         SsimVariant::PerChannel => [st[0].s.simd_eq(st[0].s), st[1].s.simd_eq(st[1].s), st[2].s.simd_eq(st[2].s)],
         SsimVariant::Volume => {
@@ -955,7 +1022,13 @@ fn finite(variant: SsimVariant, st: &[Stats; 3]) -> [V; 3] {
 /// The common case of pass 0: the map values, and the lanes that are usable and pass the
 /// refinement test in every channel.
 #[inline(always)]
-fn fast_voxels(k: &Consts, variant: SsimVariant, st: &[Stats; 3], sh: &Shifts, ds: &[V; 3]) -> ([V; 3], V) {
+fn fast_voxels<V: Lanes>(
+    k: &Consts<V>,
+    variant: SsimVariant,
+    st: &[Stats<V>; 3],
+    sh: &Shifts,
+    ds: &[V; 3],
+) -> ([V; 3], V) {
     let (own, win) = windows(k, variant, st, sh, ds);
     let mp = [map(k, &win[0]), map(k, &win[1]), map(k, &win[2])];
     let fin = finite(variant, st);
@@ -965,7 +1038,7 @@ fn fast_voxels(k: &Consts, variant: SsimVariant, st: &[Stats; 3], sh: &Shifts, d
             screen(k, st, &own, &win, &mp, &sd)
         }
         SsimVariant::PerChannel => {
-            let mut any = V::ZERO;
+            let mut any = V::zero();
             for c in 0..3 {
                 let g = own_mags(&st[c], &own[c], V::splat(sh.sd[c]));
                 any |= flags(k, &win[c], &g, &mp[c]).0;
@@ -977,7 +1050,7 @@ fn fast_voxels(k: &Consts, variant: SsimVariant, st: &[Stats; 3], sh: &Shifts, d
 }
 
 /// Everything a pass needs to decide about one vector of voxels.
-struct Voxels {
+struct Voxels<V> {
     /// Map values, clamped to [−1, 1].
     val: [V; 3],
     /// Lanes whose window holds only usable samples.
@@ -987,13 +1060,19 @@ struct Voxels {
     /// The error estimates as fractions (see [`flags`]).
     score: [[V; 4]; 3],
     /// Per-channel 2-D windows, for re-shifting.
-    own: [Window; 3],
+    own: [Window<V>; 3],
 }
 
 /// The map values with the exact refinement test (the values are the same bits as
 /// [`fast_voxels`]'s: the same code computes them).
 #[inline(always)]
-fn exact_voxels(k: &Consts, variant: SsimVariant, st: &[Stats; 3], sh: &Shifts, ds: &[V; 3]) -> Voxels {
+fn exact_voxels<V: Lanes>(
+    k: &Consts<V>,
+    variant: SsimVariant,
+    st: &[Stats<V>; 3],
+    sh: &Shifts,
+    ds: &[V; 3],
+) -> Voxels<V> {
     let (own, win) = windows(k, variant, st, sh, ds);
     let mp = [map(k, &win[0]), map(k, &win[1]), map(k, &win[2])];
     let g = [
@@ -1018,8 +1097,8 @@ fn exact_voxels(k: &Consts, variant: SsimVariant, st: &[Stats; 3], sh: &Shifts, 
 /// Vertical pass for output rows `o .. o + K`, then the map and accumulation of each.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn emit_rows<const K: usize>(
-    ctx: &Ctx<'_>,
+fn emit_rows<V: Lanes, const K: usize>(
+    ctx: &Ctx<'_, V>,
     s: &mut Scratch,
     t: &Tile,
     pass: usize,
@@ -1036,7 +1115,7 @@ fn emit_rows<const K: usize>(
     for (i, slot) in slots.iter_mut().enumerate() {
         *slot = (o + i).saturating_sub(RADIUS).min(ctx.height - 1) % RING;
     }
-    vertical::<K>(&ctx.k, s, &slots);
+    vertical::<V, K>(&ctx.k, s, &slots);
     for r in 0..K {
         emit_row(ctx, s, t, pass, sh, o + r, r, sums, worst);
     }
@@ -1045,8 +1124,8 @@ fn emit_rows<const K: usize>(
 /// Map and accumulation for output row `o`, whose vertical statistics are in `vbuf[vb]`.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn emit_row(
-    ctx: &Ctx<'_>,
+fn emit_row<V: Lanes>(
+    ctx: &Ctx<'_, V>,
     s: &mut Scratch,
     t: &Tile,
     pass: usize,
@@ -1062,24 +1141,24 @@ fn emit_row(
     if pass > 0 && pending == [0; 3] {
         return;
     }
-    let mut ds = [V::ZERO; 3];
+    let mut ds = [V::zero(); 3];
     for (i, &(a, b)) in PAIRS.iter().enumerate() {
         ds[i] = V::splat(sh.s[a] - sh.s[b]);
     }
-    let full = t.full_vectors();
-    let mut row_sum = [V::ZERO; 3];
+    let full = t.full_vectors(V::LANES);
+    let mut row_sum = [V::zero(); 3];
     let mut row_count = [0u64; 3];
-    for j in 0..t.nv.min(TILE / LANES) {
-        let mut want = [LANE_BITS as u32; 3];
+    for j in 0..t.nv.min(TILE / V::LANES) {
+        let mut want = [V::lane_bits(); 3];
         if pass > 0 {
             for (w, &p) in want.iter_mut().zip(&pending) {
-                *w = ((p >> (j * LANES)) & LANE_BITS) as u32;
+                *w = ((p >> (j * V::LANES)) & u64::from(V::lane_bits())) as u32;
             }
         }
         if want == [0; 3] {
             continue;
         }
-        let col = j * LANES;
+        let col = j * V::LANES;
         let vbuf = &s.vbuf[vb];
         let st = [stats(&vbuf[0], col), stats(&vbuf[1], col), stats(&vbuf[2], col)];
         // Common case: a full vector of usable, well-conditioned voxels in every channel.
@@ -1088,7 +1167,7 @@ fn emit_row(
             if ok.all() {
                 for c in 0..3 {
                     row_sum[c] += val[c];
-                    row_count[c] += LANES as u64;
+                    row_count[c] += V::LANES as u64;
                 }
                 continue;
             }
@@ -1101,14 +1180,14 @@ fn emit_row(
             let accept = candidates & !flagged;
             let accepted = count(accept);
             if accepted > 0 {
-                // At most TILE / LANES terms per lane in f32 before the f64 sum.
-                row_sum[c] += accept.select(v.val[c], V::ZERO);
+                // At most TILE / 8 terms per lane in f32 before the f64 sum.
+                row_sum[c] += accept.select(v.val[c], V::zero());
                 row_count[c] += u64::from(accepted);
                 if pass > 0 {
                     sums.refined += u64::from(accepted);
                 }
             }
-            let shift = j * LANES;
+            let shift = j * V::LANES;
             if pass == 0 {
                 s.pending[row][c] |= u64::from(flagged.to_bitmask()) << shift;
             } else {
@@ -1118,15 +1197,15 @@ fn emit_row(
             while bits != 0 {
                 let lane = bits.trailing_zeros() as usize;
                 bits &= bits - 1;
-                let f = v.score[c].map(|q| f64::from(q.to_array()[lane]));
+                let f = v.score[c].map(|q| f64::from(q.lane(lane)));
                 // In units of each test's limit.
                 let score = f[0] / f[1] / k.limit_f64 + f[2] / f[3] / k.limit_lum_f64;
                 if score > worst.score[c] {
                     worst.score[c] = score;
                     for q in 0..3 {
                         let w = &v.own[q];
-                        worst.level[c][q] = (w.mx.to_array()[lane] + w.my.to_array()[lane]) * 0.5;
-                        worst.diff[c][q] = w.md.to_array()[lane];
+                        worst.level[c][q] = (w.mx.lane(lane) + w.my.lane(lane)) * 0.5;
+                        worst.diff[c][q] = w.md.lane(lane);
                     }
                 }
             }
