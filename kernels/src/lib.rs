@@ -4,7 +4,8 @@
 //! (stereo and temporal are one kernel with different cameras), EMA accumulation and stereo
 //! blending. Each kernel has a scalar reference and a SIMD body (`wide`, 8 lanes) in the
 //! same module; the scalar one is always compiled and public, and the two agree bit for bit
-//! (see the determinism policy in [`simd`]).
+//! (see the determinism policy in [`simd`]). SSIM also has a 16-lane AVX-512 body, chosen at
+//! run time where the CPU has it ([`isa`]).
 //!
 //! Callers own every buffer. Views are validated once at the boundary ([`frame`]); inside,
 //! kernels do not fail, do not panic and do not allocate. Parallel kernels split their output

@@ -100,7 +100,8 @@
 //! unfused.
 //!
 //! # Kernels
-//! [`ssim`] is the fused f32x8 kernel: per row band (on the caller's rayon pool) and
+//! [`ssim`] is the fused SIMD kernel (16 lanes on AVX-512 CPUs, 8 otherwise, chosen at run
+//! time: [`crate::isa`]; [`ssim_with`] picks one): per row band (on the caller's rayon pool) and
 //! 64-column tile, a horizontal pass per input row into a ring of 14 filtered rows (43 KB),
 //! then a vertical pass for 4 output rows at a time, the channel mixing, the map and the
 //! accumulation; the intermediates never leave L1/L2. It allocates nothing. [`ssim_scalar`] is the
