@@ -4,7 +4,12 @@ use clap::{Parser, Subcommand};
 
 /// Real-time stereoscopic path tracing with spatiotemporal sample reprojection.
 #[derive(Parser)]
-#[command(version, about)]
+#[command(
+    version,
+    about,
+    after_help = "Environment: STEREOTRACE_ISA=avx2 forces the 8-lane kernel bodies on an AVX-512 CPU \
+                  (default: the widest the CPU has; an unknown value is an error)."
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -235,6 +240,10 @@ fn main() -> ExitCode {
         return ExitCode::FAILURE;
     }
     let cli = Cli::parse();
+    if let Err(message) = stereotrace::cpu::check_isa_env() {
+        eprintln!("error: {message}");
+        return ExitCode::FAILURE;
+    }
     let result = match cli.command {
         Command::Throughput {
             scene,

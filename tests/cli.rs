@@ -316,3 +316,30 @@ fn the_always_run_note_counts_the_fully_traced_eye() {
     let text = stereotrace(&args[..args.len() - 1]);
     assert!(String::from_utf8_lossy(&text.stdout).contains("tracing the pixels without valid history"));
 }
+
+#[test]
+fn an_unknown_or_unsupported_instruction_set_is_refused_and_avx2_is_taken() {
+    let run = |isa: &str, args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_stereotrace"))
+            .args(args)
+            .env("STEREOTRACE_ISA", isa)
+            .output()
+            .expect("the binary runs")
+    };
+    let out = run("sse9", &["scenes"]);
+    assert_refused(&out, "STEREOTRACE_ISA=\"sse9\" is not an instruction set");
+    // `--help` still works, and says what the variable does.
+    let help = run("sse9", &["--help"]);
+    assert!(help.status.success() && String::from_utf8_lossy(&help.stdout).contains("STEREOTRACE_ISA"));
+    // The 8-lane bodies run anywhere; the JSON says which bodies a driver ran.
+    let out = run("avx2", &["throughput", "--scene", "cornell", "--frames", "1", "--res", "64x36", "--json"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let json = String::from_utf8_lossy(&out.stdout);
+    assert!(json.contains("\"simd_level\"") && !json.contains("AVX-512 bodies"), "{json}");
+    if stereotrace::kernels::isa::Isa::Avx512.is_supported() {
+        let out = run("avx512", &["throughput", "--scene", "cornell", "--frames", "1", "--res", "64x36", "--json"]);
+        assert!(String::from_utf8_lossy(&out.stdout).contains("AVX-512 bodies at run time"));
+    } else {
+        assert_refused(&run("avx512", &["scenes"]), "lacks AVX-512");
+    }
+}

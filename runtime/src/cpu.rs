@@ -19,9 +19,14 @@ pub fn check_cpu() -> Result<(), String> {
             ));
         }
     }
-    // A typo or an instruction set this CPU lacks is an error here, not a silent fallback.
-    stereotrace_kernels::isa::Isa::from_env().map_err(|e| e.to_string())?;
     Ok(())
+}
+
+/// Fails with a readable message when `STEREOTRACE_ISA` names an unknown instruction set or
+/// one this CPU lacks ([`stereotrace_kernels::isa::Isa::from_env`]): a typo is an error, not a
+/// silent fallback to the detected set.
+pub fn check_isa_env() -> Result<(), String> {
+    stereotrace_kernels::isa::Isa::from_env().map(|_| ()).map_err(|e| e.to_string())
 }
 
 /// A one-line description of the SIMD level: the level compiled in, and the wider bodies
