@@ -370,23 +370,23 @@ pub const RMSE_FLOOR: f64 = 1e-21;
 /// Panics unless the counts agree exactly, `|Δssim| ≤ tol` (and per channel) and the RMSEs
 /// agree to `tol` relative (plus [`RMSE_FLOOR`]). NaNs (nothing usable) must match.
 pub fn assert_agrees(fast: &SsimResult, reference: &SsimResult, tol: f64) {
-    let close = |a: f64, b: f64, t: f64| (a.is_nan() && b.is_nan()) || (a - b).abs() <= t;
     assert_eq!(
         (fast.voxels, fast.rmse_samples, fast.non_finite),
         (reference.voxels, reference.rmse_samples, reference.non_finite),
         "SSIM counts differ: fast {fast:?}, reference {reference:?}"
     );
-    assert!(close(fast.ssim, reference.ssim, tol), "SSIM differs: fast {fast:?}, reference {reference:?}");
+    assert_means_close(fast, reference, tol, "fast against reference");
+}
+
+/// The mean checks of [`assert_agrees`] and [`assert_isas_agree`]: `|Δssim| ≤ tol` (and per
+/// channel), RMSEs within `tol` relative to `b`'s plus [`RMSE_FLOOR`]; NaNs must match.
+fn assert_means_close(a: &SsimResult, b: &SsimResult, tol: f64, what: &str) {
+    let close = |x: f64, y: f64, t: f64| (x.is_nan() && y.is_nan()) || (x - y).abs() <= t;
+    assert!(close(a.ssim, b.ssim, tol), "SSIM differs ({what}): {a:?} vs {b:?}");
     for c in 0..3 {
-        assert!(
-            close(fast.per_channel[c], reference.per_channel[c], tol),
-            "SSIM channel {c} differs: fast {fast:?}, reference {reference:?}"
-        );
+        assert!(close(a.per_channel[c], b.per_channel[c], tol), "SSIM channel {c} differs ({what}): {a:?} vs {b:?}");
     }
-    assert!(
-        close(fast.rmse, reference.rmse, tol * reference.rmse.abs() + RMSE_FLOOR),
-        "RMSE differs: fast {fast:?}, reference {reference:?}"
-    );
+    assert!(close(a.rmse, b.rmse, tol * b.rmse.abs() + RMSE_FLOOR), "RMSE differs ({what}): {a:?} vs {b:?}");
 }
 
 /// How far the means of two instruction sets' bodies may differ ([`assert_isas_agree`]). Every
@@ -404,18 +404,7 @@ pub fn assert_isas_agree(a: &SsimResult, b: &SsimResult) {
         (b.voxels, b.rmse_samples, b.non_finite, b.refined),
         "instruction sets count differently: {a:?} vs {b:?}"
     );
-    let close = |x: f64, y: f64, t: f64| (x.is_nan() && y.is_nan()) || (x - y).abs() <= t;
-    assert!(close(a.ssim, b.ssim, ISA_TOLERANCE), "instruction sets' SSIM differs: {a:?} vs {b:?}");
-    for c in 0..3 {
-        assert!(
-            close(a.per_channel[c], b.per_channel[c], ISA_TOLERANCE),
-            "instruction sets' SSIM channel {c} differs: {a:?} vs {b:?}"
-        );
-    }
-    assert!(
-        close(a.rmse, b.rmse, ISA_TOLERANCE * a.rmse.abs() + RMSE_FLOOR),
-        "instruction sets' RMSE differs: {a:?} vs {b:?}"
-    );
+    assert_means_close(a, b, ISA_TOLERANCE, "two instruction sets");
 }
 
 #[cfg(test)]
