@@ -308,23 +308,24 @@ impl Renderer {
 }
 
 /// Per-vertex data of the eight lanes' triangles as `[vertex][axis]` lanes: splat when
-/// `uniform` (every lane's triangle is `prims[0]`), else gathered.
+/// `uniform` (every lane's triangle is `prims[0]`), else gathered: each lane's first eight
+/// floats as one vector load, turned into eight `[vertex][axis]` vectors by one 8×8
+/// transpose, and the ninth (`v2.z`) lane by lane. (Writing the 72 floats one by one into
+/// arrays and loading those was the resolve's hottest line: every load waited on eight
+/// narrower stores.)
 #[inline(always)]
 fn lane_triangles(data: &[[Vec3; 3]], prims: &[u32; LANES], uniform: bool) -> [[F32s; 3]; 3] {
     if uniform {
         let t = &data[prims[0] as usize];
         return from3(|v| [F32s::splat(t[v].x), F32s::splat(t[v].y), F32s::splat(t[v].z)]);
     }
-    let mut cols = [[[0.0f32; LANES]; 3]; 3];
-    for (lane, &p) in prims.iter().enumerate() {
-        let t = &data[p as usize];
-        for v in 0..3 {
-            cols[v][0][lane] = t[v].x;
-            cols[v][1][lane] = t[v].y;
-            cols[v][2][lane] = t[v].z;
-        }
-    }
-    from3(|v| from3(|axis| F32s::from(cols[v][axis])))
+    let floats = |lane: usize| -> &[f32; 9] { bytemuck::cast_ref(&data[prims[lane] as usize]) };
+    let rows: [F32s; 8] = core::array::from_fn(|lane| {
+        F32s::from(<[f32; 8]>::try_from(&floats(lane)[..8]).expect("eight of nine floats"))
+    });
+    let [x0, y0, z0, x1, y1, z1, x2, y2] = F32s::transpose(rows);
+    let z2 = F32s::from(core::array::from_fn::<f32, LANES, _>(|lane| floats(lane)[8]));
+    [[x0, y0, z0], [x1, y1, z1], [x2, y2, z2]]
 }
 
 /// The eight lanes' materials.
