@@ -8,7 +8,7 @@
 //! and crossing the near plane (clipped to quads whose vertices land far off screen), a
 //! million tiny triangles inside one pixel, and NaN or infinite vertices (the scene loader
 //! refuses them, `tests/scenes.rs`; the kernel must still not let one reach a pixel). Scalar
-//! reference and SIMD body must give the same buffers on each.
+//! reference and SIMD body must give the same buffers on each, and so must bands of any height.
 
 use glam::Vec3;
 use stereotrace::camera::{Eye, StereoRig};
@@ -48,15 +48,19 @@ fn brute_force(camera: &CameraModel, tris: &[TriVerts], x: usize, y: usize) -> u
 fn check(name: &str, tris: &[TriVerts], head: &CameraPose, extent: Extent, only: Option<(usize, usize)>) -> Vec<u32> {
     let rig = StereoRig::default();
     let cams = Eye::BOTH.map(|eye| rig.eye_camera(head, eye, extent).unwrap());
-    let run = |body| {
+    let run = |body, mut rasterizer: Rasterizer| {
         let mut out = [VisibilityBuffer::new(extent), VisibilityBuffer::new(extent)];
         let [l, r] = &mut out;
         let tris = Triangles { main: tris, extra: &[] };
-        Rasterizer::new().rasterize(tris, [&cams[0], &cams[1]], &NoMasks, 1e-6, [l, r], body).unwrap();
+        rasterizer.rasterize(tris, [&cams[0], &cams[1]], &NoMasks, 1e-6, [l, r], body).unwrap();
         out
     };
-    let (simd, scalar) = (run(Body::Simd), run(Body::Scalar));
+    let (simd, scalar) = (run(Body::Simd, Rasterizer::new()), run(Body::Scalar, Rasterizer::new()));
     assert_eq!(simd, scalar, "{name}: the SIMD body and the scalar reference differ");
+    // The band height changes the work's partition, never a pixel.
+    for rows in [1, 3, 8] {
+        assert_eq!(simd, run(Body::Simd, Rasterizer::with_band_rows(rows)), "{name}: bands of {rows} rows differ");
+    }
     for (eye, vis) in simd.iter().enumerate() {
         let ids = vis.prim.as_slice();
         for y in 0..extent.height() {

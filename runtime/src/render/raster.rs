@@ -66,6 +66,12 @@ impl RasterGBuffers {
     pub fn visibility(&self) -> &[VisibilityBuffer; 2] {
         &self.visibility
     }
+
+    /// Rasterise in bands of `rows` rows (default [`crate::kernels::raster::BAND_ROWS`]): the
+    /// same buffers, another partition of the work (for tests and tuning).
+    pub fn set_band_rows(&mut self, rows: usize) {
+        self.rasterizer = Rasterizer::with_band_rows(rows);
+    }
 }
 
 /// What one rasterised G-buffer pass did: the kernel's statistics (with its step times) and
