@@ -26,6 +26,13 @@ pub const HEARTBEAT: Duration = Duration::from_secs(30);
 /// A claim untouched for this long is stale, whoever holds it.
 pub const STALE_CLAIM: Duration = Duration::from_secs(15 * 60);
 
+/// A claim file that exists but does not name a holder (empty or cut short: its holder was
+/// killed between creating the file and writing its line) is stale once this old. A live
+/// holder writes and syncs its line right after creating the file, so the grace only has to
+/// cover that moment; without it such a file was waited on for ever (CI's kill once landed
+/// there, and the rerun hung).
+pub const UNREADABLE_CLAIM: Duration = Duration::from_secs(10);
+
 /// This machine's name (`/proc/sys/kernel/hostname`; the claim's holder identity).
 fn host() -> String {
     fs::read_to_string("/proc/sys/kernel/hostname")
@@ -119,19 +126,24 @@ pub fn try_claim(entry: &Path) -> Result<Attempt, String> {
             Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {}
             Err(e) => return Err(format!("{}: cannot create claim: {e}", path.display())),
         }
-        let Some((holder, age)) = read_claim(&path) else {
-            // Released (or half-written) between our attempt and this read: try again.
-            continue;
+        let holder = match read_claim_file(&path) {
+            // Released between our attempt and this read: try again.
+            ClaimFile::Missing => continue,
+            // Being written, or left unwritten by a holder that died (see UNREADABLE_CLAIM).
+            ClaimFile::Unreadable(age) if age <= UNREADABLE_CLAIM => continue,
+            ClaimFile::Unreadable(_) => None,
+            ClaimFile::Held(holder, age) if !(holder.gone() || age > STALE_CLAIM) => {
+                return Ok(Attempt::HeldBy(holder));
+            }
+            ClaimFile::Held(holder, _) => Some(holder),
         };
-        if !(holder.gone() || age > STALE_CLAIM) {
-            return Ok(Attempt::HeldBy(holder));
-        }
-        take_over(&path, &holder);
+        take_over(&path, holder.as_ref());
     }
-    // Still contended after a takeover: someone else took it first.
-    match read_claim(&path) {
-        Some((holder, _)) => Ok(Attempt::HeldBy(holder)),
-        None => Ok(Attempt::HeldBy(Holder { host: "?".into(), pid: 0, token: 0 })),
+    // Still contended after a takeover (someone else took it first), or a claim still being
+    // written: wait for it.
+    match read_claim_file(&path) {
+        ClaimFile::Held(holder, _) => Ok(Attempt::HeldBy(holder)),
+        _ => Ok(Attempt::HeldBy(Holder { host: "?".into(), pid: 0, token: 0 })),
     }
 }
 
@@ -141,29 +153,42 @@ pub fn try_claim(entry: &Path) -> Result<Attempt, String> {
 /// A live holder's claim is left to it (it removes it itself).
 pub fn clear_orphan(entry: &Path) {
     let path = claim_path(entry);
-    if let Some((holder, age)) = read_claim(&path)
-        && (holder.gone() || age > STALE_CLAIM)
-    {
-        take_over(&path, &holder);
+    match read_claim_file(&path) {
+        ClaimFile::Held(holder, age) if holder.gone() || age > STALE_CLAIM => take_over(&path, Some(&holder)),
+        ClaimFile::Unreadable(age) if age > UNREADABLE_CLAIM => take_over(&path, None),
+        _ => {}
     }
 }
 
-/// The holder and age of a claim file, if it exists and parses.
-fn read_claim(path: &Path) -> Option<(Holder, Duration)> {
-    let text = fs::read_to_string(path).ok()?;
-    let age = fs::metadata(path).ok()?.modified().ok()?.elapsed().unwrap_or_default();
-    Some((Holder::parse(&text)?, age))
+/// What a claim file holds.
+enum ClaimFile {
+    Missing,
+    /// It exists but names no holder, and was last modified this long ago.
+    Unreadable(Duration),
+    /// Its holder, and how long ago it was last touched.
+    Held(Holder, Duration),
 }
 
-/// Removes the stale claim of `judged` at `path`: renames it to a name of ours, and puts it
-/// back if what we renamed is not the claim we judged (someone took over first).
-fn take_over(path: &Path, judged: &Holder) {
+fn read_claim_file(path: &Path) -> ClaimFile {
+    let Ok(text) = fs::read_to_string(path) else { return ClaimFile::Missing };
+    let Some(age) = fs::metadata(path).ok().and_then(|m| m.modified().ok()) else { return ClaimFile::Missing };
+    let age = age.elapsed().unwrap_or_default();
+    match Holder::parse(&text) {
+        Some(holder) => ClaimFile::Held(holder, age),
+        None => ClaimFile::Unreadable(age),
+    }
+}
+
+/// Removes the stale claim of `judged` (`None`: an unreadable one) at `path`: renames it to
+/// a name of ours, and puts it back if what we renamed is not the claim we judged (someone
+/// took over first).
+fn take_over(path: &Path, judged: Option<&Holder>) {
     let aside = path.with_extension(format!("claim.stale-{}-{:x}", std::process::id(), token()));
     if fs::rename(path, &aside).is_err() {
         return;
     }
     let renamed = fs::read_to_string(&aside).ok().and_then(|t| Holder::parse(&t));
-    if renamed.as_ref() != Some(judged) {
+    if renamed.as_ref() != judged {
         // A live claim: restore it unless a new one already exists (hard_link fails then).
         fs::hard_link(&aside, path).ok();
     }
@@ -259,6 +284,36 @@ mod tests {
         clear_orphan(&entry);
         assert_eq!(fs::read_to_string(claim_path(&entry)).unwrap(), live.text(), "a live claim is kept");
         clear_orphan(&dir.join("no-claim.bin"));
+        fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn an_unwritten_claim_is_waited_for_briefly_then_taken_over() {
+        // A holder killed between creating its claim and writing its line leaves an empty
+        // file; a rerun once waited on one for ever.
+        let dir = temp_dir("unwritten");
+        let entry = dir.join("a.bin");
+        fs::write(claim_path(&entry), b"").unwrap();
+        assert!(
+            matches!(try_claim(&entry).unwrap(), Attempt::HeldBy(h) if h.pid == 0),
+            "a fresh one may be being written"
+        );
+        let age = |path: &Path, by: Duration| {
+            let f = fs::OpenOptions::new().write(true).open(path).unwrap();
+            f.set_modified(SystemTime::now() - by).unwrap();
+        };
+        age(&claim_path(&entry), UNREADABLE_CLAIM + Duration::from_secs(1));
+        let Attempt::Acquired(claim) = try_claim(&entry).unwrap() else { panic!("unwritten claim not taken over") };
+        assert_eq!(claim.holder.pid, std::process::id());
+        drop(claim);
+        // A half-written line is the same case; and an orphan of a finished entry is cleared.
+        fs::write(&entry, b"done").unwrap();
+        fs::write(claim_path(&entry), b"node-7 12").unwrap();
+        clear_orphan(&entry);
+        assert!(claim_path(&entry).exists(), "a fresh unreadable claim is left alone");
+        age(&claim_path(&entry), UNREADABLE_CLAIM + Duration::from_secs(1));
+        clear_orphan(&entry);
+        assert!(!claim_path(&entry).exists(), "an old unreadable claim is removed");
         fs::remove_dir_all(&dir).ok();
     }
 
