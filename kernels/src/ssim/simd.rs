@@ -194,7 +194,7 @@ struct Scratch {
     /// Vertically filtered statistics of the current output rows:
     /// `[row − o][channel][plane][column − c0]`.
     vbuf: [[[[f32; TILE]; PLANES]; 3]; KB],
-    /// Voxels<V> still to be computed after a pass: `[row − r0][channel]`, bit = column − c0.
+    /// Voxels still to be computed after a pass: `[row − r0][channel]`, bit = column − c0.
     pending: [[u64; 3]; BLOCK_ROWS],
 }
 
@@ -240,12 +240,6 @@ fn widen_add<V: Lanes>(acc: &mut f64x4, v: V) {
     for q in a.as_ref().chunks_exact(4) {
         *acc += f64x4::new([q[0] as f64, q[1] as f64, q[2] as f64, q[3] as f64]);
     }
-}
-
-/// All-ones lanes for the set bits of `bits` (bit i = lane i).
-#[inline(always)]
-fn bits_mask<V: Lanes>(bits: u32) -> V {
-    V::from_bitmask(bits)
 }
 
 #[inline(always)]
@@ -1175,7 +1169,7 @@ fn emit_row<V: Lanes>(
         let v = exact_voxels(k, ctx.variant, &st, sh, &ds);
         let inside = lanes(t, j);
         for (c, &want) in want.iter().enumerate() {
-            let candidates = v.finite[c] & inside & if pass == 0 { inside } else { bits_mask(want) };
+            let candidates = v.finite[c] & inside & if pass == 0 { inside } else { V::from_bitmask(want) };
             let flagged = candidates & v.flagged[c];
             let accept = candidates & !flagged;
             let accepted = count(accept);
