@@ -46,7 +46,18 @@ fn brute_force(camera: &CameraModel, tris: &[TriVerts], x: usize, y: usize) -> u
 /// to each other and to the oracle on every pixel (or on `only` when given). Returns the
 /// left eye's ids.
 fn check(name: &str, tris: &[TriVerts], head: &CameraPose, extent: Extent, only: Option<(usize, usize)>) -> Vec<u32> {
-    let rig = StereoRig::default();
+    check_rig(name, tris, head, StereoRig::default(), extent, only)
+}
+
+/// [`check`] with the rig `rig`.
+fn check_rig(
+    name: &str,
+    tris: &[TriVerts],
+    head: &CameraPose,
+    rig: StereoRig,
+    extent: Extent,
+    only: Option<(usize, usize)>,
+) -> Vec<u32> {
     let cams = Eye::BOTH.map(|eye| rig.eye_camera(head, eye, extent).unwrap());
     let run = |body, mut rasterizer: Rasterizer| {
         let mut out = [VisibilityBuffer::new(extent), VisibilityBuffer::new(extent)];
@@ -120,6 +131,33 @@ fn triangles_behind_the_camera_and_across_the_near_plane() {
         let ids = check("near plane", &tris, &pose(eye, Vec3::new(0.0, 0.9, -1.0)), extent, None);
         assert!(!ids.contains(&1), "a triangle behind the camera was drawn");
     }
+}
+
+/// Two slivers folded along one shared edge 2000 units long that runs past the eye end-on
+/// (one end 1000 units ahead, the other 1000 units behind, so both are clipped), a wall behind
+/// them. At pixel (1, 14) of the right eye the pixel ray passes 7e-5 px outside both slivers,
+/// but the tracer's f32 test hits both (its rounding on an edge seen end-on with vertices 10³
+/// units away, ~10⁻² px here). The raster once called that pixel certainly outside the first
+/// sliver and uncertain for the second, so its exact path showed the second where the tracer
+/// sees the first: its band now includes the tracer's own edge rounding (found by fuzzing).
+#[test]
+fn a_far_clipped_sliver_pair_seen_end_on_matches_the_tracer() {
+    let tris = vec![
+        tri([-4.0, -4.0, -4.0], [-4.0, 2.0, 2.0], [2.0, -1.0, -1.5]),
+        tri([-1000.0, -1.5, -4.0], [-1000.0, 4.0, 0.0], [1000.0, -4.0, -1.5]),
+        tri([-4.0, -2.0, -1000.0], [4.0, 0.0, 1000.0], [-4.0, -1.5, -3.0]),
+        tri([1000.0, -4.0, -1.5], [-3.0, 2.5, -1000.0], [-3.0, -1.5, 2.3686275]),
+        tri([-4.0, -4.0, -4.0], [-4.0, -2.0, -1000.0], [4.0, 0.0, 1000.0]),
+    ];
+    let head = CameraPose {
+        eye: Vec3::new(0.4372549, -0.08823529, 0.5),
+        forward: Vec3::new(0.5171012, 0.27067998, -0.81199664),
+        up: Vec3::new(-0.14539671, 0.9626694, 0.22831437),
+        right: Vec3::new(0.8434845, -0.0, 0.53715354),
+        vfov_deg: 120.0,
+    };
+    let rig = StereoRig::new(0.064).unwrap();
+    check_rig("far clipped slivers", &tris, &head, rig, Extent::new(17, 16).unwrap(), Some((1, 14)));
 }
 
 #[test]

@@ -24,7 +24,10 @@
 //! rounding, while the tracer decides it with its own f32 ray, which itself deviates from
 //! the exact pixel centre by up to a few 1e-4 px. No fill rule (top-left or otherwise) can
 //! make those decisions agree. So every test here has an **error band**, computed per
-//! triangle from the magnitudes involved (`Record::band`, `Record::q_err`):
+//! triangle from the magnitudes involved (`Record::band`, `Record::q_err`): the raster's own
+//! rounding, how far the tracer's f32 pixel rays stray, and how far its f32 triangle test
+//! may move an edge (negligible broadside, ~10⁻² px for an edge seen end-on whose vertices
+//! lie 10³ units away; `tracer_edge_slack`):
 //!
 //! * a pixel is *inside* when every edge function exceeds its band, *outside* when one is
 //!   below minus its band, and *uncertain* otherwise;
@@ -374,6 +377,10 @@ struct Projection {
     hh: f32,
     /// How far (pixels) the tracer's f32 pixel rays may stray from exact pixel centres.
     ray_slack: f32,
+    /// Pixels per radian of a ray's direction, at most, anywhere on screen: an angle `δ`
+    /// moves a unit-view-depth ray's image point by at most `δ·|d|²`, and a pixel is at
+    /// least `min(|ray_dx|, |ray_dy|)` wide (see [`tracer_edge_slack`]).
+    px_per_radian: f64,
     /// The inverse of the 3×3 matrix with rows `rx`, `ry`, `rw` (clip = M·d), for the depth
     /// planes, and the left centre minus the right one.
     m_inv: [[f64; 3]; 3],
@@ -424,6 +431,16 @@ impl Projection {
         let m_inv = [inv.row(0).to_array(), inv.row(1).to_array(), inv.row(2).to_array()];
         let centre_offset = [0, 1, 2].map(|k| f64::from(c[k]) - f64::from(right.centre[k]));
         let (hw, hh) = left.half_extent();
+        let px_per_radian = {
+            let v = |a: [f32; 3]| glam::DVec3::from(a.map(f64::from));
+            let (corner, dx, dy) = (v(left.ray_origin_corner), v(left.ray_dx), v(left.ray_dy));
+            let (w, h) = (f64::from(left.extent.width() as u32), f64::from(left.extent.height() as u32));
+            let farthest = [corner, corner + w * dx, corner + h * dy, corner + w * dx + h * dy]
+                .iter()
+                .map(|d| d.length_squared())
+                .fold(0.0, f64::max);
+            farthest / dx.length().min(dy.length())
+        };
         Ok(Self {
             centre: c,
             rx: [l[0][0], l[0][1], l[0][2]],
@@ -433,6 +450,7 @@ impl Projection {
             hw,
             hh,
             ray_slack: slack(left).max(slack(right)),
+            px_per_radian,
             m_inv,
             centre_offset,
             width: left.extent.width() as i32,
@@ -714,10 +732,13 @@ fn finish_record(v: &[ScreenVertex], d: &[[f64; 3]; 3], prim: u32, p: &Projectio
     // Rounding of the f64 projection, in pixels (relative 1e-13 of the largest coordinate).
     let largest = v.iter().flat_map(|v| v.x.iter().chain(&v.y)).fold(0.0f64, |m, c| m.max(c.abs()));
     let vertex_err = 1e-9 + 1e-13 * largest;
+    // The tracer's pixel rays and its triangle test both err; twice the larger of the two
+    // (the margin below) bounds their sum.
+    let slack = f64::from(p.ray_slack).max(tracer_edge_slack(d, p));
     // Pixel ranges, widened by the largest band a record of this screen can have (the
     // record's own band, below, needs its ranges first).
     let screen_evaluation = 10.0 * f64::from(U) * f64::from(p.width + p.height + 9);
-    let margin = 2.0 * (2.0 * vertex_err + f64::from(p.ray_slack) + screen_evaluation) + 1e-5;
+    let margin = 2.0 * (2.0 * vertex_err + slack + screen_evaluation) + 1e-5;
     let range = |lo: f64, hi: f64, size: i32| -> (i32, i32) {
         let a = (lo - 0.5 - margin).ceil().max(0.0);
         let b = (hi - 0.5 + margin).floor().min(f64::from(size - 1));
@@ -802,9 +823,70 @@ fn finish_record(v: &[ScreenVertex], d: &[[f64; 3]; 3], prim: u32, p: &Projectio
         e.q_err = if err.is_finite() { err.min(f64::from(f32::MAX)) as f32 } else { f32::MAX };
     }
     let evaluation = 10.0 * f64::from(U) * (widest + span_y + 1.0);
-    rec.band = (2.0 * (2.0 * vertex_err + f64::from(p.ray_slack) + evaluation) + 1e-5) as f32;
+    rec.band = (2.0 * (2.0 * vertex_err + slack + evaluation) + 1e-5) as f32;
     rec
 }
+
+/// How far (pixels) the tracer's own f32 triangle test may move an edge of the triangle `d`
+/// (vertices relative to the left eye) away from the exact one, in either eye.
+///
+/// The watertight test decides the side of edge `(a, b)` by the sign of `bx·ay − by·ax`, with
+/// the vertices relative to the ray origin and sheared along the ray. Rounding the
+/// subtraction and the shear errs by about `2·u·|p|₁` per coordinate. For a ray through a
+/// point of the edge that splits it into `s·L` and `(1 − s)·L` (`L` its length), the sheared
+/// coordinates of `a` and `b` are at most `√6·s·L` and `√6·(1 − s)·L` in 1-norm (`√3` for the
+/// shear), so the function errs by about `5·u·L·max(|a|₁, |b|₁)`. Its value is
+/// `|a × b|·sin θ` or more, `θ` the ray's angle to the plane through the eye and the edge,
+/// so the tracer's edge lies within `5·u·L·max(|a|₁, |b|₁)/|a × b|` radians of the exact one.
+/// For an edge seen broadside that is ~8·u, below the pixel rays' own slack; it grows for long
+/// edges seen end-on whose far vertex lies hundreds of units away (a near-clipped sliver with
+/// vertices 10³ units off, where the fast path would otherwise call a pixel certainly outside
+/// that the tracer's test takes as inside). Capped at the screen's size (every pixel is then
+/// uncertain: an edge whose line passes through an eye).
+fn tracer_edge_slack(d: &[[f64; 3]; 3], p: &Projection) -> f64 {
+    use wide::f64x4;
+    let px_per_ratio = TRACER_EDGE_ERROR * f64::from(U) * p.px_per_radian;
+    // Below this squared ratio the rays' own slack is the larger (the caller takes the
+    // larger of the two), so most triangles need no division.
+    let below = f64x4::splat((f64::from(p.ray_slack) / px_per_ratio).powi(2));
+    // Edge k runs from vertex k to vertex k + 1; one lane per edge (the fourth repeats the
+    // first). Written out: array `map`s here are not inlined, and this runs per triangle.
+    let lanes = |c: usize, first: usize| {
+        f64x4::new([d[first % 3][c], d[(first + 1) % 3][c], d[(first + 2) % 3][c], d[first % 3][c]])
+    };
+    let a = [lanes(0, 0), lanes(1, 0), lanes(2, 0)];
+    let b = [lanes(0, 1), lanes(1, 1), lanes(2, 1)];
+    let s = [f64x4::splat(p.centre_offset[0]), f64x4::splat(p.centre_offset[1]), f64x4::splat(p.centre_offset[2])];
+    let cross = |u: &[f64x4; 3], v: &[f64x4; 3]| {
+        [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
+    };
+    let dot = |u: &[f64x4; 3]| u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
+    let norm1 = |v: &[f64x4; 3]| v[0].abs() + v[1].abs() + v[2].abs();
+    let shifted = |v: &[f64x4; 3]| [v[0] + s[0], v[1] + s[1], v[2] + s[2]];
+    let edge = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+    let length2 = dot(&edge);
+    // The right eye sees `a + s` and `b + s`, whose cross product is `a × b + s × (b − a)`.
+    let (left_cross, shift) = (cross(&a, &b), cross(&s, &edge));
+    let right_cross = [left_cross[0] + shift[0], left_cross[1] + shift[1], left_cross[2] + shift[2]];
+    let ratio2 = |reach: f64x4, cross: &[f64x4; 3]| (length2 * reach * reach, dot(cross));
+    let (n_left, c_left) = ratio2(norm1(&a).max(norm1(&b)), &left_cross);
+    let (n_right, c_right) = ratio2(norm1(&shifted(&a)).max(norm1(&shifted(&b))), &right_cross);
+    // `!(n ≤ …)` also takes NaN; 0 ≤ 0 (a zero-length edge) stays out.
+    let within = n_left.simd_le(below * c_left) & n_right.simd_le(below * c_right);
+    if within.to_bitmask() == 0b1111 {
+        return 0.0;
+    }
+    let worst = [(n_left, c_left), (n_right, c_right)]
+        .iter()
+        .flat_map(|(n, c)| n.to_array().into_iter().zip(c.to_array()))
+        .map(|(n, c)| if n <= 0.0 { 0.0 } else { n / c })
+        .fold(0.0, |m: f64, r| if r.is_nan() { f64::INFINITY } else { m.max(r) });
+    (px_per_ratio * worst.sqrt()).min(f64::from(p.width + p.height))
+}
+
+/// The tracer's edge error in radians per unit of the ratio `L·max(|a|₁, |b|₁)/|a × b|`,
+/// in units of `u` ([`tracer_edge_slack`]).
+const TRACER_EDGE_ERROR: f64 = 5.0;
 
 /// The depth plane `q = qa·x + qb·y + qc` (`q = 1/w`) of a triangle's plane in `eye`'s screen
 /// coordinates, and the relative error of its f64 evaluation.
