@@ -318,7 +318,8 @@ const FAR_VERTEX: f64 = 50.0;
 /// at or in front of the raster's near plane; and a
 /// vertex of `prim` or of the tracer's triangle lies beyond [`FAR_VERTEX`], or the tracer's
 /// triangle is hit within those error scales of `prim` (a near tie the f32 test orders by
-/// rounding).
+/// rounding), or `prim` is hit so near the eye that the f32 test's `t`, whose error grows as
+/// the incidence grazes, may lie behind it.
 fn exact_explains(camera: &CameraModel, tris: &[TriVerts], prim: u32, tracer: u32, x: usize, y: usize) -> bool {
     let o = DVec3::from(Vec3::from(camera.centre));
     let d = DVec3::from(Vec3::from(camera.ray(x as f32 + 0.5, y as f32 + 0.5)));
@@ -358,7 +359,15 @@ fn exact_explains(camera: &CameraModel, tris: &[TriVerts], prim: u32, tracer: u3
     let near_tie = tris
         .get(tracer as usize)
         .is_some_and(|t| hit(t).is_some_and(|ti| (ti - t_prim).abs() <= error(mine) + error(t)));
-    if !(far || near_tie) {
+    // Or where `prim`'s plane passes so near the eye that the f32 test's `t` may fall behind
+    // it: the eye's distance to the plane errs by the error scale, and `t` by that over the
+    // cosine of the incidence (`|Δt| ≈ error·|n|/|n·d|` for `t` in units of `d`), so a grazing
+    // ray through a plane 10⁻⁶ from the eye is placed behind it.
+    let at_eye = {
+        let n = (vertex(mine, 1) - vertex(mine, 0)).cross(vertex(mine, 2) - vertex(mine, 0));
+        t_prim * n.dot(d).abs() <= error(mine) * n.length()
+    };
+    if !(far || near_tie || at_eye) {
         return false;
     }
     // The raster's uncertain pixels take the tracer's answer, so a nearer far sliver that
@@ -383,8 +392,9 @@ fn exact_explains(camera: &CameraModel, tris: &[TriVerts], prim: u32, tracer: u3
 ///   raster does not draw by design;
 /// - the tracer's self-intersection guard refused the raster's triangle there (a hit the
 ///   watertight test takes for one within its rounding bound of the eye);
-/// - the tracer's rounding: a vertex lies far from the eye (beyond `FAR_VERTEX`, 50 units) or two
-///   hits are a near tie, and the exact f64 answer is the raster's.
+/// - the tracer's rounding: a vertex lies far from the eye (beyond `FAR_VERTEX`, 50 units), two
+///   hits are a near tie, or the raster's triangle passes within the f32 test's `t` error of
+///   the eye (grazing), and the exact f64 answer is the raster's.
 pub fn raster(data: &[u8]) {
     let mut bytes = Bytes(data);
     let extent = Extent::new(1 + usize::from(bytes.u8() % 24), 1 + usize::from(bytes.u8() % 16)).expect("small");
