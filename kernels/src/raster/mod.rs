@@ -9,7 +9,8 @@
 //!    the parallel rig's eyes differ only by a constant offset of clip-space `x`, so the
 //!    right eye's screen `x` is the left eye's plus `Δ/w`. Triangles whose pixel-centre
 //!    bounding box is empty in both eyes (behind the camera, off screen, sub-pixel between
-//!    centres) cost only this.
+//!    centres) cost only this: no record is kept for them (each chunk keeps its visible
+//!    records at its front, in triangle order).
 //! 2. **Binning**: records are counted per (eye, band of [`BAND_ROWS`] rows by default) per chunk, and
 //!    a prefix sum lays out one index list per band in triangle order. Fixed chunks keep
 //!    the order independent of the thread count.
@@ -354,7 +355,10 @@ impl<M: AlphaTest> EyeView<'_, M> {
 pub struct Rasterizer {
     /// Rows per band ([`BAND_ROWS`] unless set).
     band_rows: usize,
+    /// Per chunk of [`CHUNK`] triangles, its slice of `records` starts with the records of
+    /// its visible triangles, in triangle order; `kept[chunk]` says how many.
     records: Vec<Record>,
+    kept: Vec<u32>,
     /// `counts[(chunk · 2 + eye) · bands + band]`, then (after the prefix sum) the write
     /// cursor of that chunk in that band.
     counts: Vec<u32>,
@@ -468,7 +472,14 @@ impl Default for Rasterizer {
 impl Rasterizer {
     /// A rasteriser with empty buffers (they grow with the first frame).
     pub fn new() -> Self {
-        Self { band_rows: BAND_ROWS, records: Vec::new(), counts: Vec::new(), bin_start: Vec::new(), bins: Vec::new() }
+        Self {
+            band_rows: BAND_ROWS,
+            records: Vec::new(),
+            kept: Vec::new(),
+            counts: Vec::new(),
+            bin_start: Vec::new(),
+            bins: Vec::new(),
+        }
     }
 
     /// A rasteriser whose bands are `rows` rows high (at least 1). Which triangle each pixel
@@ -528,21 +539,27 @@ impl Rasterizer {
         let chunks = n.div_ceil(CHUNK);
         self.counts.clear();
         self.counts.resize(chunks * 2 * bands, 0);
+        self.kept.clear();
+        self.kept.resize(chunks, 0);
+        // Only visible records are kept (compacted to the front of their chunk): culled
+        // triangles (half of atrium's) cost no record write, and the fragment walk reads
+        // denser memory.
         self.records
             .par_chunks_mut(CHUNK)
             .zip(self.counts.par_chunks_mut(2 * bands))
+            .zip(self.kept.par_iter_mut())
             .enumerate()
-            .map(|(chunk, (records, counts))| {
+            .map(|(chunk, ((records, counts), kept))| {
                 let mut stats = RasterStats::default();
-                for (i, rec) in records.iter_mut().enumerate() {
+                for i in 0..records.len() {
                     let prim = (chunk * CHUNK + i) as u32;
-                    let (record, clipped) = setup_triangle(tris.get(prim), prim, proj, near);
-                    *rec = record;
-                    rec.masked = rec.n != 0 && mask.has_mask(prim);
+                    let (mut rec, clipped) = setup_triangle(tris.get(prim), prim, proj, near);
                     stats.clipped += u64::from(clipped);
-                    if rec.visible_in(0) || rec.visible_in(1) {
-                        stats.visible += 1;
+                    if !(rec.visible_in(0) || rec.visible_in(1)) {
+                        continue;
                     }
+                    rec.masked = mask.has_mask(prim);
+                    stats.visible += 1;
                     for eye in 0..2 {
                         if rec.visible_in(eye) {
                             for band in band_range(rec.rows, band_rows) {
@@ -550,6 +567,8 @@ impl Rasterizer {
                             }
                         }
                     }
+                    records[*kept as usize] = rec;
+                    *kept += 1;
                 }
                 stats
             })
@@ -578,9 +597,9 @@ impl Rasterizer {
         self.bins.resize(total as usize, 0);
         // Each chunk writes its records at its own cursors: disjoint ranges of `bins`.
         let bins = SharedSlice::new(&mut self.bins);
-        self.records.par_chunks(CHUNK).zip(self.counts.par_chunks_mut(2 * bands)).enumerate().for_each(
-            |(chunk, (records, cursors))| {
-                for (i, rec) in records.iter().enumerate() {
+        self.records.par_chunks(CHUNK).zip(self.counts.par_chunks_mut(2 * bands)).zip(&self.kept).enumerate().for_each(
+            |(chunk, ((records, cursors), &kept))| {
+                for (i, rec) in records[..kept as usize].iter().enumerate() {
                     for eye in 0..2 {
                         if rec.visible_in(eye) {
                             for band in band_range(rec.rows, band_rows) {
