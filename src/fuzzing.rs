@@ -324,7 +324,16 @@ fn exact_explains(camera: &CameraModel, tris: &[TriVerts], prim: u32, tracer: u3
     let o = DVec3::from(Vec3::from(camera.centre));
     let d = DVec3::from(Vec3::from(camera.ray(x as f32 + 0.5, y as f32 + 0.5)));
     let reach = |t: &TriVerts| reach(o, t);
-    let error = |t: &TriVerts| tracer_error(o, t);
+    // The f32 test's `t` errs by about `u·reach³/|det|` (its edge functions by `u·reach²`,
+    // weighted by the vertices' depths over the determinant), which is the error scale for
+    // a well-shaped triangle and `reach²/|n·d̂|` times it for a needle whose determinant
+    // nearly vanishes (`n` the doubled area vector): such a needle's `t` was off by 2.6
+    // error scales in a fuzz input.
+    let error = |t: &TriVerts| {
+        let n = (vertex(t, 1) - vertex(t, 0)).cross(vertex(t, 2) - vertex(t, 0));
+        let conditioning = (reach(t).powi(2) / n.dot(d.normalize()).abs()).max(1.0);
+        tracer_error(o, t) * if conditioning.is_finite() { conditioning } else { 1.0 }
+    };
 
     // Möller–Trumbore in f64, edges inclusive (to 1e-12 of the barycentrics).
     let hit = |t: &TriVerts| -> Option<f64> {
@@ -342,7 +351,7 @@ fn exact_explains(camera: &CameraModel, tris: &[TriVerts], prim: u32, tracer: u3
         (u >= -1e-12 && w >= -1e-12 && u + w <= 1.0 + 1e-12 && t > 0.0).then_some(t)
     };
     // A nearer triangle at or in front of the near plane is one the raster does not draw.
-    let clipped = |t: &TriVerts, ti: f64| ti < f64::from(RASTER_NEAR) + error(t);
+    let clipped = |t: &TriVerts, ti: f64| ti < f64::from(RASTER_NEAR) + tracer_error(o, t);
     if prim == NO_PRIM {
         // The raster shows nothing where the tracer hits a far triangle: explained when the
         // exact ray hits nothing the raster could draw (a tracer hit just outside an edge of
@@ -365,7 +374,7 @@ fn exact_explains(camera: &CameraModel, tris: &[TriVerts], prim: u32, tracer: u3
     // ray through a plane 10⁻⁶ from the eye is placed behind it.
     let at_eye = {
         let n = (vertex(mine, 1) - vertex(mine, 0)).cross(vertex(mine, 2) - vertex(mine, 0));
-        t_prim * n.dot(d).abs() <= error(mine) * n.length()
+        t_prim * n.dot(d).abs() <= tracer_error(o, mine) * n.length()
     };
     if !(far || near_tie || at_eye) {
         return false;
