@@ -251,6 +251,11 @@ fn vertex(tri: &TriVerts, k: usize) -> DVec3 {
     DVec3::new(tri[3 * k].into(), tri[3 * k + 1].into(), tri[3 * k + 2].into())
 }
 
+/// A triangle's doubled area vector `(v₁ − v₀) × (v₂ − v₀)`, in f64.
+fn area_vector(tri: &TriVerts) -> DVec3 {
+    (vertex(tri, 1) - vertex(tri, 0)).cross(vertex(tri, 2) - vertex(tri, 0))
+}
+
 /// The distance from `eye` to the farthest vertex of `tri`.
 fn reach(eye: DVec3, tri: &TriVerts) -> f64 {
     (0..3).map(|k| (vertex(tri, k) - eye).length()).fold(0.0, f64::max)
@@ -329,9 +334,9 @@ fn exact_explains(camera: &CameraModel, tris: &[TriVerts], prim: u32, tracer: u3
     // a well-shaped triangle and `reach²/|n·d̂|` times it for a needle whose determinant
     // nearly vanishes (`n` the doubled area vector): such a needle's `t` was off by 2.6
     // error scales in a fuzz input.
+    let unit_d = d.normalize();
     let error = |t: &TriVerts| {
-        let n = (vertex(t, 1) - vertex(t, 0)).cross(vertex(t, 2) - vertex(t, 0));
-        let conditioning = (reach(t).powi(2) / n.dot(d.normalize()).abs()).max(1.0);
+        let conditioning = (reach(t).powi(2) / area_vector(t).dot(unit_d).abs()).max(1.0);
         tracer_error(o, t) * if conditioning.is_finite() { conditioning } else { 1.0 }
     };
 
@@ -373,7 +378,7 @@ fn exact_explains(camera: &CameraModel, tris: &[TriVerts], prim: u32, tracer: u3
     // cosine of the incidence (`|Δt| ≈ error·|n|/|n·d|` for `t` in units of `d`), so a grazing
     // ray through a plane 10⁻⁶ from the eye is placed behind it.
     let at_eye = {
-        let n = (vertex(mine, 1) - vertex(mine, 0)).cross(vertex(mine, 2) - vertex(mine, 0));
+        let n = area_vector(mine);
         t_prim * n.dot(d).abs() <= tracer_error(o, mine) * n.length()
     };
     if !(far || near_tie || at_eye) {
