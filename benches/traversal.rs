@@ -379,6 +379,24 @@ fn procedural_tris() -> Vec<Tri> {
     tris
 }
 
+/// The geometries of the built-in scenes (the glossy, mirror and moving-light variants share
+/// them): their own triangles, seen by their camera path's first pose, with shadow rays
+/// toward a point just under the top centre of the scene's bounds.
+const BUILTINS: [&str; 5] = ["cornell", "atrium", "living-room", "classroom", "courtyard"];
+
+fn builtin(name: &'static str) -> &'static Fixture {
+    static FIXTURES: [OnceLock<Fixture>; BUILTINS.len()] = [const { OnceLock::new() }; BUILTINS.len()];
+    let i = BUILTINS.iter().position(|b| *b == name).expect("a built-in scene");
+    FIXTURES[i].get_or_init(|| {
+        let scene = stereotrace::scene::resolve(name).expect("built-in scenes load");
+        let pose = scene.camera.pose_at(0.0);
+        let camera = Camera::look_at(pose.eye, pose.eye + pose.forward, pose.up, pose.vfov_deg);
+        let bounds = scene.bounds();
+        let light = Vec3::new(bounds.centre().x, bounds.max.y - 0.02 * bounds.extent().y, bounds.centre().z);
+        Fixture::new(name, scene.mesh.positions.clone(), camera, light, 0.0)
+    })
+}
+
 fn procedural() -> &'static Fixture {
     static F: OnceLock<Fixture> = OnceLock::new();
     F.get_or_init(|| {
@@ -386,6 +404,23 @@ fn procedural() -> &'static Fixture {
         let camera = Camera::look_at(Vec3::new(0.0, 24.0, -38.0), Vec3::ZERO, Vec3::Y, 50.0);
         Fixture::new("procedural700k", procedural_tris(), camera, Vec3::new(25.0, 60.0, -20.0), 0.0)
     })
+}
+
+/// The pool of the two-thread groups: the rays are split into chunks that two workers take in
+/// turn, ours and Embree's alike.
+fn two_threads() -> &'static rayon::ThreadPool {
+    static POOL: OnceLock<rayon::ThreadPool> = OnceLock::new();
+    POOL.get_or_init(|| rayon::ThreadPoolBuilder::new().num_threads(2).build().expect("a pool of two threads"))
+}
+
+/// Rays per chunk in the two-thread groups: large enough that scheduling costs nothing, small
+/// enough that the two workers finish together.
+const CHUNK: usize = 4096;
+
+/// `trace` over `rays` on the two-thread pool, chunk by chunk; the sum of its counts.
+fn on_two_threads<T: Sync>(items: &[T], trace: impl Fn(&[T]) -> u32 + Sync) -> u32 {
+    use rayon::prelude::*;
+    two_threads().install(|| items.par_chunks(CHUNK).map(&trace).sum())
 }
 
 fn trace_single(bvh: &TriangleBvh, rays: &[Ray]) -> u32 {
@@ -482,12 +517,62 @@ fn bench_scene(c: &mut Criterion, name: &str, available: bool, fixture: &dyn Fn(
     #[cfg(feature = "peer-embree")]
     g.bench_function("embree_single", |b| b.iter(|| f().embree.intersect(black_box(&f().diffuse))));
     g.finish();
+
+    // The same rays on two threads: each kind's best layout of ours (8×1 packets for primary
+    // and shadow rays, single rays for diffuse ones) and Embree's, chunk by chunk.
+    let fx = f();
+    let mut g = c.benchmark_group(format!("traversal/{name}/two_threads"));
+    g.sampling_mode(SamplingMode::Flat).sample_size(10);
+    g.throughput(Throughput::Elements((WIDTH * HEIGHT) as u64));
+    g.bench_function("primary_packet_8x1", |b| {
+        b.iter(|| on_two_threads(black_box(&fx.primary_8x1), |p| trace_packets(&fx.bvh, p, 2)))
+    });
+    g.bench_function("primary_single", |b| {
+        b.iter(|| on_two_threads(black_box(&fx.primary), |r| trace_single(&fx.bvh, r)))
+    });
+    #[cfg(feature = "peer-embree")]
+    {
+        g.bench_function("embree_primary_packet_8x1", |b| {
+            b.iter(|| on_two_threads(black_box(&fx.primary_8x1), |p| fx.embree.intersect8(p)))
+        });
+        g.bench_function("embree_primary_single", |b| {
+            b.iter(|| on_two_threads(black_box(&fx.primary), |r| fx.embree.intersect(r)))
+        });
+    }
+    g.throughput(Throughput::Elements(fx.shadow.len() as u64));
+    g.bench_function("shadow_packet_8x1", |b| {
+        b.iter(|| on_two_threads(black_box(&fx.shadow_8x1), |p| occlude_packets(&fx.bvh, p, 2)))
+    });
+    g.bench_function("shadow_single", |b| {
+        b.iter(|| on_two_threads(black_box(&fx.shadow), |r| occlude_single(&fx.bvh, r)))
+    });
+    #[cfg(feature = "peer-embree")]
+    {
+        g.bench_function("embree_shadow_packet_8x1", |b| {
+            b.iter(|| on_two_threads(black_box(&fx.shadow_8x1), |p| fx.embree.occluded8(p)))
+        });
+        g.bench_function("embree_shadow_single", |b| {
+            b.iter(|| on_two_threads(black_box(&fx.shadow), |r| fx.embree.occluded(r)))
+        });
+    }
+    g.throughput(Throughput::Elements(fx.diffuse.len() as u64));
+    g.bench_function("diffuse_single", |b| {
+        b.iter(|| on_two_threads(black_box(&fx.diffuse), |r| trace_single(&fx.bvh, r)))
+    });
+    #[cfg(feature = "peer-embree")]
+    g.bench_function("embree_diffuse_single", |b| {
+        b.iter(|| on_two_threads(black_box(&fx.diffuse), |r| fx.embree.intersect(r)))
+    });
+    g.finish();
 }
 
 fn traversal(c: &mut Criterion) {
     let have_sponza = have_sponza();
     bench_scene(c, "sponza", have_sponza, &sponza);
     bench_scene(c, "procedural700k", true, &|| Some(procedural()));
+    for name in BUILTINS {
+        bench_scene(c, name, true, &|| Some(builtin(name)));
+    }
 
     // The single-ray fallback threshold of the packet traversal (lanes ≤ threshold continue
     // as single rays): primary and shadow rays in 8×1 tiles.
