@@ -400,28 +400,49 @@ pub fn intersect_triangle_line(r: &PreparedRay, tri: &TriVerts) -> Option<TriHit
     watertight(r, tri).map(|w| w.hit)
 }
 
-/// [`intersect_triangle`] of one ray against the eight triangles in BVH slots
-/// `first .. first + 8` (`planes` as [`TriangleBvh`] keeps them), for the slots in `lanes`
-/// (bit `i`: slot `first + i`): the same operations in the same order per lane, so each
-/// lane's hit, `t`, edge functions and determinant equal the scalar test's bit for bit.
-/// Returns the hit with the smallest `t` (the lowest slot on equal `t`, as testing the slots
-/// one by one with a shrinking `tmax` finds) and its slot offset.
-///
-/// # Panics
-/// If `first + 8` exceeds a plane's length (the planes are padded by eight).
+/// Up to eight triangles of consecutive BVH slots as nine coordinate vectors
+/// (`coords[3·vertex + axis][lane]`, unused lanes zero): the 288 contiguous bytes one
+/// single-ray triangle test reads. [`TriangleBvh`] keeps one block per eight slots of each
+/// node's leaf run, so a node's leaves cost a few adjacent cache lines instead of one line
+/// in each of nine scene-wide arrays (measured in `BENCHMARKS.md`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(32))]
+pub struct TriangleLanes {
+    /// Vertex coordinates per lane.
+    pub coords: [[f32; LANES]; 9],
+}
+
+impl TriangleLanes {
+    /// The block of `tris` (at most [`LANES`]; the lanes after them hold zeros).
+    ///
+    /// # Panics
+    /// If `tris` holds more than [`LANES`] triangles.
+    pub fn new(tris: &[TriVerts]) -> Self {
+        assert!(tris.len() <= LANES, "a block holds at most {LANES} triangles");
+        let mut coords = [[0.0; LANES]; 9];
+        for (lane, tri) in tris.iter().enumerate() {
+            for (c, &v) in tri.iter().enumerate() {
+                coords[c][lane] = v;
+            }
+        }
+        Self { coords }
+    }
+}
+
+/// [`intersect_triangle`] of one ray against the triangles of `block` in `lanes` (bit `i`:
+/// lane `i`): the same operations in the same order per lane, so each lane's hit, `t`, edge
+/// functions and determinant equal the scalar test's bit for bit. Returns the hit with the
+/// smallest `t` (the lowest lane on equal `t`, as testing the lanes one by one with a
+/// shrinking `tmax` finds) and its lane.
 #[inline(always)]
 pub fn intersect_triangles_lanes(
     r: &PreparedRay,
-    planes: &[Vec<f32>; 9],
-    first: usize,
+    block: &TriangleLanes,
     lanes: u32,
     tmax: f32,
 ) -> Option<(u32, TriHit)> {
     let [kx, ky, kz] = r.k;
-    let load = |vertex: usize, axis: usize| -> F32s {
-        let p = &planes[3 * vertex + axis][first..first + LANES];
-        F32s::from(<[f32; LANES]>::try_from(p).expect("eight lanes"))
-    };
+    let load = |vertex: usize, axis: usize| -> F32s { F32s::from(block.coords[3 * vertex + axis]) };
     let sp = F32s::splat;
     let vertices = [
         [load(0, kx), load(0, ky), load(0, kz)],
@@ -724,6 +745,14 @@ pub fn bytes_to_f32s(b: &[u8; 8]) -> F32s {
 /// SIMD node test (one ray, eight children at once); bit-identical to [`node_hits_scalar`].
 #[inline(always)]
 pub fn node_hits(node: &CwBvhNode, r: &PreparedRay, tmax: f32) -> u32 {
+    node_hits_entry(node, r, tmax).0
+}
+
+/// [`node_hits`], with each child's entry distance `tn` (the lower end of the interval the
+/// test compares; meaningful in the hit lanes). The single-ray traversal orders and culls
+/// children by it.
+#[inline(always)]
+pub fn node_hits_entry(node: &CwBvhNode, r: &PreparedRay, tmax: f32) -> (u32, F32s) {
     let s = node_slabs(node, r);
     let [pnx, pny, pnz, pfx, pfy, pfz] = child_planes(node, neg_axes(r));
     let sp = F32s::splat;
@@ -739,7 +768,7 @@ pub fn node_hits(node: &CwBvhNode, r: &PreparedRay, tmax: f32) -> u32 {
     let hits = tn.simd_le(tf).to_bitmask() & occupied_slots(node);
     #[cfg(feature = "check-scalar")]
     assert_eq!(hits, node_hits_scalar(node, r, tmax), "SIMD node test disagrees with its scalar reference");
-    hits
+    (hits, tn)
 }
 
 /// Maps a mask over child slots to a mask over traversal keys (`key = slot ^ oct_inv`).
@@ -777,10 +806,11 @@ pub struct TriangleBvh {
     cwbvh: CwBvh,
     /// Triangles in `cwbvh.primitive_indices` order.
     tris: Vec<TriVerts>,
-    /// The same triangles as nine coordinate planes (`planes[3·vertex + axis][slot]`), padded
-    /// with [`LANES`] zeros, so a single ray tests eight consecutive slots with one vector
-    /// load per coordinate ([`intersect_triangles_lanes`]).
-    planes: Box<[Vec<f32>; 9]>,
+    /// The same triangles in blocks of eight for single rays ([`TriangleLanes`]): each
+    /// node's leaf run, from its `primitive_base_idx`, in `ceil(run / 8)` consecutive blocks.
+    blocks: Vec<TriangleLanes>,
+    /// Per node, the index of its first block (nodes without leaves: the next node's).
+    node_blocks: Vec<u32>,
     /// `primitive_indices` (BVH slot → caller's triangle index), kept as its own array.
     prim_ids: Vec<u32>,
     stats: BuildStats,
@@ -866,10 +896,8 @@ impl TriangleBvh {
             obvhs_time,
             total_time: start.elapsed(),
         };
-        let planes = Box::new(core::array::from_fn(|c| {
-            tris_bvh.iter().map(|t| t[c]).chain(core::iter::repeat_n(0.0, LANES)).collect::<Vec<f32>>()
-        }));
-        Ok((Self { cwbvh, tris: tris_bvh, planes, prim_ids, stats }, stats))
+        let (blocks, node_blocks) = leaf_blocks(&cwbvh.nodes, &tris_bvh);
+        Ok((Self { cwbvh, tris: tris_bvh, blocks, node_blocks, prim_ids, stats }, stats))
     }
 
     /// The build statistics.
@@ -912,11 +940,37 @@ impl TriangleBvh {
         &self.tris[slot as usize]
     }
 
-    /// The triangles as coordinate planes (see the field).
+    /// Block `chunk` of node `node`'s leaf run (slots `primitive_base_idx + 8·chunk ..`).
     #[inline(always)]
-    pub(crate) fn planes(&self) -> &[Vec<f32>; 9] {
-        &self.planes
+    pub(crate) fn leaf_block(&self, node: u32, chunk: u32) -> &TriangleLanes {
+        &self.blocks[(self.node_blocks[node as usize] + chunk) as usize]
     }
+}
+
+/// The [`TriangleLanes`] blocks of every node's leaf run and each node's first block.
+fn leaf_blocks(nodes: &[CwBvhNode], tris: &[TriVerts]) -> (Vec<TriangleLanes>, Vec<u32>) {
+    let mut blocks = Vec::new();
+    let node_blocks = nodes
+        .iter()
+        .map(|node| {
+            let first = u32::try_from(blocks.len()).expect("fewer than 2³² blocks");
+            let leaves = occupied_slots(node) & !u32::from(node.imask);
+            let run = (0..8)
+                .filter(|s| leaves & (1 << s) != 0)
+                .map(|s| {
+                    let (start, count) = leaf_range(node, s);
+                    start + count - node.primitive_base_idx
+                })
+                .max()
+                .unwrap_or(0) as usize;
+            let base = node.primitive_base_idx as usize;
+            for chunk in (0..run).step_by(LANES) {
+                blocks.push(TriangleLanes::new(&tris[base + chunk..base + run.min(chunk + LANES)]));
+            }
+            first
+        })
+        .collect();
+    (blocks, node_blocks)
 }
 
 /// obvhs's `build_cwbvh_from_tris` without its debug-build validation (which asserts a depth
@@ -1116,7 +1170,6 @@ mod tests {
                 .collect();
             let mut tris = tris;
             tris[5] = tris[2];
-            let planes: [Vec<f32>; 9] = core::array::from_fn(|c| tris.iter().map(|t| t[c]).collect());
             // Rays from random points, through the shared vertex or a random point.
             let origin = centre + (Vec3::new(unit(), unit(), unit()) - 0.5) * 8.0;
             let target = if case % 2 == 0 { centre } else { centre + (Vec3::new(unit(), unit(), unit()) - 0.5) };
@@ -1137,7 +1190,7 @@ mod tests {
                         expected = Some((i, h));
                     }
                 }
-                let got = intersect_triangles_lanes(&r, &planes, first, lanes, tmax);
+                let got = intersect_triangles_lanes(&r, &TriangleLanes::new(&tris[first..first + LANES]), lanes, tmax);
                 let bits = |h: Option<(u32, TriHit)>| {
                     h.map(|(i, h)| (i, h.t.to_bits(), h.e.map(f32::to_bits), h.det.to_bits()))
                 };

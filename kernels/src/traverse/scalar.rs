@@ -14,7 +14,7 @@ use super::ALL_LANES;
 use super::{FixedStack, Search};
 use crate::bvh::{
     Hit, MAX_DEPTH, PreparedRay, Ray, Tri, TriHit, TriangleBvh, inner_child_index, intersect_triangle,
-    intersect_triangles_lanes, leaf_range, node_hits, slots_to_keys,
+    intersect_triangles_lanes, leaf_range, node_hits_entry,
 };
 use crate::simd::LANES;
 use obvhs::cwbvh::node::CwBvhNode;
@@ -34,22 +34,16 @@ fn leaf_lanes(node: &CwBvhNode, mut leaves: u32) -> u32 {
     lanes
 }
 
-/// A set of not-yet-visited inner children of one node, as obvhs's traversal keeps them:
-/// `keys` has bit `slot ^ oct_inv` set for each, visited highest key first. One 12-byte
-/// entry per node instead of one per child.
-#[derive(Clone, Copy, Default)]
-struct Group {
-    base: u32,
-    imask: u32,
-    keys: u32,
+/// A child waiting on the single-ray stack: its node and the distance at which the ray
+/// enters its box (popped nearest first; skipped when a hit nearer than that was found).
+#[derive(Clone, Copy)]
+struct Entry {
+    node: u32,
+    tnear: f32,
 }
 
-/// The group that visits exactly node `root`: key 7 with an empty `imask` resolves to
-/// `base + 0` whatever the octant.
-#[inline(always)]
-fn root_group(root: u32) -> Group {
-    Group { base: root, imask: 0, keys: 0x80 }
-}
+/// At most seven siblings wait per level of the tree (the nearest is visited at once).
+const SINGLE_STACK: usize = 7 * MAX_DEPTH + 1;
 
 /// What a single-ray search keeps: its far bound, and what a hit below it does.
 pub(crate) trait SingleSearch {
@@ -149,26 +143,20 @@ impl TriangleBvh {
 
     /// Single-ray traversal of the subtree at node `root` for `search` (closest or any hit).
     /// Returns true if `search` recorded a hit.
+    ///
+    /// Front to back by distance: a node's hit leaves are tested first (so a hit shrinks the
+    /// far bound before anything is pushed); its hit inner children nearer than the far bound
+    /// are visited nearest first, the others pushed with their entry distance, and a popped
+    /// child whose entry lies beyond the far bound found since is skipped without reading
+    /// its node (see the module notes for what this measured against obvhs's octant order).
     pub(crate) fn traverse<S: SingleSearch>(&self, r: &PreparedRay, root: u32, search: &mut S) -> bool {
         let nodes = self.nodes();
         let mut found = false;
-        let mut stack: FixedStack<Group, MAX_DEPTH> = FixedStack::new();
-        let mut group = root_group(root);
+        let mut stack: FixedStack<Entry, SINGLE_STACK> = FixedStack::new();
+        let mut idx = root;
         loop {
-            if group.keys == 0 {
-                match stack.pop() {
-                    Some(g) => group = g,
-                    None => return found,
-                }
-            }
-            let key = 31 - group.keys.leading_zeros();
-            group.keys &= !(1 << key);
-            let idx = inner_child_index(group.base, group.imask, key ^ r.oct_inv);
-            if group.keys != 0 {
-                stack.push(group);
-            }
             let node = &nodes[idx as usize];
-            let hits = node_hits(node, r, search.tfar());
+            let (hits, tnear) = node_hits_entry(node, r, search.tfar());
             let imask = node.imask as u32;
             let leaves = hits & !imask;
             if leaves != 0 {
@@ -180,8 +168,7 @@ impl TriangleBvh {
                     let first = node.primitive_base_idx + chunk * LANES as u32;
                     let chunk_lanes = (lanes >> (chunk * LANES as u32)) & ALL_LANES;
                     lanes &= !(ALL_LANES << (chunk * LANES as u32));
-                    let tested =
-                        intersect_triangles_lanes(r, self.planes(), first as usize, chunk_lanes, search.tfar());
+                    let tested = intersect_triangles_lanes(r, self.leaf_block(idx, chunk), chunk_lanes, search.tfar());
                     if let Some((lane, h)) = tested {
                         found = true;
                         if search.hit(first + lane, h) == Search::Stop {
@@ -190,9 +177,69 @@ impl TriangleBvh {
                     }
                 }
             }
-            group = Group { base: node.child_base_idx, imask, keys: slots_to_keys(hits & imask, r.oct_inv) };
+            let mut inner = hits & imask;
+            if inner != 0 {
+                let tnear = tnear.to_array();
+                let tfar = search.tfar();
+                if leaves != 0 {
+                    // A leaf hit may have brought the far bound below some children.
+                    inner &= tnear.iter().enumerate().fold(0, |m, (s, &t)| m | (u32::from(t <= tfar) << s));
+                }
+                if inner & (inner - 1) == 0 && inner != 0 {
+                    // One child: no stack traffic.
+                    idx = inner_child_index(node.child_base_idx, imask, inner.trailing_zeros());
+                    continue;
+                }
+                if inner != 0 {
+                    idx = push_children_nearest_last(&mut stack, node.child_base_idx, imask, inner, &tnear);
+                    continue;
+                }
+            }
+            // Nothing below this node: the nearest waiting child still in reach.
+            loop {
+                match stack.pop() {
+                    None => return found,
+                    Some(e) if e.tnear <= search.tfar() => {
+                        idx = e.node;
+                        break;
+                    }
+                    Some(_) => {}
+                }
+            }
         }
     }
+}
+
+/// Pushes the children in `inner` (at least two) so that the stack's top holds the nearest
+/// after the one returned (the nearest, visited at once): sorted by entry distance, farthest
+/// deepest (of equal distances, the later slot is visited first).
+#[inline(always)]
+fn push_children_nearest_last(
+    stack: &mut FixedStack<Entry, SINGLE_STACK>,
+    base: u32,
+    imask: u32,
+    mut inner: u32,
+    tnear: &[f32; LANES],
+) -> u32 {
+    let mut sorted = [Entry { node: 0, tnear: 0.0 }; LANES];
+    let mut n = 0;
+    while inner != 0 {
+        let slot = inner.trailing_zeros();
+        inner &= inner - 1;
+        let e = Entry { node: inner_child_index(base, imask, slot), tnear: tnear[slot as usize] };
+        // Insertion into descending order of entry distance (at most eight children).
+        let mut i = n;
+        while i > 0 && sorted[i - 1].tnear < e.tnear {
+            sorted[i] = sorted[i - 1];
+            i -= 1;
+        }
+        sorted[i] = e;
+        n += 1;
+    }
+    for e in &sorted[..n - 1] {
+        stack.push(*e);
+    }
+    sorted[n - 1].node
 }
 
 /// Closest hit over a plain triangle list by brute force (the test oracle; `prim` is the index
