@@ -5,8 +5,12 @@
 //! obvhs builds the tree (PLOC + reinsertion → compressed 8-wide BVH, 80-byte
 //! [`CwBvhNode`]s) and owns its layout; this module copies the triangles into BVH order
 //! (one 36-byte record per `primitive_indices` slot, so a node's up-to-24 leaf triangles are
-//! one contiguous run) and traverses the nodes itself, because obvhs's own traversal has
-//! four properties a path tracer cannot live with:
+//! one contiguous run) and traverses the nodes itself. Single rays read each node again in
+//! an uncompressed form with exact f32 child boxes ([`crate::bvh8`]: 256 bytes per node
+//! beside the CWBVH's 80, and the triangles again in 288-byte blocks of eight per node's leaf
+//! run, [`TriangleLanes`]), which traces them 1.2–1.9× faster (`crate::traverse`'s notes);
+//! packets keep the CWBVH. obvhs's own traversal has four properties a path tracer cannot
+//! live with:
 //!
 //! * its Möller–Trumbore test is not watertight: rays aimed exactly at an edge shared by two
 //!   triangles can miss both. Here: Woop, Benthin and Wald 2013, *Watertight Ray/Triangle
@@ -79,6 +83,7 @@ use obvhs::ploc::PlocBuilder;
 use obvhs::splits::split_aabbs_preset;
 use obvhs::triangle::Triangle as ObvhsTriangle;
 
+use crate::bvh8::{WideNode, wide_nodes};
 use crate::simd::{F32s, LANES};
 
 /// Largest accepted `|coordinate|` of a triangle vertex (2²⁴ m ≈ 16 800 km).
@@ -745,14 +750,6 @@ pub fn bytes_to_f32s(b: &[u8; 8]) -> F32s {
 /// SIMD node test (one ray, eight children at once); bit-identical to [`node_hits_scalar`].
 #[inline(always)]
 pub fn node_hits(node: &CwBvhNode, r: &PreparedRay, tmax: f32) -> u32 {
-    node_hits_entry(node, r, tmax).0
-}
-
-/// [`node_hits`], with each child's entry distance `tn` (the lower end of the interval the
-/// test compares; meaningful in the hit lanes). The single-ray traversal orders and culls
-/// children by it.
-#[inline(always)]
-pub fn node_hits_entry(node: &CwBvhNode, r: &PreparedRay, tmax: f32) -> (u32, F32s) {
     let s = node_slabs(node, r);
     let [pnx, pny, pnz, pfx, pfy, pfz] = child_planes(node, neg_axes(r));
     let sp = F32s::splat;
@@ -768,7 +765,7 @@ pub fn node_hits_entry(node: &CwBvhNode, r: &PreparedRay, tmax: f32) -> (u32, F3
     let hits = tn.simd_le(tf).to_bitmask() & occupied_slots(node);
     #[cfg(feature = "check-scalar")]
     assert_eq!(hits, node_hits_scalar(node, r, tmax), "SIMD node test disagrees with its scalar reference");
-    (hits, tn)
+    hits
 }
 
 /// Maps a mask over child slots to a mask over traversal keys (`key = slot ^ oct_inv`).
@@ -807,10 +804,11 @@ pub struct TriangleBvh {
     /// Triangles in `cwbvh.primitive_indices` order.
     tris: Vec<TriVerts>,
     /// The same triangles in blocks of eight for single rays ([`TriangleLanes`]): each
-    /// node's leaf run, from its `primitive_base_idx`, in `ceil(run / 8)` consecutive blocks.
+    /// node's leaf run, from its `primitive_base_idx`, in `ceil(run / 8)` consecutive blocks
+    /// from its wide node's `block_base`.
     blocks: Vec<TriangleLanes>,
-    /// Per node, the index of its first block (nodes without leaves: the next node's).
-    node_blocks: Vec<u32>,
+    /// The nodes again for single rays, with exact f32 child boxes ([`crate::bvh8`]).
+    wide: Vec<WideNode>,
     /// `primitive_indices` (BVH slot → caller's triangle index), kept as its own array.
     prim_ids: Vec<u32>,
     stats: BuildStats,
@@ -896,8 +894,9 @@ impl TriangleBvh {
             obvhs_time,
             total_time: start.elapsed(),
         };
-        let (blocks, node_blocks) = leaf_blocks(&cwbvh.nodes, &tris_bvh);
-        Ok((Self { cwbvh, tris: tris_bvh, blocks, node_blocks, prim_ids, stats }, stats))
+        let (blocks, block_bases) = leaf_blocks(&cwbvh.nodes, &tris_bvh);
+        let wide = wide_nodes(&cwbvh.nodes, &tris_bvh, &block_bases);
+        Ok((Self { cwbvh, tris: tris_bvh, blocks, wide, prim_ids, stats }, stats))
     }
 
     /// The build statistics.
@@ -940,10 +939,16 @@ impl TriangleBvh {
         &self.tris[slot as usize]
     }
 
-    /// Block `chunk` of node `node`'s leaf run (slots `primitive_base_idx + 8·chunk ..`).
+    /// The nodes for single rays (index `i` is CWBVH node `i`).
+    #[inline]
+    pub fn wide_nodes(&self) -> &[WideNode] {
+        &self.wide
+    }
+
+    /// Block `chunk` of `node`'s leaf run (slots `primitive_base + 8·chunk ..`).
     #[inline(always)]
-    pub(crate) fn leaf_block(&self, node: u32, chunk: u32) -> &TriangleLanes {
-        &self.blocks[(self.node_blocks[node as usize] + chunk) as usize]
+    pub(crate) fn leaf_block(&self, node: &WideNode, chunk: u32) -> &TriangleLanes {
+        &self.blocks[(node.block_base + chunk) as usize]
     }
 }
 

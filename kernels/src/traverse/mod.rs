@@ -16,13 +16,14 @@
 //! `tmax`) and in what a triangle hit does (shrink the bound and go on, or stop), so each
 //! layout has one traversal loop generic over the search (`SingleSearch` and `PacketSearch`,
 //! implemented by the closest-hit and any-hit states). The two layouts keep their own loops
-//! because their stacks differ where it costs: a single ray keeps obvhs's compact group stack
-//! (one 12-byte entry per node, holding its not-yet-visited children as a bit set, popped
-//! nearest key first), while a packet needs each child's lane mask and per-lane entry
-//! distances (one 40-byte entry per child). Sharing one loop would give single rays, which
-//! are most of the diffuse and glossy bounces, the packet's stack. Generic code is
-//! monomorphised: each (layout, search) pair compiles to the loop that was written out by
-//! hand before, and traces at the same speed (`BENCHMARKS.md`).
+//! because their nodes and stacks differ where it costs: a single ray reads the uncompressed
+//! [`WideNode`](crate::bvh8::WideNode)s and keeps one 8-byte entry per waiting child (node,
+//! entry distance), while a packet reads the CWBVH, whose decoding it shares among eight rays,
+//! and needs each child's lane mask and per-lane entry distances (one 40-byte entry per
+//! child). Sharing one loop would give single rays, which are most of the diffuse and glossy
+//! bounces, the packet's stack. Generic code is monomorphised: each (layout, search) pair
+//! compiles to the loop that was written out by hand before, and traces at the same speed
+//! (`BENCHMARKS.md`).
 //!
 //! # How a packet is traced
 //! 1. **Lanes.** Each active lane is prepared exactly as a single ray ([`PreparedRay`](crate::bvh::PreparedRay)), then

@@ -1,38 +1,38 @@
-//! Single-ray traversal (obvhs's compact group stack, written for our watertight triangle
-//! test and robust node test) and brute force over every triangle, the oracle of both
+//! Single-ray traversal (front to back over the uncompressed [`WideNode`]s, with our
+//! watertight triangle test) and brute force over every triangle, the oracle of both
 //! traversals.
 //!
-//! A node's hit leaf children hold up to 24 triangles in one run of slots; a single ray tests
-//! them eight slots at a time ([`intersect_triangles_lanes`], bit for bit the scalar test
-//! per slot, the nearest hit and the first slot on equal `t`, as testing them one by one
-//! finds). Measured against one at a time on one thread (three alternating pairs, criterion
-//! medians, `benches/traversal.rs`): Sponza diffuse rays 1.28 → 1.64 Mrays/s, the 700k
-//! scene's primary, shadow and diffuse rays 5–8 % faster, Sponza primary and shadow within the
-//! noise (`BENCHMARKS.md`).
+//! Per node: one test of the ray against the eight child boxes ([`wide_node_hits`], which
+//! also gives each child's entry distance); the hit leaf children's triangles (up to 24, one
+//! run of slots) tested eight at a time ([`intersect_triangles_lanes`], bit for bit the
+//! scalar test per slot: the nearest hit, the first slot on equal `t`); then the hit inner
+//! children still in reach visited nearest first, the rest pushed with their entry distance
+//! and skipped on pop, without reading their node, once a nearer hit has put them out of
+//! reach. A node's triangles are 288-byte blocks of eight ([`crate::bvh::TriangleLanes`]),
+//! so a leaf test reads adjacent lines.
+//!
+//! What each step measured, one thread, `benches/traversal.rs`, single rays, Mrays/s, the
+//! builds run alternately on the same machine (`BENCHMARKS.md` has the whole table):
+//!
+//! | step | atrium primary | atrium shadow | atrium diffuse | Sponza diffuse |
+//! |---|--:|--:|--:|--:|
+//! | obvhs's octant-ordered group stack over CWBVH nodes | 3.53 | 4.04 | 2.06 | 2.71 |
+//! | children ordered and culled by entry distance | 3.87 | 4.69 | 2.19 | 2.69 |
+//! | leaf triangles in per-node blocks of eight | 3.91 | 5.02 | 2.21 | 2.79 |
+//! | uncompressed nodes with exact boxes | **5.52** | **7.83** | **2.70** | **3.48** |
+//!
+//! Tried and not kept: prefetching a child's first triangle block while fetching the child
+//! (and on pop). It cost 10–25 % on primary and shadow rays, whose blocks are already cached,
+//! and gained nothing measurable on diffuse ones.
 
 use super::ALL_LANES;
 use super::{FixedStack, Search};
 use crate::bvh::{
     Hit, MAX_DEPTH, PreparedRay, Ray, Tri, TriHit, TriangleBvh, inner_child_index, intersect_triangle,
-    intersect_triangles_lanes, leaf_range, node_hits_entry,
+    intersect_triangles_lanes,
 };
+use crate::bvh8::{WideNode, wide_node_hits};
 use crate::simd::LANES;
-use obvhs::cwbvh::node::CwBvhNode;
-
-/// The triangles of a node's leaf children in `leaves` (a child-slot mask), as bits over the
-/// node's run of slots from `primitive_base_idx` (up to 24: at most three per child, each
-/// child's run following the previous one's).
-#[inline(always)]
-fn leaf_lanes(node: &CwBvhNode, mut leaves: u32) -> u32 {
-    let mut lanes = 0;
-    while leaves != 0 {
-        let slot = leaves.trailing_zeros() as usize;
-        leaves &= leaves - 1;
-        let (first, count) = leaf_range(node, slot);
-        lanes |= ((1u32 << count) - 1) << (first - node.primitive_base_idx);
-    }
-    lanes
-}
 
 /// A child waiting on the single-ray stack: its node and the distance at which the ray
 /// enters its box (popped nearest first; skipped when a hit nearer than that was found).
@@ -150,25 +150,25 @@ impl TriangleBvh {
     /// child whose entry lies beyond the far bound found since is skipped without reading
     /// its node (see the module notes for what this measured against obvhs's octant order).
     pub(crate) fn traverse<S: SingleSearch>(&self, r: &PreparedRay, root: u32, search: &mut S) -> bool {
-        let nodes = self.nodes();
+        let nodes = self.wide_nodes();
         let mut found = false;
         let mut stack: FixedStack<Entry, SINGLE_STACK> = FixedStack::new();
         let mut idx = root;
         loop {
             let node = &nodes[idx as usize];
-            let (hits, tnear) = node_hits_entry(node, r, search.tfar());
-            let imask = node.imask as u32;
+            let (hits, tnear) = wide_node_hits(node, r, search.tfar());
+            let imask = node.imask;
             let leaves = hits & !imask;
             if leaves != 0 {
                 // The hit leaves' triangles, as bits over the node's run of up to 24 slots,
                 // tested eight slots at a time.
-                let mut lanes = leaf_lanes(node, leaves);
+                let mut lanes = node.leaf_lanes(leaves);
                 while lanes != 0 {
                     let chunk = lanes.trailing_zeros() / LANES as u32;
-                    let first = node.primitive_base_idx + chunk * LANES as u32;
+                    let first = node.primitive_base + chunk * LANES as u32;
                     let chunk_lanes = (lanes >> (chunk * LANES as u32)) & ALL_LANES;
                     lanes &= !(ALL_LANES << (chunk * LANES as u32));
-                    let tested = intersect_triangles_lanes(r, self.leaf_block(idx, chunk), chunk_lanes, search.tfar());
+                    let tested = intersect_triangles_lanes(r, self.leaf_block(node, chunk), chunk_lanes, search.tfar());
                     if let Some((lane, h)) = tested {
                         found = true;
                         if search.hit(first + lane, h) == Search::Stop {
@@ -187,11 +187,11 @@ impl TriangleBvh {
                 }
                 if inner & (inner - 1) == 0 && inner != 0 {
                     // One child: no stack traffic.
-                    idx = inner_child_index(node.child_base_idx, imask, inner.trailing_zeros());
+                    idx = inner_child_index(node.child_base, imask, inner.trailing_zeros());
                     continue;
                 }
                 if inner != 0 {
-                    idx = push_children_nearest_last(&mut stack, node.child_base_idx, imask, inner, &tnear);
+                    idx = push_children_nearest_last(&mut stack, node, inner, &tnear);
                     continue;
                 }
             }
@@ -216,8 +216,7 @@ impl TriangleBvh {
 #[inline(always)]
 fn push_children_nearest_last(
     stack: &mut FixedStack<Entry, SINGLE_STACK>,
-    base: u32,
-    imask: u32,
+    node: &WideNode,
     mut inner: u32,
     tnear: &[f32; LANES],
 ) -> u32 {
@@ -226,7 +225,7 @@ fn push_children_nearest_last(
     while inner != 0 {
         let slot = inner.trailing_zeros();
         inner &= inner - 1;
-        let e = Entry { node: inner_child_index(base, imask, slot), tnear: tnear[slot as usize] };
+        let e = Entry { node: inner_child_index(node.child_base, node.imask, slot), tnear: tnear[slot as usize] };
         // Insertion into descending order of entry distance (at most eight children).
         let mut i = n;
         while i > 0 && sorted[i - 1].tnear < e.tnear {
