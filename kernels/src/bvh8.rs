@@ -149,6 +149,14 @@ fn node_box(
     whole.unwrap_or([[f32::INFINITY; 3], [f32::NEG_INFINITY; 3]])
 }
 
+/// Whether a child entered at `tnear` can still hold a hit below the far bound `tfar`: the
+/// node test's own comparison (far end scaled by [`FAR_SCALE`]), for the traversal's checks
+/// after a node test (a leaf hit that lowered the bound, a child popped later).
+#[inline(always)]
+pub fn in_reach(tnear: f32, tfar: f32) -> bool {
+    tnear <= tfar * FAR_SCALE
+}
+
 /// Plane indices (near x, y, z, far x, y, z) for a ray with the given octant bits
 /// ([`PreparedRay::oct_inv`]: bit `4 >> axis` set when the direction is non-negative).
 #[inline(always)]
@@ -308,8 +316,8 @@ mod tests {
     }
 
     /// Every triangle a ray hits at `t` lies in boxes the node test keeps with the far bound
-    /// at exactly that `t`: a closest-hit search that found it (or one at the same `t`)
-    /// never culls the box that holds it.
+    /// at exactly that `t`, and whose entry distance [`in_reach`] keeps too: a closest-hit
+    /// search that found it (or one at the same `t`) never culls the box that holds it.
     #[test]
     fn boxes_holding_a_hit_survive_a_far_bound_at_that_hit() {
         let mut rng = Rng::new(23);
@@ -342,8 +350,12 @@ mod tests {
             for (slot, tri) in bvh.triangles_bvh_order().iter().enumerate() {
                 let Some(hit) = intersect_triangle(&r, tri, r.tmax) else { continue };
                 for &(i, s) in &paths[slot] {
-                    let (hits, _) = wide_node_hits(&nodes[i], &r, hit.t);
+                    let (hits, tnear) = wide_node_hits(&nodes[i], &r, hit.t);
                     assert!(hits & (1 << s) != 0, "node {i} slot {s} culled a hit at t = {} for {ray:?}", hit.t);
+                    // The traversal's later checks (after a leaf hit, on pop) agree.
+                    let (_, far) = wide_node_hits(&nodes[i], &r, f32::INFINITY);
+                    assert!(in_reach(far.to_array()[s], hit.t), "node {i} slot {s} out of reach of t = {}", hit.t);
+                    assert_eq!(tnear.to_array()[s].to_bits(), far.to_array()[s].to_bits());
                 }
                 checked += 1;
             }

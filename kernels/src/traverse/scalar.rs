@@ -31,7 +31,7 @@ use crate::bvh::{
     Hit, MAX_DEPTH, PreparedRay, Ray, Tri, TriHit, TriangleBvh, inner_child_index, intersect_triangle,
     intersect_triangles_lanes,
 };
-use crate::bvh8::{WideNode, wide_node_hits};
+use crate::bvh8::{WideNode, in_reach, wide_node_hits};
 use crate::simd::LANES;
 
 /// A child waiting on the single-ray stack: its node and the distance at which the ray
@@ -183,7 +183,7 @@ impl TriangleBvh {
                 let tfar = search.tfar();
                 if leaves != 0 {
                     // A leaf hit may have brought the far bound below some children.
-                    inner &= tnear.iter().enumerate().fold(0, |m, (s, &t)| m | (u32::from(t <= tfar) << s));
+                    inner &= tnear.iter().enumerate().fold(0, |m, (s, &t)| m | (u32::from(in_reach(t, tfar)) << s));
                 }
                 if inner & (inner - 1) == 0 && inner != 0 {
                     // One child: no stack traffic.
@@ -199,7 +199,7 @@ impl TriangleBvh {
             loop {
                 match stack.pop() {
                     None => return found,
-                    Some(e) if e.tnear <= search.tfar() => {
+                    Some(e) if in_reach(e.tnear, search.tfar()) => {
                         idx = e.node;
                         break;
                     }
