@@ -809,6 +809,8 @@ pub struct TriangleBvh {
     blocks: Vec<TriangleLanes>,
     /// The nodes again for single rays, with exact f32 child boxes ([`crate::bvh8`]).
     wide: Vec<WideNode>,
+    /// The exact bounds of every triangle (`[min, max]`; zeros when empty).
+    bounds: [[f32; 3]; 2],
     /// `primitive_indices` (BVH slot → caller's triangle index), kept as its own array.
     prim_ids: Vec<u32>,
     stats: BuildStats,
@@ -895,8 +897,8 @@ impl TriangleBvh {
             total_time: start.elapsed(),
         };
         let (blocks, block_bases) = leaf_blocks(&cwbvh.nodes, &tris_bvh);
-        let wide = wide_nodes(&cwbvh.nodes, &tris_bvh, &block_bases);
-        Ok((Self { cwbvh, tris: tris_bvh, blocks, wide, prim_ids, stats }, stats))
+        let (wide, bounds) = wide_nodes(&cwbvh.nodes, &tris_bvh, &block_bases);
+        Ok((Self { cwbvh, tris: tris_bvh, blocks, wide, bounds, prim_ids, stats }, stats))
     }
 
     /// The build statistics.
@@ -937,6 +939,12 @@ impl TriangleBvh {
     #[inline(always)]
     pub(crate) fn tri(&self, slot: u32) -> &TriVerts {
         &self.tris[slot as usize]
+    }
+
+    /// The exact bounds of every triangle (`[min, max]`; zeros for an empty BVH).
+    #[inline]
+    pub fn bounds(&self) -> &[[f32; 3]; 2] {
+        &self.bounds
     }
 
     /// The nodes for single rays (index `i` is CWBVH node `i`).

@@ -9,24 +9,38 @@
 //! holds the boxes as f32 planes, so the node test is a subtraction and a multiplication per
 //! plane. Packets keep the CWBVH: they amortise its decoding over eight rays.
 //!
-//! # Exact boxes, and the one rounding pad left
+//! # Exact boxes, and the two margins
 //! The planes are not decoded from the quantised bytes: they are the exact bounds of what
 //! each child holds (the min and max vertex coordinates of a leaf's triangles; the union
-//! of an inner child's own children, bottom up), so they contain every triangle with no
-//! rounding at all. Empty slots hold `+inf` minima and `−inf` maxima, which no ray can
-//! enter.
+//! of an inner child's own children, bottom up). Empty slots are masked out
+//! ([`WideNode::occupied`]).
 //!
-//! The slab distance of a plane `b` is computed as `(b − o) · inv`: two roundings, plus the
-//! one in `inv = 1/d` (see [`crate::bvh::safe_rcp`]), so the computed value is the exact
-//! `(b − o)/d` times `(1 + θ)` with `|θ| ≤ γ₃` (Higham's `γₙ = n·u/(1 − n·u)`): a relative
-//! error, which keeps signs. Following Ize (*Robust BVH Ray Traversal*, JCGT 2013), the far
-//! end of the interval is scaled up by [`FAR_SCALE`] before the comparison. `1 + 2γ₃` would
-//! make the slab test itself conservative; the scale used is `1 + 2⁻¹⁸` (about `10·γ₃`),
-//! which also covers the few-ulp error of the triangle test's `t` that a closest-hit
-//! search compares boxes against (the CWBVH test's pad was `≥ 2⁻²⁰` of the slab distance
-//! for the same reason). Every quantity stays finite or `±inf` of known sign: no NaN can
-//! occur (`inv` is never 0 or infinite, coordinates are bounded by [`crate::bvh::MAX_COORD`]),
-//! so the node test may use the plain `min`/`max` instructions.
+//! Exact boxes are not enough, because the tracer's triangle test is not exact geometry: it
+//! works on vertices taken relative to the ray's origin and sheared, each rounded, so it can
+//! report a hit on a ray that passes a few ulps of `|v − o|` outside the triangle (a ray
+//! grazing an edge, or lying in the plane of an axis-aligned face with a zero direction
+//! component, where the box test sees only the clamped reciprocal of
+//! [`crate::bvh::safe_rcp`]). A box that such a hit lies in must not be culled. So every box
+//! is widened on each axis by `shift` = [`POSITION_PAD`] (2⁻¹⁶, several hundred times the
+//! unit roundoff) times the ray's reach: the largest `|b − o|` over the tree's root box and
+//! `|o|` itself, which bounds every `|v − o|` the triangle test works with. The widening is
+//! done once per ray, not per node: the near planes are measured from `o + sgn(inv)·shift`
+//! and the far planes from `o − sgn(inv)·shift` ([`SlabOrigins`]), which subtracts
+//! `shift·|inv_k|` from every near distance and adds it to every far one at no cost per node.
+//! With a zero direction component `|inv_k| = 2⁸⁰` and the slab becomes all of `t`, as it is
+//! for a ray lying in the plane (a fuzz finding: such a ray missed an edge hit before this
+//! pad). Measured cost against no pad: 5–21 % of single-ray throughput (`BENCHMARKS.md`).
+//!
+//! The slab distance itself, `(b − o) · inv`, carries two roundings plus the one in `inv`:
+//! the computed value is the exact `(b − o)/d` times `(1 + θ)` with `|θ| ≤ γ₃` (Higham's
+//! `γₙ = n·u/(1 − n·u)`), a relative error that keeps signs. Following Ize (*Robust BVH Ray
+//! Traversal*, JCGT 2013), the far end of the interval is scaled up by [`FAR_SCALE`] before the
+//! comparison: `1 + 2γ₃` would make the slab test conservative; `1 + 2⁻¹⁸` (about `10·γ₃`)
+//! also covers the few-ulp error of the triangle test's `t` that a closest-hit search compares
+//! boxes against. The traversal's later comparisons with a lowered far bound use the same
+//! scaled test ([`in_reach`]). Every quantity stays finite (coordinates are bounded by
+//! [`crate::bvh::MAX_COORD`], `inv` by `2⁸⁰`): no NaN can occur, so the node test may use the
+//! plain `min`/`max` instructions.
 
 use obvhs::cwbvh::node::CwBvhNode;
 
@@ -36,13 +50,43 @@ use crate::simd::{F32s, LANES};
 /// The far end of every slab interval is multiplied by this (see the module notes).
 pub const FAR_SCALE: f32 = 1.0 + 1.0 / 262_144.0;
 
+/// Every box is widened on each axis by this times the ray's reach (see the module notes).
+pub const POSITION_PAD: f32 = 1.0 / 65_536.0;
+
+/// The ray's origin moved by the position pad ([`POSITION_PAD`] times its reach), toward the
+/// boxes for their near planes and away for their far planes, so that a node test costs
+/// nothing more than the exact slab test (module notes). Computed once per traversal.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SlabOrigins {
+    /// Origin for the near planes: `o + sgn(inv)·shift` per axis.
+    pub near: [f32; 3],
+    /// Origin for the far planes: `o − sgn(inv)·shift` per axis.
+    pub far: [f32; 3],
+}
+
+impl SlabOrigins {
+    /// The origins of ray `r` in a tree whose root box is `bounds` (`[min, max]`): the shift
+    /// is `POSITION_PAD · max(|b − o|, |o|)` over the box's six planes and the origin's
+    /// coordinates (the largest offset the triangle test works with, and at least 2⁷ ulps of
+    /// the origin, so adding it to the origin cannot round it away).
+    pub fn new(r: &PreparedRay, bounds: &[[f32; 3]; 2]) -> Self {
+        let (o, inv) = (r.origin.to_array(), r.inv.to_array());
+        let reach = (0..3)
+            .fold(0.0f32, |m, k| m.max((bounds[0][k] - o[k]).abs()).max((bounds[1][k] - o[k]).abs()).max(o[k].abs()));
+        let shift = reach * POSITION_PAD;
+        Self {
+            near: [0, 1, 2].map(|k| o[k] + shift.copysign(inv[k])),
+            far: [0, 1, 2].map(|k| o[k] - shift.copysign(inv[k])),
+        }
+    }
+}
+
 /// One CWBVH node for single rays (see the module notes). Index `i` of
 /// [`crate::bvh::TriangleBvh`]'s wide nodes is CWBVH node `i`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C, align(64))]
 pub struct WideNode {
-    /// Child box planes per slot: minima x, y, z, then maxima x, y, z (empty slots `+inf`
-    /// minima, `−inf` maxima).
+    /// Child box planes per slot: minima x, y, z, then maxima x, y, z.
     pub planes: [[f32; LANES]; 6],
     /// Index of the first inner child (inner children are consecutive, in slot order).
     pub child_base: u32,
@@ -54,6 +98,8 @@ pub struct WideNode {
     pub block_base: u32,
     /// The CWBVH node's `child_meta` (a leaf's offset in the run and its triangle count).
     pub child_meta: [u8; LANES],
+    /// Bit `s` set when slot `s` holds a child (empty slots' planes are 0 and never hit).
+    pub occupied: u32,
 }
 
 impl WideNode {
@@ -73,8 +119,8 @@ impl WideNode {
 }
 
 /// The wide nodes of `nodes`, whose leaves index `tris` (BVH order), with each node's first
-/// triangle block from `block_bases`.
-pub fn wide_nodes(nodes: &[CwBvhNode], tris: &[TriVerts], block_bases: &[u32]) -> Vec<WideNode> {
+/// triangle block from `block_bases`, and the exact bounds of the whole tree (`[min, max]`).
+pub fn wide_nodes(nodes: &[CwBvhNode], tris: &[TriVerts], block_bases: &[u32]) -> (Vec<WideNode>, [[f32; 3]; 2]) {
     let mut wide = vec![
         WideNode {
             planes: [[0.0; LANES]; 6],
@@ -83,13 +129,12 @@ pub fn wide_nodes(nodes: &[CwBvhNode], tris: &[TriVerts], block_bases: &[u32]) -
             primitive_base: 0,
             block_base: 0,
             child_meta: [0; LANES],
+            occupied: 0,
         };
         nodes.len()
     ];
-    if !nodes.is_empty() {
-        node_box(0, nodes, tris, block_bases, &mut wide);
-    }
-    wide
+    let bounds = if nodes.is_empty() { [[0.0; 3]; 2] } else { node_box(0, nodes, tris, block_bases, &mut wide) };
+    (wide, bounds)
 }
 
 /// Fills `wide[i]` and returns node `i`'s exact box (children first: depth ≤ MAX_DEPTH).
@@ -103,8 +148,7 @@ fn node_box(
     let node = &nodes[i];
     let occupied = occupied_slots(node);
     let imask = u32::from(node.imask);
-    let (empty_min, empty_max) = ([f32::INFINITY; LANES], [f32::NEG_INFINITY; LANES]);
-    let mut planes = [empty_min, empty_min, empty_min, empty_max, empty_max, empty_max];
+    let mut planes = [[0.0; LANES]; 6];
     let mut whole: Option<[[f32; 3]; 2]> = None;
     let mut inner_rank = 0;
     for slot in 0..LANES {
@@ -145,6 +189,7 @@ fn node_box(
         primitive_base: node.primitive_base_idx,
         block_base: block_bases[i],
         child_meta: node.child_meta,
+        occupied,
     };
     whole.unwrap_or([[f32::INFINITY; 3], [f32::NEG_INFINITY; 3]])
 }
@@ -169,38 +214,41 @@ fn plane_order(oct_inv: u32) -> [usize; 6] {
 /// Scalar reference of [`wide_node_hits`]: bit `s` set when the ray overlaps child `s`
 /// within `[tmin, tfar]` (with the far end scaled by [`FAR_SCALE`]), and each child's entry
 /// distance.
-pub fn wide_node_hits_scalar(node: &WideNode, r: &PreparedRay, tfar: f32) -> (u32, [f32; LANES]) {
+pub fn wide_node_hits_scalar(node: &WideNode, r: &PreparedRay, o: &SlabOrigins, tfar: f32) -> (u32, [f32; LANES]) {
     let order = plane_order(r.oct_inv);
-    let o = r.origin.to_array();
     let inv = r.inv.to_array();
     let mut hits = 0;
     let mut entry = [0.0; LANES];
     for s in 0..LANES {
-        let t = |i: usize, axis: usize| (node.planes[order[i]][s] - o[axis]) * inv[axis];
-        let tn = max1(max1(t(0, 0), t(1, 1)), max1(t(2, 2), r.tmin));
-        let tf = min1(min1(t(3, 0), t(4, 1)), min1(t(5, 2), tfar)) * FAR_SCALE;
+        let near = |k: usize| (node.planes[order[k]][s] - o.near[k]) * inv[k];
+        let far = |k: usize| (node.planes[order[3 + k]][s] - o.far[k]) * inv[k];
+        let tn = max1(max1(near(0), near(1)), max1(near(2), r.tmin));
+        let tf = min1(min1(far(0), far(1)), min1(far(2), tfar)) * FAR_SCALE;
         if tn <= tf {
             hits |= 1 << s;
         }
         entry[s] = tn;
     }
-    (hits, entry)
+    (hits & node.occupied, entry)
 }
 
 /// SIMD node test (one ray, eight children): the hit slots and each child's entry distance
 /// (meaningful in hit slots); bit-identical to [`wide_node_hits_scalar`].
 #[inline(always)]
-pub fn wide_node_hits(node: &WideNode, r: &PreparedRay, tfar: f32) -> (u32, F32s) {
-    let order = plane_order(r.oct_inv);
+pub fn wide_node_hits(node: &WideNode, r: &PreparedRay, o: &SlabOrigins, tfar: f32) -> (u32, F32s) {
+    let [nx, ny, nz, fx, fy, fz] = plane_order(r.oct_inv);
     let sp = F32s::splat;
-    let t = |i: usize, axis: usize| (F32s::from(node.planes[order[i]]) - sp(r.origin[axis])) * sp(r.inv[axis]);
+    // Written out axis by axis: `array::map` closures here went out of line (half the speed).
+    let t = |i: usize, origin: f32, inv: f32| (F32s::from(node.planes[i]) - sp(origin)) * sp(inv);
+    let [ix, iy, iz] = r.inv.to_array();
     // No NaN can occur (module notes), so the plain max/min instructions are exact here.
-    let tn = t(0, 0).fast_max(t(1, 1)).fast_max(t(2, 2).fast_max(sp(r.tmin)));
-    let tf = t(3, 0).fast_min(t(4, 1)).fast_min(t(5, 2).fast_min(sp(tfar))) * sp(FAR_SCALE);
-    let hits = tn.simd_le(tf).to_bitmask();
+    let tn = t(nx, o.near[0], ix).fast_max(t(ny, o.near[1], iy)).fast_max(t(nz, o.near[2], iz).fast_max(sp(r.tmin)));
+    let tf = t(fx, o.far[0], ix).fast_min(t(fy, o.far[1], iy)).fast_min(t(fz, o.far[2], iz).fast_min(sp(tfar)))
+        * sp(FAR_SCALE);
+    let hits = tn.simd_le(tf).to_bitmask() & node.occupied;
     #[cfg(feature = "check-scalar")]
     {
-        let (h, e) = wide_node_hits_scalar(node, r, tfar);
+        let (h, e) = wide_node_hits_scalar(node, r, o, tfar);
         assert_eq!(hits, h, "SIMD wide node test disagrees with its scalar reference");
         let te = tn.to_array();
         for s in 0..LANES {
@@ -264,10 +312,11 @@ mod tests {
         let (bvh, _) = TriangleBvh::build(&tris, BuildQuality::Medium).unwrap();
         for ray in rays(&mut rng, &tris, 300) {
             let Some(r) = PreparedRay::new(&ray) else { continue };
+            let origins = SlabOrigins::new(&r, bvh.bounds());
             for (i, node) in bvh.wide_nodes().iter().enumerate() {
                 for tfar in [f32::INFINITY, 3.0, 0.0] {
-                    let (hits, tn) = wide_node_hits(node, &r, tfar);
-                    let (want, entry) = wide_node_hits_scalar(node, &r, tfar);
+                    let (hits, tn) = wide_node_hits(node, &r, &origins, tfar);
+                    let (want, entry) = wide_node_hits_scalar(node, &r, &origins, tfar);
                     assert_eq!(hits, want, "node {i}, {ray:?}");
                     let tn = tn.to_array();
                     for s in (0..LANES).filter(|s| hits & (1 << s) != 0) {
@@ -279,7 +328,7 @@ mod tests {
     }
 
     /// The exact bounds of what each slot holds: a leaf's triangles, or the union of the
-    /// inner child's own slots; empty slots can hold nothing.
+    /// inner child's occupied slots.
     #[test]
     fn child_boxes_are_the_exact_bounds_of_their_contents() {
         let mut rng = Rng::new(22);
@@ -300,10 +349,12 @@ mod tests {
                     }
                 };
                 if occupied & (1 << s) == 0 {
+                    assert_eq!(slot_box(node, s), [[0.0; 3]; 2], "node {i} empty slot {s}");
+                    continue;
                 } else if node.imask & (1 << s) != 0 {
                     let child = &nodes[node.child_base as usize + rank];
                     rank += 1;
-                    (0..LANES).for_each(|c| grow(slot_box(child, c)));
+                    (0..LANES).filter(|c| child.occupied & (1 << c) != 0).for_each(|c| grow(slot_box(child, c)));
                 } else {
                     let (first, count) = leaf_range(cw, s);
                     for t in &bvh.triangles_bvh_order()[first as usize..(first + count) as usize] {
@@ -347,13 +398,14 @@ mod tests {
         let mut checked = 0;
         for ray in rays(&mut rng, &tris, 3000) {
             let Some(r) = PreparedRay::new(&ray) else { continue };
+            let origins = SlabOrigins::new(&r, bvh.bounds());
             for (slot, tri) in bvh.triangles_bvh_order().iter().enumerate() {
                 let Some(hit) = intersect_triangle(&r, tri, r.tmax) else { continue };
                 for &(i, s) in &paths[slot] {
-                    let (hits, tnear) = wide_node_hits(&nodes[i], &r, hit.t);
+                    let (hits, tnear) = wide_node_hits(&nodes[i], &r, &origins, hit.t);
                     assert!(hits & (1 << s) != 0, "node {i} slot {s} culled a hit at t = {} for {ray:?}", hit.t);
                     // The traversal's later checks (after a leaf hit, on pop) agree.
-                    let (_, far) = wide_node_hits(&nodes[i], &r, f32::INFINITY);
+                    let (_, far) = wide_node_hits(&nodes[i], &r, &origins, f32::INFINITY);
                     assert!(in_reach(far.to_array()[s], hit.t), "node {i} slot {s} out of reach of t = {}", hit.t);
                     assert_eq!(tnear.to_array()[s].to_bits(), far.to_array()[s].to_bits());
                 }

@@ -31,7 +31,7 @@ use crate::bvh::{
     Hit, MAX_DEPTH, PreparedRay, Ray, Tri, TriHit, TriangleBvh, inner_child_index, intersect_triangle,
     intersect_triangles_lanes,
 };
-use crate::bvh8::{WideNode, in_reach, wide_node_hits};
+use crate::bvh8::{SlabOrigins, WideNode, in_reach, wide_node_hits};
 use crate::simd::LANES;
 
 /// A child waiting on the single-ray stack: its node and the distance at which the ray
@@ -151,12 +151,13 @@ impl TriangleBvh {
     /// its node (see the module notes for what this measured against obvhs's octant order).
     pub(crate) fn traverse<S: SingleSearch>(&self, r: &PreparedRay, root: u32, search: &mut S) -> bool {
         let nodes = self.wide_nodes();
+        let origins = SlabOrigins::new(r, self.bounds());
         let mut found = false;
         let mut stack: FixedStack<Entry, SINGLE_STACK> = FixedStack::new();
         let mut idx = root;
         loop {
             let node = &nodes[idx as usize];
-            let (hits, tnear) = wide_node_hits(node, r, search.tfar());
+            let (hits, tnear) = wide_node_hits(node, r, &origins, search.tfar());
             let imask = node.imask;
             let leaves = hits & !imask;
             if leaves != 0 {
