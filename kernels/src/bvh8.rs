@@ -283,9 +283,9 @@ mod tests {
             .collect()
     }
 
-    /// Rays from random points toward triangle corners and edges (grazing box faces), and
-    /// along the axes (zero direction components, the reciprocal clamp), some from inside
-    /// the soup's bounds.
+    /// Rays from random points toward triangle corners and edges (grazing box faces), along
+    /// the axes (zero direction components, the reciprocal clamp), and lying in the plane of
+    /// a corner (flat boxes seen edge-on), some from inside the soup's bounds.
     fn rays(rng: &mut Rng, tris: &[Tri], n: usize) -> Vec<Ray> {
         (0..n)
             .map(|i| {
@@ -299,6 +299,13 @@ mod tests {
                 let mut d = target - o;
                 if i % 5 == 0 {
                     d = [Vec3::X, Vec3::NEG_Y, Vec3::Z, Vec3::new(-0.0, 1.0, 0.0)][i % 4];
+                }
+                let mut o = o;
+                if i % 7 == 1 {
+                    // In the plane x = target.x, toward the target: a zero x component (the
+                    // fuzz finding of the module notes).
+                    o.x = target.x;
+                    d = target - o;
                 }
                 Ray::segment(o, d, [0.0, 0.3][i % 2], f32::INFINITY)
             })

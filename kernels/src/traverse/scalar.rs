@@ -19,7 +19,11 @@
 //! | obvhs's octant-ordered group stack over CWBVH nodes | 3.53 | 4.04 | 2.06 | 2.71 |
 //! | children ordered and culled by entry distance | 3.87 | 4.69 | 2.19 | 2.69 |
 //! | leaf triangles in per-node blocks of eight | 3.91 | 5.02 | 2.21 | 2.79 |
-//! | uncompressed nodes with exact boxes | **5.52** | **7.83** | **2.70** | **3.48** |
+//! | uncompressed nodes with exact boxes | 5.52 | 7.83 | 2.70 | 3.48 |
+//! | the same boxes widened by the position pad ([`crate::bvh8`]: a fuzz finding) | **5.07** | **6.60** | **2.27** | **2.86** |
+//!
+//! (The last two rows come from a later alternated pair than the others: 5.67, 7.74, 2.62,
+//! 3.41 unpadded against the padded row.)
 //!
 //! Tried and not kept: prefetching a child's first triangle block while fetching the child
 //! (and on pop). It cost 10–25 % on primary and shadow rays, whose blocks are already cached,
