@@ -768,22 +768,6 @@ pub fn node_hits(node: &CwBvhNode, r: &PreparedRay, tmax: f32) -> u32 {
     hits
 }
 
-/// Maps a mask over child slots to a mask over traversal keys (`key = slot ^ oct_inv`).
-#[inline(always)]
-pub fn slots_to_keys(mask: u32, oct_inv: u32) -> u32 {
-    let mut m = mask;
-    if oct_inv & 1 != 0 {
-        m = ((m & 0x55) << 1) | ((m >> 1) & 0x55);
-    }
-    if oct_inv & 2 != 0 {
-        m = ((m & 0x33) << 2) | ((m >> 2) & 0x33);
-    }
-    if oct_inv & 4 != 0 {
-        m = ((m & 0x0F) << 4) | ((m >> 4) & 0x0F);
-    }
-    m
-}
-
 /// Index of inner child `slot` of a node with `imask` whose children start at `base`.
 #[inline(always)]
 pub fn inner_child_index(base: u32, imask: u32, slot: u32) -> u32 {
@@ -793,8 +777,15 @@ pub fn inner_child_index(base: u32, imask: u32, slot: u32) -> u32 {
 /// First BVH slot and count of the leaf in child `slot`.
 #[inline(always)]
 pub fn leaf_range(node: &CwBvhNode, slot: usize) -> (u32, u32) {
-    let meta = node.child_meta[slot];
-    (node.primitive_base_idx + (meta & 0x1F) as u32, (meta >> 5).count_ones())
+    let (offset, count) = leaf_meta(node.child_meta[slot]);
+    (node.primitive_base_idx + offset, count)
+}
+
+/// A leaf child's `child_meta` byte decoded: its first slot's offset in the node's run (low
+/// five bits) and its triangle count (the high three bits, unary).
+#[inline(always)]
+pub fn leaf_meta(meta: u8) -> (u32, u32) {
+    (u32::from(meta & 0x1F), (meta >> 5).count_ones())
 }
 
 /// A BVH over a triangle list, with the triangles stored in BVH order.
@@ -1092,21 +1083,6 @@ mod tests {
                 node.child_meta[s] = if pattern & (1 << s) != 0 { [0x20, 0x61, 0xE2, 0x3B][s % 4] } else { 0 };
             }
             assert_eq!(occupied_slots(&node), pattern);
-        }
-    }
-
-    #[test]
-    fn slots_to_keys_is_xor_permutation() {
-        for oct in 0..8 {
-            for mask in 0u32..256 {
-                let mut expect = 0;
-                for s in 0..8 {
-                    if mask & (1 << s) != 0 {
-                        expect |= 1 << (s ^ oct);
-                    }
-                }
-                assert_eq!(slots_to_keys(mask, oct), expect, "oct {oct} mask {mask:#b}");
-            }
         }
     }
 

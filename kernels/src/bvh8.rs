@@ -44,7 +44,7 @@
 
 use obvhs::cwbvh::node::CwBvhNode;
 
-use crate::bvh::{PreparedRay, TriVerts, leaf_range, max1, min1, occupied_slots};
+use crate::bvh::{PreparedRay, TriVerts, leaf_meta, leaf_range, max1, min1, occupied_slots};
 use crate::simd::{F32s, LANES};
 
 /// The far end of every slab interval is multiplied by this (see the module notes).
@@ -111,8 +111,8 @@ impl WideNode {
         while leaves != 0 {
             let slot = leaves.trailing_zeros() as usize;
             leaves &= leaves - 1;
-            let meta = self.child_meta[slot];
-            lanes |= ((1u32 << (meta >> 5).count_ones()) - 1) << (meta & 0x1F);
+            let (offset, count) = leaf_meta(self.child_meta[slot]);
+            lanes |= ((1u32 << count) - 1) << offset;
         }
         lanes
     }

@@ -190,7 +190,7 @@ impl TriangleBvh {
                     // A leaf hit may have brought the far bound below some children.
                     inner &= tnear.iter().enumerate().fold(0, |m, (s, &t)| m | (u32::from(in_reach(t, tfar)) << s));
                 }
-                if inner & (inner - 1) == 0 && inner != 0 {
+                if inner.is_power_of_two() {
                     // One child: no stack traffic.
                     idx = inner_child_index(node.child_base, imask, inner.trailing_zeros());
                     continue;
