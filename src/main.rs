@@ -17,7 +17,9 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Measure real-time stereo throughput: fps, per-stage times, share traced, speed-up.
+    /// Measure real-time stereo throughput: fps, per-stage times, share traced per eye, and the
+    /// same frames fully path traced and mono (time ratios without a budget; under one, what
+    /// each schedule traces in it).
     Throughput {
         /// A built-in scene name, a manifest (*.toml) or a scene folder.
         #[arg(long, default_value = "atrium")]
@@ -49,8 +51,8 @@ enum Command {
         /// Per-frame time budget in milliseconds (tracing stops when it is spent).
         #[arg(long, value_parser = stereotrace::commands::parse_budget_ms)]
         budget_ms: Option<f64>,
-        /// Skip the baseline runs (full stereo path tracing and mono frames: no speed-up or
-        /// stereo-over-mono figure).
+        /// Skip the baseline runs (full stereo path tracing and mono frames, with the same
+        /// settings and budget as the measured run).
         #[arg(long)]
         no_baseline: bool,
         /// Print one JSON object instead of text.

@@ -119,6 +119,50 @@ fn throughput_reports_json_with_every_field() {
     assert!(mono > 0.0 && (v["stereo_over_mono"].as_f64().unwrap() - frame / mono).abs() < 1e-9);
 }
 
+/// Issue 36: the driver's three runs (the mode, full stereo, mono) share every setting, the
+/// budget included, and a time ratio appears only when no run had a budget.
+#[test]
+fn no_throughput_ratio_mixes_a_budgeted_and_an_unbudgeted_run() {
+    let args = ["throughput", "--scene", "cornell", "--res", "32x18", "--frames", "2", "--mode", "spatiotemporal"];
+    let run = |extra: &[&str]| {
+        let out = stereotrace(&[&args[..], extra].concat());
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        out.stdout
+    };
+    for budget in [None, Some(50.0)] {
+        let budget_args = budget.map(|b: f64| vec!["--budget-ms".to_owned(), b.to_string()]).unwrap_or_default();
+        let budget_args: Vec<&str> = budget_args.iter().map(String::as_str).collect();
+        let v: serde_json::Value =
+            serde_json::from_slice(&run(&[&budget_args[..], &["--json"]].concat())).expect("one JSON object");
+        let schedules = v["schedules"].as_array().expect("schedules");
+        let names: Vec<&str> = schedules.iter().map(|s| s["schedule"].as_str().unwrap()).collect();
+        assert_eq!(names, ["spatiotemporal", "full stereo", "mono"], "{v}");
+        for s in schedules {
+            assert_eq!(s["budget_ms"].as_f64(), budget, "every run has the report's budget: {s}");
+        }
+        assert!(schedules[2]["traced_share"][0].is_null() && schedules[2]["traced_share"][1].as_f64() == Some(1.0));
+        let median = |s: &serde_json::Value| s["frame"]["median_ms"].as_f64().unwrap();
+        let (this, full, mono) = (median(&schedules[0]), median(&schedules[1]), median(&schedules[2]));
+        assert_eq!(v["full_stereo_frame_ms"].as_f64(), Some(full));
+        assert_eq!(v["mono_frame_ms"].as_f64(), Some(mono));
+        let text = String::from_utf8(run(&budget_args)).unwrap();
+        match budget {
+            None => {
+                assert_eq!(v["speedup_over_full_stereo"].as_f64(), Some(full / this));
+                assert_eq!(v["stereo_over_mono"].as_f64(), Some(this / mono));
+                assert!(text.contains("speed-up") && text.contains("stereo costs"), "{text}");
+                assert!(text.contains("no budget): speed-up"), "the line says what both runs had: {text}");
+            }
+            Some(_) => {
+                assert!(v["speedup_over_full_stereo"].is_null() && v["stereo_over_mono"].is_null(), "{v}");
+                assert!(!text.contains("speed-up") && !text.contains("stereo costs"), "{text}");
+                assert!(text.contains("every schedule under the same 50.00 ms budget"), "{text}");
+                assert!(text.contains("stereotrace tradeoff"), "the quality side is named: {text}");
+            }
+        }
+    }
+}
+
 #[test]
 fn throughput_takes_the_traced_gbuffer_and_reports_budget_overruns() {
     let args = ["throughput", "--scene", "cornell", "--res", "32x18", "--frames", "2", "--no-baseline", "--json"];

@@ -1,8 +1,17 @@
 //! `stereotrace throughput`: the thin real-time driver. Runs the pipeline for a scene and
 //! mode on a fixed thread pool, then the same frames with both eyes fully path traced and as
 //! mono frames (the right eye alone), and reports frames per second, per-stage times (median
-//! and p95), Mrays/s, the share of left-eye pixels path traced, the speed-up over full stereo
-//! path tracing and the cost over mono, all measured in the same run.
+//! and p95), Mrays/s and the share of pixels path traced per eye, all measured in the same
+//! run.
+//!
+//! The three runs (the mode's stereo schedule, full stereo tracing, mono) always share every
+//! setting, the budget included. What they are compared on depends on it:
+//! - **without a budget** each run traces what its schedule needs, so time is what differs:
+//!   the report divides frame times (speed-up over full stereo, stereo over mono);
+//! - **under a budget** time is fixed by construction and what differs is what each
+//!   schedule buys in it: the share of pixels traced and the samples per pixel per eye. No
+//!   time ratio is formed ([`time_ratio`] refuses budgeted runs); the quality side,
+//!   effective spp at equal time, is `stereotrace tradeoff`'s.
 
 use std::time::Duration;
 
@@ -79,16 +88,23 @@ pub struct ThroughputReport {
     pub left_traced_share: f64,
     /// Share of right-eye pixels path traced.
     pub right_traced_share: f64,
-    /// Median frame time of full stereo path tracing at the same spp, if measured.
+    /// Median frame time of the full stereo run (both eyes path traced, same spp and budget
+    /// as this run), if measured.
     pub full_stereo_frame_ms: Option<f64>,
-    /// `full_stereo_frame_ms / frame.median_ms`.
+    /// `full_stereo_frame_ms / frame.median_ms`, only when neither run had a budget (null
+    /// under `--budget-ms`: see `schedules`).
     pub speedup_over_full_stereo: Option<f64>,
-    /// Median frame time of the right eye alone path traced at the same spp (primary rays
-    /// included, nothing reprojected), if measured: what a mono renderer pays per frame.
+    /// Median frame time of the mono run (the right eye alone path traced at the same spp
+    /// and budget: primary rays included, nothing reprojected), if measured: what a mono
+    /// renderer pays per frame.
     pub mono_frame_ms: Option<f64>,
-    /// `frame.median_ms / mono_frame_ms`: what stereo costs over mono (the issue's target for
-    /// spatiotemporal at 1 spp is ≤ 1.05).
+    /// `frame.median_ms / mono_frame_ms`, what stereo costs over mono, only when neither run
+    /// had a budget (null under `--budget-ms`).
     pub stereo_over_mono: Option<f64>,
+    /// Every run of this report, this mode's first, each with the budget it ran under (the
+    /// same for all): what each schedule traced and how long its frames took. Under a budget
+    /// this is the comparison, in pixels and samples, not in time.
+    pub schedules: Vec<ScheduleRun>,
     pub budget_ms: Option<f64>,
     pub budget_misses: usize,
     /// Frames over the budget by more than 1 ms (the real-time target is none).
@@ -98,6 +114,63 @@ pub struct ThroughputReport {
     /// Work that runs whatever the budget (G-buffers, reprojection, accumulation, and the
     /// tracing of pixels without valid history: all of a fully traced eye), median.
     pub always_run_ms: f64,
+}
+
+/// One run of the driver: a schedule over the measured frames.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct ScheduleRun {
+    /// `stereo <mode>` (this report's mode), `full stereo` (both eyes path traced) or `mono`
+    /// (the right eye alone path traced).
+    pub schedule: String,
+    /// The budget this run's frames had (equal for every run of a report).
+    pub budget_ms: Option<f64>,
+    /// Frame times.
+    pub frame: Spread,
+    /// Share of each eye's pixels path traced, median over frames (`[left, right]`; a mono
+    /// run shows no left eye: null).
+    pub traced_share: [Option<f64>; 2],
+    /// Path-traced samples per pixel of each eye, averaged over the eye's pixels (`share ×
+    /// spp`), median over frames.
+    pub spp_per_pixel: [Option<f64>; 2],
+    /// Frames over the budget (0 without one).
+    pub budget_misses: usize,
+}
+
+impl ScheduleRun {
+    fn of(
+        schedule: &str,
+        stats: &[FrameStats],
+        extent: Extent,
+        spp: u32,
+        budget_ms: Option<f64>,
+        eyes: [bool; 2],
+    ) -> Self {
+        let pixels = extent.pixels() as f64;
+        let share = |eye: usize| {
+            eyes[eye].then(|| {
+                let mut v: Vec<f64> = stats.iter().map(|s| s.traced_pixels[eye] as f64 / pixels).collect();
+                v.sort_by(f64::total_cmp);
+                v[v.len() / 2]
+            })
+        };
+        let traced_share = [share(0), share(1)];
+        Self {
+            schedule: schedule.to_owned(),
+            budget_ms,
+            frame: Spread::of(stats.iter().map(|f| ms(f.times.total)).collect()),
+            traced_share,
+            spp_per_pixel: traced_share.map(|s| s.map(|s| s * f64::from(spp))),
+            budget_misses: budget_ms.map_or(0, |b| stats.iter().filter(|s| ms(s.times.total) > b).count()),
+        }
+    }
+}
+
+/// `numerator`'s median frame time over `denominator`'s, only when both ran without a
+/// budget: under one, frame time is set by the budget, not by the work, and a ratio of two
+/// budgeted times (or of a budgeted and an unbudgeted one) says nothing about the method.
+pub fn time_ratio(numerator: &ScheduleRun, denominator: &ScheduleRun) -> Option<f64> {
+    (numerator.budget_ms.is_none() && denominator.budget_ms.is_none())
+        .then(|| numerator.frame.median_ms / denominator.frame.median_ms)
 }
 
 fn ms(d: Duration) -> f64 {
@@ -149,21 +222,29 @@ pub fn run(opts: &ThroughputOptions) -> Result<ThroughputReport, String> {
     config.gbuffer = opts.gbuffer;
     config.budget = opts.budget_ms.map(super::budget_duration).transpose()?;
     let stats = pool.install(|| run_frames(&renderer, config, opts.extent, opts.frames, false))?;
-    let frame_ms = |s: &[FrameStats]| Spread::of(s.iter().map(|f| ms(f.times.total)).collect());
-    let baseline = if opts.baseline && opts.mode != Mode::PathTraced {
-        let full = PipelineConfig { mode: Mode::PathTraced, budget: None, ..config };
-        Some(frame_ms(&pool.install(|| run_frames(&renderer, full, opts.extent, opts.frames, false))?))
-    } else if opts.mode == Mode::PathTraced {
-        Some(frame_ms(&stats))
+    // Every run below shares `config`, the budget included: only the schedule differs.
+    let schedule = |name: &str, stats: &[FrameStats], eyes: [bool; 2]| {
+        ScheduleRun::of(name, stats, opts.extent, opts.spp, opts.budget_ms, eyes)
+    };
+    let this_run = schedule(opts.mode.name(), &stats, [true, true]);
+    let full_stereo = if opts.mode == Mode::PathTraced {
+        Some(this_run.clone())
+    } else if opts.baseline {
+        let full = PipelineConfig { mode: Mode::PathTraced, ..config };
+        let full_stats = pool.install(|| run_frames(&renderer, full, opts.extent, opts.frames, false))?;
+        Some(schedule("full stereo", &full_stats, [true, true]))
     } else {
         None
     };
     let mono = if opts.baseline {
-        let mono = PipelineConfig { budget: None, ..config };
-        Some(frame_ms(&pool.install(|| run_frames(&renderer, mono, opts.extent, opts.frames, true))?))
+        let mono_stats = pool.install(|| run_frames(&renderer, config, opts.extent, opts.frames, true))?;
+        Some(schedule("mono", &mono_stats, [false, true]))
     } else {
         None
     };
+    let mut schedules = vec![this_run.clone()];
+    schedules.extend(full_stereo.iter().filter(|_| opts.mode != Mode::PathTraced).cloned());
+    schedules.extend(mono.iter().cloned());
 
     let series = |f: fn(&FrameStats) -> Duration| Spread::of(stats.iter().map(|s| ms(f(s))).collect());
     let frame = series(|s| s.times.total);
@@ -204,10 +285,11 @@ pub fn run(opts: &ThroughputOptions) -> Result<ThroughputReport, String> {
         mrays_per_s: if tracing_time > 0.0 { rays as f64 / tracing_time / 1e6 } else { 0.0 },
         left_traced_share: share(Eye::Left),
         right_traced_share: share(Eye::Right),
-        full_stereo_frame_ms: baseline.map(|b| b.median_ms),
-        speedup_over_full_stereo: baseline.map(|b| b.median_ms / frame.median_ms),
-        mono_frame_ms: mono.map(|m| m.median_ms),
-        stereo_over_mono: mono.map(|m| frame.median_ms / m.median_ms),
+        full_stereo_frame_ms: full_stereo.as_ref().map(|f| f.frame.median_ms),
+        speedup_over_full_stereo: full_stereo.as_ref().and_then(|f| time_ratio(f, &this_run)),
+        mono_frame_ms: mono.as_ref().map(|m| m.frame.median_ms),
+        stereo_over_mono: mono.as_ref().and_then(|m| time_ratio(&this_run, m)),
+        schedules,
         budget_ms: opts.budget_ms,
         budget_misses: misses,
         budget_misses_over_1ms: misses_1ms,
@@ -254,11 +336,13 @@ impl ThroughputReport {
             100.0 * self.right_traced_share
         );
         if let (Some(full), Some(speedup)) = (self.full_stereo_frame_ms, self.speedup_over_full_stereo) {
-            out += &format!("  full stereo   {full:>9.2} ms median (both eyes path traced): speed-up {speedup:.2}x\n");
+            out += &format!(
+                "  full stereo   {full:>9.2} ms median (both eyes path traced, no budget): speed-up {speedup:.2}x\n"
+            );
         }
         if let (Some(mono), Some(ratio)) = (self.mono_frame_ms, self.stereo_over_mono) {
             out += &format!(
-                "  mono          {mono:>9.2} ms median (right eye alone path traced): stereo costs {ratio:.3}x\n"
+                "  mono          {mono:>9.2} ms median (right eye alone path traced, no budget): stereo costs {ratio:.3}x\n"
             );
         }
         if let Some(b) = self.budget_ms {
@@ -266,6 +350,9 @@ impl ThroughputReport {
                 "  budget        {b:>9.2} ms: {} of {} frames over ({} by more than 1 ms), worst overrun {:.2} ms\n",
                 self.budget_misses, self.frames_measured, self.budget_misses_over_1ms, self.worst_overrun_ms
             );
+            if self.schedules.len() > 1 {
+                out += &self.budgeted_comparison(b);
+            }
             if self.always_run_ms > b {
                 out += &format!(
                     "  note: the work that always runs (G-buffers, reprojection, accumulation, and tracing the \
@@ -274,6 +361,39 @@ impl ThroughputReport {
                 );
             }
         }
+        out
+    }
+
+    /// Under a budget: what each schedule traced in the same budget, and where the quality
+    /// side is measured; no time ratio.
+    fn budgeted_comparison(&self, budget_ms: f64) -> String {
+        let pct = |v: Option<f64>| v.map_or_else(|| "-".to_owned(), |v| format!("{:.1} %", 100.0 * v));
+        let spp = |v: Option<f64>| v.map_or_else(|| "-".to_owned(), |v| format!("{v:.3}"));
+        let mut out = format!(
+            "  every schedule under the same {budget_ms:.2} ms budget at {} spp (medians over frames):\n\
+             \x20   schedule          frame ms  left traced right traced  left spp right spp  over budget\n",
+            self.spp
+        );
+        for run in &self.schedules {
+            out += &format!(
+                "    {:<15} {:>10.2} {:>12} {:>12} {:>9} {:>9} {:>6} of {}\n",
+                run.schedule,
+                run.frame.median_ms,
+                pct(run.traced_share[0]),
+                pct(run.traced_share[1]),
+                spp(run.spp_per_pixel[0]),
+                spp(run.spp_per_pixel[1]),
+                run.budget_misses,
+                self.frames_measured
+            );
+        }
+        out += "  full stereo and mono frames have no reprojected data to fall back on, so they trace every \
+                pixel whatever the budget.\n";
+        out += &format!(
+            "  no time ratio under a budget (frame time is set by the budget, not by the work); for \
+             effective spp at equal time run `stereotrace tradeoff --scene {} --budgets {budget_ms}`\n",
+            self.scene
+        );
         out
     }
 }

@@ -2,9 +2,10 @@
 """The real-time table: `stereotrace throughput` at 1280x720 on 2 threads, spatiotemporal
 mode at 1 spp, on every built-in scene, unbudgeted and with each budget. Prints a Markdown
 table (median frame and stage times, fps, share traced per eye, frames over budget). With
-`--mono-frames N`, then a second table from N unbudgeted frames per scene with the driver's
-baselines: the stereo frame against a mono frame (the right eye alone path traced) and
-against full stereo path tracing, measured in the same run.
+`--mono-frames N`, then a second table from N frames per scene with the driver's baselines:
+the stereo frame against a mono frame (the right eye alone path traced) and against full
+stereo path tracing, measured in the same run. All three runs of that table are unbudgeted
+(the driver forms time ratios only between runs without a budget).
 
     cargo build --release && python3 tools/bench/budgets.py [--budgets 33,50,100] [--frames 20] \
         [--mono-frames 6]
@@ -62,6 +63,8 @@ def main():
                   f"{r['accumulation']['median_ms']:.1f} | {100 * r['left_traced_share']:.1f} % | "
                   f"{100 * r['right_traced_share']:.1f} % | {over} | {over1} |", flush=True)
     if args.mono_frames:
+        print()
+        print("All three runs unbudgeted, 1 spp, same resolution and threads:")
         print()
         print("| scene | stereo frame ms | mono frame ms | stereo ÷ mono | full stereo ms | speed-up over full stereo |")
         print("|---|---:|---:|---:|---:|---:|")

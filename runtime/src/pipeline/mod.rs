@@ -355,7 +355,10 @@ impl<S: FrameSource> Pipeline<S> {
 
     /// A mono frame, the baseline a stereo frame is compared with: the right eye alone path
     /// traced at the configured spp (primary rays included, so no G-buffer), nothing
-    /// reprojected or accumulated, no budget. Writes the right eye's `traced` image, which
+    /// reprojected or accumulated. Under the configured budget it follows the rule every
+    /// frame follows: pixels without any other data are traced whatever the budget, and a
+    /// mono frame has no other data, so it traces every pixel and its statistics report
+    /// whether it kept the budget. Writes the right eye's `traced` image, which
     /// [`Pipeline::render_frame`] rewrites; call [`Pipeline::reset`] before going back to
     /// stereo frames on the same pipeline.
     pub fn render_mono_frame(&mut self, frame: u32, head: &CameraPose) -> Result<FrameStats, PipelineError> {
@@ -367,7 +370,7 @@ impl<S: FrameSource> Pipeline<S> {
     pub fn render_mono_frame_at(&mut self, frame: u32, camera: CameraModel) -> Result<FrameStats, PipelineError> {
         crate::kernels::frame::same_extent("eye camera", self.extent, camera.extent)?;
         let start = Instant::now();
-        let mut stats = FrameStats { frame, budget: None, ..FrameStats::default() };
+        let mut stats = FrameStats { frame, budget: self.config.budget, ..FrameStats::default() };
         self.source.begin_frame(frame);
         let config = self.config;
         let request = TraceRequest { eye: Eye::Right, frame, spp: config.spp, seed: config.seed, first_sample: 0 };
@@ -376,8 +379,12 @@ impl<S: FrameSource> Pipeline<S> {
             self.source.trace(&camera, &request, PixelSelection::All, 0..self.extent.height(), &mut s.traced)?;
         stats.traced_pixels[Eye::Right as usize] = self.extent.pixels() as u64;
         stats.times.tracing = start.elapsed();
+        if self.config.budget.is_some() {
+            // Every pixel was urgent: the budget could cut none of it.
+            stats.times.urgent_tracing = stats.times.tracing;
+        }
         stats.times.total = start.elapsed();
-        stats.budget_met = true;
+        stats.budget_met = self.config.budget.is_none_or(|b| stats.times.total <= b);
         Ok(stats)
     }
 
