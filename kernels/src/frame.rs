@@ -19,6 +19,10 @@ pub const MAX_DIMENSION: usize = 1 << 15;
 /// The largest accepted pixel count (2^28: 16K × 16K).
 pub const MAX_PIXELS: usize = 1 << 28;
 
+/// The largest accepted row stride, in elements. A stride may pad rows, but not absurdly: it
+/// shares the dimension limit's reasoning.
+pub const MAX_STRIDE: usize = 4 * MAX_DIMENSION;
+
 /// Width and height of a frame in pixels. Only [`Extent::new`] builds one, so every extent in
 /// circulation is non-zero and within [`MAX_DIMENSION`] / [`MAX_PIXELS`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -108,6 +112,35 @@ pub enum FrameError {
     InvalidParameter(&'static str),
     /// A camera matrix is singular or not finite.
     SingularCamera,
+    /// A value inside a buffer is outside what the kernel defines (a reason code above the
+    /// last one, a negative or NaN history length): the kernel cannot compute with it
+    /// honestly, so the call is refused before anything is written.
+    ValueOutOfRange {
+        /// Which buffer.
+        what: &'static str,
+        /// Where: column.
+        x: usize,
+        /// Where: row.
+        y: usize,
+        /// The value found.
+        value: f64,
+        /// What the kernel accepts.
+        allowed: &'static str,
+    },
+    /// The image is smaller than the kernel's window along one side (SSIM's 11×11): its
+    /// statistics would come from padding, not from the image.
+    SmallerThanWindow {
+        /// The extent given.
+        extent: Extent,
+        /// The smallest width and height accepted.
+        window: usize,
+    },
+    /// Allocating an owned buffer failed: the allocator refused `bytes` bytes (an address-space
+    /// limit, or not enough memory). Nothing was kept.
+    OutOfMemory {
+        /// The size of the allocation that failed.
+        bytes: usize,
+    },
 }
 
 impl fmt::Display for FrameError {
@@ -131,6 +164,14 @@ impl fmt::Display for FrameError {
             }
             Self::InvalidParameter(what) => write!(f, "invalid parameter: {what}"),
             Self::SingularCamera => write!(f, "camera matrix is singular or not finite"),
+            Self::ValueOutOfRange { what, x, y, value, allowed } => {
+                write!(f, "{what} holds {value} at pixel ({x}, {y}): it must be {allowed}")
+            }
+            Self::SmallerThanWindow { extent, window } => write!(
+                f,
+                "image {extent} is smaller than the {window}x{window} window: both sides must be at least {window}"
+            ),
+            Self::OutOfMemory { bytes } => write!(f, "out of memory: could not allocate {bytes} bytes"),
         }
     }
 }
@@ -148,8 +189,7 @@ fn validate(len: usize, width: usize, height: usize, stride: usize) -> Result<Ex
     if stride < width {
         return Err(FrameError::StrideTooSmall { width, stride });
     }
-    // A stride may pad rows, but not absurdly: it shares the dimension limit's reasoning.
-    if stride > 4 * MAX_DIMENSION {
+    if stride > MAX_STRIDE {
         return Err(FrameError::TooLarge { width: stride, height });
     }
     let needed = required_len(extent, stride);
@@ -487,6 +527,15 @@ pub fn same_extent(what: &'static str, expected: Extent, got: Extent) -> Result<
     if expected == got { Ok(()) } else { Err(FrameError::ExtentMismatch { what, expected, got }) }
 }
 
+/// `len` copies of `value` in a vector allocated fallibly.
+pub fn try_filled_vec<T: Copy>(len: usize, value: T) -> Result<Vec<T>, FrameError> {
+    let mut data = Vec::new();
+    data.try_reserve_exact(len)
+        .map_err(|_| FrameError::OutOfMemory { bytes: len.saturating_mul(core::mem::size_of::<T>()) })?;
+    data.resize(len, value);
+    Ok(data)
+}
+
 /// An owned, tightly packed plane (`stride == width`), allocated once.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PlaneBuf<T = f32> {
@@ -498,6 +547,13 @@ impl<T: Copy + Send + Sync> PlaneBuf<T> {
     /// A plane of `extent` filled with `value`.
     pub fn new(extent: Extent, value: T) -> Self {
         Self { data: vec![value; extent.pixels()], extent }
+    }
+
+    /// [`PlaneBuf::new`] that reports an allocation failure as [`FrameError::OutOfMemory`]
+    /// instead of aborting the process: what every buffer sized by a caller's resolution
+    /// uses (an engine may ask for 16K × 16K under a memory limit).
+    pub fn try_new(extent: Extent, value: T) -> Result<Self, FrameError> {
+        Ok(Self { data: try_filled_vec(extent.pixels(), value)?, extent })
     }
 
     /// Takes ownership of `data` (row-major, `width · height` elements).
@@ -566,6 +622,16 @@ impl RgbBuf {
     /// An image of `extent` filled with `value` in every channel.
     pub fn new(extent: Extent, value: f32) -> Self {
         Self { r: PlaneBuf::new(extent, value), g: PlaneBuf::new(extent, value), b: PlaneBuf::new(extent, value) }
+    }
+
+    /// [`RgbBuf::new`] that reports an allocation failure instead of aborting (see
+    /// [`PlaneBuf::try_new`]).
+    pub fn try_new(extent: Extent, value: f32) -> Result<Self, FrameError> {
+        Ok(Self {
+            r: PlaneBuf::try_new(extent, value)?,
+            g: PlaneBuf::try_new(extent, value)?,
+            b: PlaneBuf::try_new(extent, value)?,
+        })
     }
 
     /// Combines three planes, checking that their extents agree.

@@ -408,7 +408,10 @@ pub fn bilinear(data: &[u8]) {
     }
 }
 
-/// Fuzzes the EMA and the stereo blend.
+/// Fuzzes the EMA and the stereo blend. Reason codes are mostly defined, sometimes not (about
+/// 2 %), and history lengths any f32: a call whose planes hold an undefined code (or, for the
+/// EMA, a length that is not a finite count) must be refused by both bodies alike, with the
+/// outputs untouched; any other call must give the same bits from both.
 pub fn accumulate(data: &[u8]) {
     let mut bytes = Bytes(data);
     let e = extent_from(&mut bytes);
@@ -431,9 +434,14 @@ pub fn accumulate(data: &[u8]) {
             4 => history.g_mut()[index] = value,
             5 => history.b_mut()[index] = value,
             6 => len.as_mut_slice()[index] = value,
-            _ => reason.as_mut_slice()[index] = value.to_bits() as u8 % 6,
+            _ => {
+                let code = value.to_bits() as u8;
+                reason.as_mut_slice()[index] = if code < 250 { code % 6 } else { code };
+            }
         }
     }
+    let codes_defined = reason.as_slice().iter().all(|&c| usize::from(c) < crate::reproject::REASON_COUNT);
+    let lengths_are_counts = len.as_slice().iter().all(|&v| (0.0..=f32::MAX).contains(&v));
     let history_finite = history.planes().into_iter().all(all_finite);
     let params = EmaParams { alpha, ramp, band_rows: 2 };
     let input = EmaInput { new: new.view(), reason: reason.view(), has_new: None };
@@ -442,15 +450,26 @@ pub fn accumulate(data: &[u8]) {
         let state = EmaState { accum: acc.view_mut(), history_len: Some(n.view_mut()) };
         let stats =
             if simd { accumulate::ema(&input, state, &params) } else { accumulate::ema_scalar(&input, state, &params) };
-        (stats.expect("validated input"), acc, n)
+        (stats, acc, n)
     };
     let (stats, acc, n) = run(true);
     let (stats_ref, acc_ref, n_ref) = run(false);
-    assert_eq!(stats, stats_ref);
+    // Compared as text: a refusal may carry a NaN, which is not equal to itself.
+    assert_eq!(format!("{stats:?}"), format!("{stats_ref:?}"));
     for (a, b) in [(acc.r(), acc_ref.r()), (acc.g(), acc_ref.g()), (acc.b(), acc_ref.b()), (&n, &n_ref)] {
         assert_bits("EMA", a, b);
     }
-    if history_finite {
+    match &stats {
+        Ok(_) => assert!(codes_defined && lengths_are_counts, "the EMA took an undefined code or length"),
+        Err(e) => {
+            assert!(matches!(e, FrameError::ValueOutOfRange { .. }), "EMA refused with {e}");
+            assert!(!(codes_defined && lengths_are_counts), "the EMA refused defined codes and counts: {e}");
+            for (a, b) in [(acc.r(), history.r()), (acc.g(), history.g()), (acc.b(), history.b()), (&n, &len)] {
+                assert_bits("a refused EMA wrote", a, b);
+            }
+        }
+    }
+    if history_finite && stats.is_ok() {
         for p in acc.planes() {
             assert!(all_finite(p), "a non-finite sample entered the history");
         }
@@ -459,26 +478,37 @@ pub fn accumulate(data: &[u8]) {
     let run = |simd: bool| {
         let mut out = history.clone();
         let f = if simd { accumulate::blend } else { accumulate::blend_scalar };
-        let stats = f(&new.view(), out.view_mut(), &reason.view(), &blend_params).expect("validated input");
+        let stats = f(&new.view(), out.view_mut(), &reason.view(), &blend_params);
         (stats, out)
     };
     let (stats, out) = run(true);
     let (stats_ref, out_ref) = run(false);
     assert_eq!(stats, stats_ref);
+    assert_eq!(stats.is_ok(), codes_defined, "the blend refuses exactly the undefined codes: {stats:?}");
     for (a, b) in [(out.r(), out_ref.r()), (out.g(), out_ref.g()), (out.b(), out_ref.b())] {
         assert_bits("blend", a, b);
     }
+    if stats.is_err() {
+        for (a, b) in [(out.r(), history.r()), (out.g(), history.g()), (out.b(), history.b())] {
+            assert_bits("a refused blend wrote", a, b);
+        }
+    }
 }
 
-/// Fuzzes SSIM: two images over a small extent (1×1 up to 40×12, so the window's replicate
-/// padding covers most of them), edited anywhere with any f32. Both variants, any band height.
+/// Fuzzes SSIM: two images over a small extent (1×1 up to 40×24), edited anywhere with any
+/// f32. Both variants, any band height. Extents below the 11×11 window must be refused by
+/// both bodies; from 11×11 up (where the window's replicate padding still covers most
+/// voxels):
 /// Checks the SIMD body against the f64 scalar reference (the counts exactly, SSIM and RMSE to
 /// [`crate::ssim::CHECK_TOLERANCE`]), symmetry bit for bit, SSIM within [−1, 1] and RMSE
 /// finite and non-negative whenever any sample was usable, NaN exactly when none was.
 pub fn ssim(data: &[u8]) {
     use crate::ssim::{self as s, SsimParams, SsimVariant};
     let mut bytes = Bytes(data);
-    let extent = extent_from(&mut bytes);
+    let extent = {
+        let (w, h) = (1 + usize::from(bytes.u8() % 40), 1 + usize::from(bytes.u8() % 24));
+        Extent::new(w, h).expect("small extent")
+    };
     let variant = if bytes.u8() % 2 == 0 { SsimVariant::Volume } else { SsimVariant::PerChannel };
     let params = SsimParams { variant, band_rows: 1 + usize::from(bytes.u8() % 16) };
     // A smooth base (so the constant-image and gradient cases both come up), then edits.
@@ -503,6 +533,12 @@ pub fn ssim(data: &[u8]) {
             _ => b.b_mut(),
         };
         plane[index] = value;
+    }
+    if extent.width() < s::MIN_SIDE || extent.height() < s::MIN_SIDE {
+        let refused = FrameError::SmallerThanWindow { extent, window: s::MIN_SIDE };
+        assert_eq!(s::ssim(&a.view(), &b.view(), &params).err(), Some(refused.clone()));
+        assert_eq!(s::ssim_scalar(&a.view(), &b.view(), &params).err(), Some(refused));
+        return;
     }
     // With `check-scalar` (the fuzz build) `ssim` compares itself with `ssim_scalar`;
     // without it, the comparison is made here. Either way one f64 reference per input,

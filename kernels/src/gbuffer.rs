@@ -320,6 +320,21 @@ impl GBufferBuf {
         }
     }
 
+    /// [`GBufferBuf::new`] that reports an allocation failure instead of aborting (see
+    /// [`PlaneBuf::try_new`]).
+    pub fn try_new(camera: CameraModel) -> Result<Self, FrameError> {
+        let e = camera.extent;
+        let nan = || PlaneBuf::try_new(e, f32::NAN);
+        Ok(Self {
+            camera,
+            depth: PlaneBuf::try_new(e, f32::INFINITY)?,
+            position: [nan()?, nan()?, nan()?],
+            normal: [nan()?, nan()?, nan()?],
+            normal_oct: PlaneBuf::try_new(e, NO_NORMAL)?,
+            material: PlaneBuf::try_new(e, u32::MAX)?,
+        })
+    }
+
     /// The planes' extent.
     pub fn extent(&self) -> Extent {
         self.depth.extent()

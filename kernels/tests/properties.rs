@@ -36,7 +36,17 @@ fn image_values(
     max_h: usize,
     values: impl Strategy<Value = f32> + Clone,
 ) -> impl Strategy<Value = (usize, usize, Vec<f32>)> {
-    (1..=max_w, 1..=max_h)
+    sized_image_values(1, max_w, max_h, values)
+}
+
+/// [`image_values`] with both sides at least `min_side`.
+fn sized_image_values(
+    min_side: usize,
+    max_w: usize,
+    max_h: usize,
+    values: impl Strategy<Value = f32> + Clone,
+) -> impl Strategy<Value = (usize, usize, Vec<f32>)> {
+    (min_side..=max_w, min_side..=max_h)
         .prop_flat_map(move |(w, h)| (Just(w), Just(h), prop::collection::vec(values.clone(), 7 * w * h)))
 }
 
@@ -138,7 +148,7 @@ proptest! {
 
     #[test]
     fn ssim_is_one_on_identical_images_symmetric_and_bounded(
-        (w, h, values) in image_values(24, 16, 0f32..50.0),
+        (w, h, values) in sized_image_values(stereotrace_kernels::ssim::MIN_SIDE, 24, 16, 0f32..50.0),
         variant in prop_oneof![Just(SsimVariant::Volume), Just(SsimVariant::PerChannel)],
     ) {
         let e = extent(w, h);

@@ -215,8 +215,8 @@ mod ssim_tests {
             random(37, 23, 1),
             image(40, 20, |_, _, _| 1000.0 + r.f32()),
             image(33, 17, |x, y, c| if (x * 7 + y * 3 + c) % 41 == 0 { 1e6 } else { 0.01 * (x + c) as f32 }),
-            image(9, 9, |_, _, _| 0.25),
-            image(1, 1, |_, _, c| c as f32),
+            image(11, 11, |_, _, _| 0.25),
+            image(11, 12, |_, _, c| c as f32),
         ];
         for img in &cases {
             for variant in VARIANTS {
@@ -398,10 +398,10 @@ mod ssim_tests {
         let per = run(&a2, &b, SsimVariant::PerChannel);
         assert!(vol.voxels < per.voxels);
         // Everything unusable: NaN with zero counts, never a panic.
-        let nan = image(5, 3, |_, _, _| f32::NAN);
+        let nan = image(11, 13, |_, _, _| f32::NAN);
         let res = run(&nan, &nan, SsimVariant::Volume);
         assert!(res.ssim.is_nan() && res.rmse.is_nan());
-        assert_eq!((res.voxels, res.rmse_samples, res.non_finite), (0, 0, 2 * 45));
+        assert_eq!((res.voxels, res.rmse_samples, res.non_finite), (0, 0, 2 * 3 * 11 * 13));
     }
 
     #[test]
@@ -446,7 +446,7 @@ mod ssim_tests {
             assert_agrees(&fast, &run_scalar(&a, &b, variant), TOL);
         }
         // Subnormal and zero images: still exactly 1 against themselves.
-        let tiny = image(17, 9, |x, y, c| f32::from_bits(((x * 31 + y * 7 + c) % 1000) as u32));
+        let tiny = image(17, 11, |x, y, c| f32::from_bits(((x * 31 + y * 7 + c) % 1000) as u32));
         for variant in VARIANTS {
             assert_eq!(run(&tiny, &tiny, variant).ssim, 1.0);
         }
@@ -454,20 +454,19 @@ mod ssim_tests {
 
     #[test]
     fn odd_sizes_and_strides() {
+        // Both sides at least the window (smaller images are refused: the test below).
         let sizes = [
-            (1, 1),
-            (1, 9),
-            (9, 1),
-            (1, 40),
-            (40, 1),
-            (7, 5),
-            (8, 3),
-            (9, 12),
-            (17, 6),
-            (63, 2),
+            (11, 11),
+            (11, 40),
+            (40, 11),
+            (12, 13),
+            (15, 11),
+            (16, 12),
+            (17, 14),
+            (63, 11),
             (64, 33),
             (65, 34),
-            (130, 7),
+            (130, 12),
         ];
         for (i, &(w, h)) in sizes.iter().enumerate() {
             let a = random(w, h, 60 + i as u64);
@@ -505,7 +504,7 @@ mod ssim_tests {
     #[test]
     fn tall_images_use_taller_bands() {
         // 20000 rows: more than 256 bands of the default height, so the band height grows.
-        let a = random(3, 20_000, 150);
+        let a = random(11, 20_000, 150);
         let b = noisy(&a, 0.3, 151);
         for variant in VARIANTS {
             for band_rows in [1, 64] {
@@ -537,7 +536,7 @@ mod ssim_tests {
     fn simd_matches_scalar_on_seeded_random_inputs() {
         let mut r = Rng::new(90);
         for i in 0..24 {
-            let (w, h) = (1 + r.below(90), 1 + r.below(50));
+            let (w, h) = (11 + r.below(80), 11 + r.below(40));
             let scale = [1.0f32, 10.0, 1e3, 1e5][i % 4];
             let mut rr = Rng::new(1000 + i as u64);
             let a = image(w, h, |_, _, _| scale * rr.f32() * rr.f32());
@@ -585,10 +584,10 @@ mod ssim_tests {
 
     #[test]
     fn rmse_is_over_all_values() {
-        let a = random(23, 9, 110);
+        let a = random(23, 11, 110);
         let b = noisy(&a, 0.5, 111);
         let mut sq = 0.0f64;
-        for y in 0..9 {
+        for y in 0..11 {
             for x in 0..23 {
                 for c in 0..3 {
                     let d = f64::from(a.get(x, y)[c]) - f64::from(b.get(x, y)[c]);
@@ -596,10 +595,10 @@ mod ssim_tests {
                 }
             }
         }
-        let expected = (sq / (23.0 * 9.0 * 3.0)).sqrt();
+        let expected = (sq / (23.0 * 11.0 * 3.0)).sqrt();
         let res = run(&a, &b, SsimVariant::Volume);
         assert!((res.rmse - expected).abs() <= 1e-6 * expected);
-        assert_eq!(res.rmse_samples, 23 * 9 * 3);
+        assert_eq!(res.rmse_samples, 23 * 11 * 3);
     }
 
     #[test]
@@ -621,9 +620,29 @@ mod ssim_tests {
     }
 
     #[test]
+    fn images_smaller_than_the_window_are_refused_by_both_bodies() {
+        for w in 1..=ssim::MIN_SIDE {
+            for h in 1..=ssim::MIN_SIDE {
+                let (a, b) = (random(w, h, 3), random(w, h, 4));
+                for variant in VARIANTS {
+                    let params = SsimParams::with_variant(variant);
+                    let (fast, reference) =
+                        (ssim::ssim(&a.view(), &b.view(), &params), ssim::ssim_scalar(&a.view(), &b.view(), &params));
+                    if w < ssim::MIN_SIDE || h < ssim::MIN_SIDE {
+                        let refused = FrameError::SmallerThanWindow { extent: a.extent(), window: ssim::MIN_SIDE };
+                        assert_eq!((fast, reference), (Err(refused.clone()), Err(refused)), "{w}x{h}");
+                    } else {
+                        assert_agrees(&fast.unwrap(), &reference.unwrap(), ssim::CHECK_TOLERANCE);
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
     fn mismatched_extents_are_refused() {
-        let a = random(10, 10, 1);
-        let b = random(10, 11, 2);
+        let a = random(12, 12, 1);
+        let b = random(12, 13, 2);
         let err = ssim::ssim(&a.view(), &b.view(), &SsimParams::default()).unwrap_err();
         assert!(matches!(err, FrameError::ExtentMismatch { .. }), "{err}");
     }
@@ -636,8 +655,8 @@ mod ssim_tests {
         // many.
         let mut cases: Vec<(String, RgbBuf, RgbBuf)> = Vec::new();
         let mut r = Rng::new(700);
-        for w in [1usize, 7, 8, 9, 15, 16, 17, 31, 33, 63, 64, 65, 79, 80, 81, 130] {
-            let h = 1 + r.below(40);
+        for w in [11usize, 12, 15, 16, 17, 31, 33, 63, 64, 65, 79, 80, 81, 130] {
+            let h = 11 + r.below(30);
             let a = random(w, h, 701 + w as u64);
             cases.push((format!("noise {w}x{h}"), a.clone(), noisy(&a, 0.25, 702 + w as u64)));
         }

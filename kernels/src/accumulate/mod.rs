@@ -32,6 +32,7 @@ mod simd;
 
 use crate::bands::{SharedRows, for_each_band};
 use crate::frame::{FrameError, Plane, PlaneMut, RgbPlanes, RgbPlanesMut, same_extent};
+use crate::reproject::check_reason_plane;
 use crate::simd::F32s;
 pub use scalar::{blend_pixel, ema_pixel, lerp};
 use scalar::{blend_scalar_at, ema_scalar_at};
@@ -62,7 +63,8 @@ pub struct EmaInput<'a> {
     /// This frame's samples.
     pub new: RgbPlanes<'a>,
     /// Reason codes of the history's reprojection: the history is valid where the code is
-    /// [`crate::reproject::Reason::Reprojected`].
+    /// [`crate::reproject::Reason::Reprojected`]. A code outside the defined set (6 and up)
+    /// is refused ([`crate::reproject::check_reason_plane`]).
     pub reason: Plane<'a, u8>,
     /// Optional: non-zero where a new sample exists this frame (absent: everywhere).
     pub has_new: Option<Plane<'a, u8>>,
@@ -72,8 +74,8 @@ pub struct EmaInput<'a> {
 pub struct EmaState<'a> {
     /// In: the reprojected history. Out: the new accumulation.
     pub accum: RgbPlanesMut<'a>,
-    /// In: the reprojected history length in samples. Out: the updated length (0 for holes).
-    /// Required when `ramp` is on.
+    /// In: the reprojected history length in samples (finite and ≥ 0: anything else is
+    /// refused). Out: the updated length (0 for holes). Required when `ramp` is on.
     pub history_len: Option<PlaneMut<'a>>,
 }
 
@@ -114,6 +116,29 @@ fn check_ema(input: &EmaInput<'_>, state: &EmaState<'_>, params: &EmaParams) -> 
     }
     if let Some(n) = &state.history_len {
         same_extent("history length plane", e, n.extent())?;
+        check_history_len(&n.as_plane())?;
+    }
+    check_reason_plane("reason plane", &input.reason)
+}
+
+/// Refuses a history length that is not a count: negative, NaN or infinite (the ramp's
+/// `1/(n + 1)` would give a negative, infinite or NaN weight). Lengths are finite and ≥ 0.
+fn check_history_len(len: &Plane<'_>) -> Result<(), FrameError> {
+    for y in 0..len.height() {
+        let row = len.row(y);
+        // False for NaN, negatives and +inf; folded without an early exit so the pass
+        // vectorises.
+        let count = |v: f32| (0.0..=f32::MAX).contains(&v);
+        if !row.iter().fold(true, |ok, &v| ok & count(v)) {
+            let x = row.iter().position(|&v| !count(v)).expect("a bad length is in the row");
+            return Err(FrameError::ValueOutOfRange {
+                what: "history length plane",
+                x,
+                y,
+                value: f64::from(row[x]),
+                allowed: "a finite sample count >= 0",
+            });
+        }
     }
     Ok(())
 }
@@ -259,7 +284,8 @@ fn check_blend(
     }
     let e = own.extent();
     same_extent("reprojected image", e, reprojected.extent())?;
-    same_extent("reason plane", e, reason.extent())
+    same_extent("reason plane", e, reason.extent())?;
+    check_reason_plane("reason plane", reason)
 }
 
 /// Scalar reference stereo blend; writes the result over `reprojected`.

@@ -124,6 +124,15 @@ impl VisibilityBuffer {
         Self { prim: PlaneBuf::new(extent, NO_PRIM), q: PlaneBuf::new(extent, 0.0), q_err: PlaneBuf::new(extent, 0.0) }
     }
 
+    /// [`VisibilityBuffer::new`] that reports an allocation failure instead of aborting.
+    pub fn try_new(extent: Extent) -> Result<Self, FrameError> {
+        Ok(Self {
+            prim: PlaneBuf::try_new(extent, NO_PRIM)?,
+            q: PlaneBuf::try_new(extent, 0.0)?,
+            q_err: PlaneBuf::try_new(extent, 0.0)?,
+        })
+    }
+
     /// The buffers' width and height.
     pub fn extent(&self) -> Extent {
         self.prim.extent()

@@ -73,6 +73,11 @@
 //! count; it does depend, in the last bits, on [`SsimParams::band_rows`] (tile boundaries
 //! move the shifts).
 //!
+//! # Refused images
+//! Both images must have the same extent, at least [`MIN_SIDE`] (11, the window) on each
+//! side: smaller images are refused with [`FrameError::SmallerThanWindow`] by the fast kernel
+//! and the reference alike.
+//!
 //! # Excluded samples
 //! A sample is *unusable* if it is NaN, ±∞, or larger than [`MAX_SAMPLE`] in magnitude (its
 //! square would overflow the f32 statistics). [`SsimResult::non_finite`] counts the
@@ -297,8 +302,19 @@ impl Partial {
     }
 }
 
+/// The smallest width and height [`ssim`] accepts: the window's. Below it every window
+/// reaches past the image on both sides and the statistics come mostly from replicated
+/// border samples (a 1×1 image would score 0.8 against a different 1×1 image), which is
+/// not a measurement of the image.
+pub const MIN_SIDE: usize = TAPS;
+
 fn check(a: &RgbPlanes<'_>, b: &RgbPlanes<'_>) -> Result<(), FrameError> {
-    same_extent("second image", a.extent(), b.extent())
+    same_extent("second image", a.extent(), b.extent())?;
+    let e = a.extent();
+    if e.width() < MIN_SIDE || e.height() < MIN_SIDE {
+        return Err(FrameError::SmallerThanWindow { extent: e, window: MIN_SIDE });
+    }
+    Ok(())
 }
 
 /// SSIM ([`SsimParams::variant`]) and RMSE of `a` against `b`: the fused SIMD kernel, run in
