@@ -69,20 +69,25 @@ pub struct RendererSource<R: Borrow<Renderer>> {
 }
 
 impl<R: Borrow<Renderer>> RendererSource<R> {
-    /// The renderer configured as `config` asks, for frames of `extent`.
-    pub fn new(renderer: R, config: &PipelineConfig, extent: Extent) -> Self {
-        Self {
-            lights: renderer.borrow().frame_lights(0),
-            renderer,
-            raster: (config.gbuffer == GBufferPass::Raster).then(|| {
-                let mut raster = RasterGBuffers::new(extent);
+    /// The renderer configured as `config` asks, for frames of `extent`; fails only if the
+    /// per-pixel buffers cannot be allocated ([`crate::kernels::FrameError::OutOfMemory`]).
+    pub fn new(renderer: R, config: &PipelineConfig, extent: Extent) -> Result<Self, PipelineError> {
+        let raster = match config.gbuffer {
+            GBufferPass::Raster => {
+                let mut raster = RasterGBuffers::try_new(extent)?;
                 if config.layout == Layout::Compact {
                     raster.planes = GBufferPlanes::Compact;
                 }
-                raster
-            }),
+                Some(raster)
+            }
+            GBufferPass::Traced => None,
+        };
+        Ok(Self {
+            lights: renderer.borrow().frame_lights(0),
+            renderer,
+            raster,
             general_integrator: config.general_integrator,
-        }
+        })
     }
 
     /// The renderer behind this source.

@@ -28,6 +28,13 @@
 //! and the history restarts from it, so the temporal reprojection there would be unused
 //! (its reason is recorded as `Invalid` and not counted).
 //!
+//! # Refused frames
+//! A frame that fails anywhere (a source's G-buffers or samples, a camera, a kernel's check)
+//! returns its error and leaves the pipeline exactly as before the call: outputs, histories,
+//! G-buffers, reason planes, cameras and the budget planner (each eye keeps the committed
+//! frame's buffers beside the frame in flight's: see `EyeState`). The same frame may then be
+//! rendered again and gives what it would have given the first time.
+//!
 //! # Budget
 //! With a per-frame time budget, G-buffers, reprojection and accumulation always run; path
 //! tracing goes over row tiles in priority order: first every pixel that has no valid
@@ -38,7 +45,9 @@
 //! (the other eye, accumulation) fit the budget (`BudgetPlanner`, predictions from measured
 //! times), so the overrun is the misprediction of about one tile; the frame statistics
 //! report it. Work that always runs is never skipped: a budget below the G-buffers,
-//! reprojection, accumulation and the urgent pixels is overrun by that much.
+//! reprojection, accumulation and the urgent pixels is overrun by that much. Under a budget
+//! the stereo-first schedules reproject (or blend) the whole `traced` image of an eye, whose
+//! untraced pixels hold an older frame's samples: an approximation the budget buys.
 
 use std::borrow::Borrow;
 use std::time::Instant;
@@ -47,7 +56,7 @@ use crate::camera::{Eye, StereoRig};
 use crate::kernels::accumulate::{self, BlendParams, EmaInput, EmaParams, EmaState};
 use crate::kernels::gbuffer::{CompactGBuffer, GBuffer};
 use crate::kernels::reproject::{self, Reason, ReasonCounts, ReprojectInput, ReprojectOutput, ReprojectParams};
-use crate::kernels::{CameraModel, Extent, PlaneBuf, RgbBuf};
+use crate::kernels::{CameraModel, Extent, FrameError, PlaneBuf, RgbBuf};
 use crate::render::{GBufferBuf, PixelSelection, Renderer, TraceRequest};
 use crate::scene::CameraPose;
 use crate::source::{FrameSource, RendererSource};
@@ -67,23 +76,55 @@ pub use plan::{Source, Step, StereoSource, plan};
 pub use session::{CameraWalk, Session, View};
 pub use stats::{FrameStats, StageTimes};
 
-/// One eye's buffers.
-struct EyeState {
-    camera: CameraModel,
-    prev_camera: Option<CameraModel>,
+/// What one frame of one eye leaves behind: everything a caller reads after the frame (the
+/// shown image, the reasons, the G-buffer) and everything the next frame reads (G-buffer,
+/// history and its length). Each eye keeps two: the last committed frame's and the one in
+/// flight (see [`EyeState`]).
+struct FrameBuffers {
     gbuffer: GBufferBuf,
-    prev_gbuffer: GBufferBuf,
     /// This frame's path-traced samples (where traced).
     traced: RgbBuf,
     /// Stereo reprojection of the other eye / blend output / the stereo-mode left image.
     work: RgbBuf,
-    /// Temporal history: reprojected from `prev_history`, then accumulated in place.
+    /// Temporal history: reprojected from the previous frame's, then accumulated in place.
     history: RgbBuf,
-    prev_history: RgbBuf,
     len: PlaneBuf,
-    prev_len: PlaneBuf,
     stereo_reason: PlaneBuf<u8>,
     temporal_reason: PlaneBuf<u8>,
+}
+
+impl FrameBuffers {
+    fn try_new(camera: CameraModel) -> Result<Self, FrameError> {
+        let e = camera.extent;
+        let rgb = || RgbBuf::try_new(e, 0.0);
+        Ok(Self {
+            gbuffer: GBufferBuf::try_new(camera)?,
+            traced: rgb()?,
+            work: rgb()?,
+            history: rgb()?,
+            len: PlaneBuf::try_new(e, 0.0)?,
+            stereo_reason: PlaneBuf::try_new(e, Reason::Invalid as u8)?,
+            temporal_reason: PlaneBuf::try_new(e, Reason::Invalid as u8)?,
+        })
+    }
+}
+
+/// One eye's buffers.
+///
+/// **Transactional frames.** Between frames `cur` holds the last committed frame and `prev`
+/// the one before (stale). A frame starts by swapping them: it writes `cur` and reads the
+/// committed frame in `prev` (temporal reprojection's G-buffer, history and length). If the
+/// frame succeeds, `cur` is the new committed frame; if anything fails (a source's callback,
+/// a kernel's check), the two are swapped back and the cameras and planner restored, so the
+/// output, the history and what the next frame reads are exactly as before the call. No
+/// step reads a `cur` plane where this frame has not written it, except that under a budget
+/// the pixels a stereo-first schedule leaves untraced keep an older frame's samples in
+/// `traced` (module notes).
+struct EyeState {
+    camera: CameraModel,
+    prev_camera: Option<CameraModel>,
+    cur: FrameBuffers,
+    prev: FrameBuffers,
     /// The history-validity plane the EMA reads (a combination in some modes).
     ema_reason: PlaneBuf<u8>,
     /// Pixels to trace this frame, and (after tracing) where a new sample exists.
@@ -94,28 +135,28 @@ struct EyeState {
 }
 
 impl EyeState {
-    fn new(camera: CameraModel) -> Self {
+    /// Every buffer of one eye, or [`FrameError::OutOfMemory`] (nothing kept) if the
+    /// allocator refuses one.
+    fn try_new(camera: CameraModel) -> Result<Self, FrameError> {
         let e = camera.extent;
-        let rgb = || RgbBuf::new(e, 0.0);
-        Self {
+        Ok(Self {
             camera,
             prev_camera: None,
-            gbuffer: GBufferBuf::new(camera),
-            prev_gbuffer: GBufferBuf::new(camera),
-            traced: rgb(),
-            work: rgb(),
-            history: rgb(),
-            prev_history: rgb(),
-            len: PlaneBuf::new(e, 0.0),
-            prev_len: PlaneBuf::new(e, 0.0),
-            stereo_reason: PlaneBuf::new(e, Reason::Invalid as u8),
-            temporal_reason: PlaneBuf::new(e, Reason::Invalid as u8),
-            ema_reason: PlaneBuf::new(e, Reason::Invalid as u8),
-            wanted: PlaneBuf::new(e, 0),
-            has_new: PlaneBuf::new(e, 0),
-            urgent: PlaneBuf::new(e, 0),
-        }
+            cur: FrameBuffers::try_new(camera)?,
+            prev: FrameBuffers::try_new(camera)?,
+            ema_reason: PlaneBuf::try_new(e, Reason::Invalid as u8)?,
+            wanted: PlaneBuf::try_new(e, 0)?,
+            has_new: PlaneBuf::try_new(e, 0)?,
+            urgent: PlaneBuf::try_new(e, 0)?,
+        })
     }
+}
+
+/// What a refused frame restores besides the buffers: each eye's camera and previous
+/// camera, and the budget planner's predictions.
+struct Committed {
+    cameras: [(CameraModel, Option<CameraModel>); 2],
+    planner: BudgetPlanner,
 }
 
 /// The per-frame pipeline over a [`FrameSource`] (this crate's renderer by default, see
@@ -176,7 +217,7 @@ impl<R: Borrow<Renderer>> Pipeline<RendererSource<R>> {
         config.validate().map_err(PipelineError::Config)?;
         let head = renderer.borrow().scene().camera.pose_at(0.0);
         let cameras = [rig.eye_camera(&head, Eye::Left, extent)?, rig.eye_camera(&head, Eye::Right, extent)?];
-        let mut pipeline = Self::with_source(RendererSource::new(renderer, &config, extent), config, cameras)?;
+        let mut pipeline = Self::with_source(RendererSource::new(renderer, &config, extent)?, config, cameras)?;
         pipeline.rig = Some(rig);
         Ok(pipeline)
     }
@@ -192,12 +233,13 @@ impl<S: FrameSource> Pipeline<S> {
         config.validate().map_err(PipelineError::Config)?;
         let extent = cameras[0].extent;
         crate::kernels::frame::same_extent("right eye camera", extent, cameras[1].extent)?;
+        let [left, right] = cameras;
         Ok(Self {
             source,
             config,
             rig: None,
             extent,
-            eyes: cameras.map(EyeState::new),
+            eyes: [EyeState::try_new(left)?, EyeState::try_new(right)?],
             frames_done: 0,
             planner: BudgetPlanner::default(),
         })
@@ -235,10 +277,10 @@ impl<S: FrameSource> Pipeline<S> {
     pub fn output(&self, eye: Eye) -> &RgbBuf {
         let s = &self.eyes[eye as usize];
         match (self.config.mode, eye, self.config.order) {
-            (Mode::PathTraced, ..) | (Mode::Stereo, Eye::Right, _) => &s.traced,
-            (Mode::Stereo, Eye::Left, _) | (Mode::StereoBlend, ..) => &s.work,
-            (Mode::SpatiotemporalBlend, _, Order::Paper) => &s.work,
-            (Mode::Temporal | Mode::Spatiotemporal | Mode::SpatiotemporalBlend, ..) => &s.history,
+            (Mode::PathTraced, ..) | (Mode::Stereo, Eye::Right, _) => &s.cur.traced,
+            (Mode::Stereo, Eye::Left, _) | (Mode::StereoBlend, ..) => &s.cur.work,
+            (Mode::SpatiotemporalBlend, _, Order::Paper) => &s.cur.work,
+            (Mode::Temporal | Mode::Spatiotemporal | Mode::SpatiotemporalBlend, ..) => &s.cur.history,
         }
     }
 
@@ -246,20 +288,33 @@ impl<S: FrameSource> Pipeline<S> {
     /// layout only its depth, octahedral-normal and material planes are written (what the
     /// reprojection reads); the position and normal planes stay NaN.
     pub fn gbuffer(&self, eye: Eye) -> &GBufferBuf {
-        &self.eyes[eye as usize].gbuffer
+        &self.eyes[eye as usize].cur.gbuffer
     }
 
     /// The stereo reprojection reason codes of `eye` for the last frame (all `Invalid` in
     /// modes without stereo reprojection into that eye).
     pub fn stereo_reasons(&self, eye: Eye) -> &PlaneBuf<u8> {
-        &self.eyes[eye as usize].stereo_reason
+        &self.eyes[eye as usize].cur.stereo_reason
     }
 
     /// The temporal reprojection reason codes of `eye` for the last frame. In the paper-order
     /// spatiotemporal mode the left eye's history is reprojected only where its stereo
     /// reprojection failed; its other pixels read `Invalid` (see the module notes).
     pub fn temporal_reasons(&self, eye: Eye) -> &PlaneBuf<u8> {
-        &self.eyes[eye as usize].temporal_reason
+        &self.eyes[eye as usize].cur.temporal_reason
+    }
+
+    /// The temporal history of `eye` after the last frame: what the next frame reprojects
+    /// (the shown image in the temporal and spatiotemporal modes; behind the blend in the
+    /// paper-order spatiotemporal blend; unused, and all zeros, in modes without history).
+    pub fn history(&self, eye: Eye) -> &RgbBuf {
+        &self.eyes[eye as usize].cur.history
+    }
+
+    /// Frames rendered since the pipeline was made or [`Pipeline::reset`] (refused frames
+    /// are not counted): the next frame has history when this is non-zero.
+    pub fn frames_since_reset(&self) -> u32 {
+        self.frames_done
     }
 
     /// Renders frame `frame` (the index keys the random numbers and places moving lights)
@@ -291,25 +346,58 @@ impl<S: FrameSource> Pipeline<S> {
         for camera in &cameras {
             crate::kernels::frame::same_extent("eye camera", self.extent, camera.extent)?;
         }
+        let committed = self.begin_frame(cameras);
+        match self.run_frame(frame) {
+            Ok(stats) => {
+                self.frames_done += 1;
+                Ok(stats)
+            }
+            Err(e) => {
+                self.roll_back(committed);
+                Err(e)
+            }
+        }
+    }
+
+    /// Starts a frame seen by `cameras`: the committed frame's buffers become the previous
+    /// frame's (see [`EyeState`]). Returns what [`Pipeline::roll_back`] restores.
+    fn begin_frame(&mut self, cameras: [CameraModel; 2]) -> Committed {
+        let committed =
+            Committed { cameras: self.eyes.each_ref().map(|s| (s.camera, s.prev_camera)), planner: self.planner };
+        let has_history = self.frames_done > 0;
+        for (s, camera) in self.eyes.iter_mut().zip(cameras) {
+            std::mem::swap(&mut s.cur, &mut s.prev);
+            s.prev_camera = has_history.then_some(s.camera);
+            s.camera = camera;
+            s.cur.gbuffer.camera = camera;
+        }
+        committed
+    }
+
+    /// Undoes [`Pipeline::begin_frame`] after a refused frame: the committed buffers,
+    /// cameras and planner are back, as if the call had never been made.
+    fn roll_back(&mut self, committed: Committed) {
+        for (s, (camera, prev_camera)) in self.eyes.iter_mut().zip(committed.cameras) {
+            std::mem::swap(&mut s.cur, &mut s.prev);
+            (s.camera, s.prev_camera) = (camera, prev_camera);
+        }
+        self.planner = committed.planner;
+    }
+
+    /// The body of [`Pipeline::render_frame_at`], between [`Pipeline::begin_frame`] and the
+    /// commit or roll-back: writes only the in-flight buffers.
+    fn run_frame(&mut self, frame: u32) -> Result<FrameStats, PipelineError> {
         let start = Instant::now();
         let mut stats = FrameStats { frame, budget: self.config.budget, ..FrameStats::default() };
         let has_history = self.frames_done > 0;
         self.planner.start_frame();
 
-        // G-buffers of both eyes (last frame's become the temporal source).
+        // G-buffers of both eyes (last frame's are the temporal source).
         let t0 = Instant::now();
         self.source.begin_frame(frame);
-        for (eye, camera) in Eye::BOTH.into_iter().zip(cameras) {
-            let s = &mut self.eyes[eye as usize];
-            std::mem::swap(&mut s.gbuffer, &mut s.prev_gbuffer);
-            std::mem::swap(&mut s.history, &mut s.prev_history);
-            std::mem::swap(&mut s.len, &mut s.prev_len);
-            s.prev_camera = has_history.then_some(s.camera);
-            s.camera = camera;
-            s.gbuffer.camera = camera;
-        }
         let [left, right] = &mut self.eyes;
-        stats.raster = self.source.fill_gbuffers([&mut left.gbuffer, &mut right.gbuffer], self.config.layout)?;
+        stats.raster =
+            self.source.fill_gbuffers([&mut left.cur.gbuffer, &mut right.cur.gbuffer], self.config.layout)?;
         stats.times.gbuffer = t0.elapsed();
 
         let mode = self.config.mode;
@@ -337,8 +425,8 @@ impl<S: FrameSource> Pipeline<S> {
                         .ema_reason
                         .as_mut_slice()
                         .iter_mut()
-                        .zip(s.stereo_reason.as_slice())
-                        .zip(s.temporal_reason.as_slice())
+                        .zip(s.cur.stereo_reason.as_slice())
+                        .zip(s.cur.temporal_reason.as_slice())
                     {
                         *ema = if is_reprojected(stereo) { Reason::Invalid as u8 } else { temporal };
                     }
@@ -346,7 +434,6 @@ impl<S: FrameSource> Pipeline<S> {
                 Step::Accumulate(eye, source) => self.accumulate(eye, source, &mut stats)?,
             }
         }
-        self.frames_done += 1;
         stats.times.total = start.elapsed();
         self.planner.end_frame(stats.times.total);
         stats.budget_met = self.config.budget.is_none_or(|b| stats.times.total <= b);
@@ -375,8 +462,10 @@ impl<S: FrameSource> Pipeline<S> {
         let config = self.config;
         let request = TraceRequest { eye: Eye::Right, frame, spp: config.spp, seed: config.seed, first_sample: 0 };
         let s = &mut self.eyes[Eye::Right as usize];
-        stats.trace =
-            self.source.trace(&camera, &request, PixelSelection::All, 0..self.extent.height(), &mut s.traced)?;
+        // Traced into the spare image, swapped in only if the source succeeds.
+        let rows = 0..self.extent.height();
+        stats.trace = self.source.trace(&camera, &request, PixelSelection::All, rows, &mut s.prev.traced)?;
+        std::mem::swap(&mut s.cur.traced, &mut s.prev.traced);
         stats.traced_pixels[Eye::Right as usize] = self.extent.pixels() as u64;
         stats.times.tracing = start.elapsed();
         if self.config.budget.is_some() {
@@ -415,25 +504,25 @@ impl<S: FrameSource> Pipeline<S> {
         let layout = self.config.layout;
         let s = &mut self.eyes[eye as usize];
         let Some(prev_camera) = s.prev_camera.filter(|_| has_history) else {
-            s.temporal_reason.as_mut_slice().fill(Reason::Invalid as u8);
+            s.cur.temporal_reason.as_mut_slice().fill(Reason::Invalid as u8);
             return Ok(ReasonCounts::default());
         };
         let pixel_mask = only_wanted.then(|| s.wanted.view());
-        let target_depth = s.gbuffer.depth.view();
-        let (history, len, reason) = (&mut s.history, &mut s.len, &mut s.temporal_reason);
+        let target_depth = s.cur.gbuffer.depth.view();
+        let (history, len, reason) = (&mut s.cur.history, &mut s.cur.len, &mut s.cur.temporal_reason);
         let out = ReprojectOutput {
             colour: history.view_mut(),
             extra: ramp.then(|| len.view_mut()),
             reason: reason.view_mut(),
             weight: None,
         };
-        let colour = s.prev_history.view();
-        let extra = ramp.then(|| s.prev_len.view());
-        let g = &s.gbuffer;
+        let colour = s.prev.history.view();
+        let extra = ramp.then(|| s.prev.len.view());
+        let g = &s.cur.gbuffer;
         let counts = match layout {
             Layout::Compact => {
                 let t = CompactGBuffer::new(target_depth, g.normal_oct.view(), g.camera)?;
-                let src = s.prev_gbuffer.compact();
+                let src = s.prev.gbuffer.compact();
                 let input =
                     ReprojectInput { target: &t, source: &src, source_camera: &prev_camera, colour, extra, pixel_mask };
                 reproject::reproject(&input, out, &params)?
@@ -444,7 +533,7 @@ impl<S: FrameSource> Pipeline<S> {
                     g.position.each_ref().map(|p| p.view()),
                     g.normal.each_ref().map(|p| p.view()),
                 )?;
-                let src = s.prev_gbuffer.view();
+                let src = s.prev.gbuffer.view();
                 let input =
                     ReprojectInput { target: &t, source: &src, source_camera: &prev_camera, colour, extra, pixel_mask };
                 reproject::reproject(&input, out, &params)?
@@ -468,18 +557,18 @@ impl<S: FrameSource> Pipeline<S> {
             }
         };
         let colour = match source {
-            StereoSource::Traced => other.traced.view(),
-            StereoSource::History => other.history.view(),
+            StereoSource::Traced => other.cur.traced.view(),
+            StereoSource::History => other.cur.history.view(),
         };
         let out = ReprojectOutput {
-            colour: target.work.view_mut(),
+            colour: target.cur.work.view_mut(),
             extra: None,
-            reason: target.stereo_reason.view_mut(),
+            reason: target.cur.stereo_reason.view_mut(),
             weight: None,
         };
         let counts = match layout {
             Layout::Compact => {
-                let (t, src) = (target.gbuffer.compact(), other.gbuffer.compact());
+                let (t, src) = (target.cur.gbuffer.compact(), other.cur.gbuffer.compact());
                 let input = ReprojectInput {
                     target: &t,
                     source: &src,
@@ -491,7 +580,7 @@ impl<S: FrameSource> Pipeline<S> {
                 reproject::reproject(&input, out, &params)?
             }
             Layout::Full => {
-                let (t, src) = (target.gbuffer.view(), other.gbuffer.view());
+                let (t, src) = (target.cur.gbuffer.view(), other.cur.gbuffer.view());
                 let input = ReprojectInput {
                     target: &t,
                     source: &src,
@@ -518,7 +607,7 @@ impl<S: FrameSource> Pipeline<S> {
         stats.stereo_reasons[L] = self.stereo_into(Eye::Left, source)?;
         // Wanted (traced, and the left history reprojected): where stereo was discarded.
         let s = &mut self.eyes[L];
-        for (wanted, &stereo) in s.wanted.as_mut_slice().iter_mut().zip(s.stereo_reason.as_slice()) {
+        for (wanted, &stereo) in s.wanted.as_mut_slice().iter_mut().zip(s.cur.stereo_reason.as_slice()) {
             *wanted = u8::from(!is_reprojected(stereo));
         }
         if self.left_history_on_demand() && self.config.mode.temporal() {
@@ -528,7 +617,7 @@ impl<S: FrameSource> Pipeline<S> {
         let s = &mut self.eyes[L];
         let temporal_valid = self.config.mode.temporal() && self.frames_done > 0;
         for ((urgent, &stereo), &temporal) in
-            s.urgent.as_mut_slice().iter_mut().zip(s.stereo_reason.as_slice()).zip(s.temporal_reason.as_slice())
+            s.urgent.as_mut_slice().iter_mut().zip(s.cur.stereo_reason.as_slice()).zip(s.cur.temporal_reason.as_slice())
         {
             // Urgent: neither a stereo sample nor a temporal history to fall back on.
             *urgent = u8::from(!(is_reprojected(stereo) || (temporal_valid && is_reprojected(temporal))));
@@ -536,7 +625,7 @@ impl<S: FrameSource> Pipeline<S> {
         self.trace_wanted(Eye::Left, Target::Work, stats, start)?;
         // Where nothing was traced, the stereo sample (if valid) is the new sample.
         let s = &mut self.eyes[L];
-        for (has, &stereo) in s.has_new.as_mut_slice().iter_mut().zip(s.stereo_reason.as_slice()) {
+        for (has, &stereo) in s.has_new.as_mut_slice().iter_mut().zip(s.cur.stereo_reason.as_slice()) {
             *has |= u8::from(is_reprojected(stereo));
         }
         Ok(())
@@ -551,10 +640,10 @@ impl<S: FrameSource> Pipeline<S> {
         let params = BlendParams { own_weight: self.config.blend_own_weight, band_rows: 16 };
         let s = &mut self.eyes[eye as usize];
         let own = match source {
-            StereoSource::Traced => s.traced.view(),
-            StereoSource::History => s.history.view(),
+            StereoSource::Traced => s.cur.traced.view(),
+            StereoSource::History => s.cur.history.view(),
         };
-        let blend = accumulate::blend(&own, s.work.view_mut(), &s.stereo_reason.view(), &params)?;
+        let blend = accumulate::blend(&own, s.cur.work.view_mut(), &s.cur.stereo_reason.view(), &params)?;
         let acc = &mut stats.accumulation[eye as usize];
         acc.non_finite += blend.non_finite;
         acc.holes += blend.holes;
@@ -567,7 +656,7 @@ impl<S: FrameSource> Pipeline<S> {
         let temporal_valid = self.config.mode.temporal() && self.frames_done > 0;
         let s = &mut self.eyes[eye as usize];
         s.wanted.as_mut_slice().fill(1);
-        for (urgent, &temporal) in s.urgent.as_mut_slice().iter_mut().zip(s.temporal_reason.as_slice()) {
+        for (urgent, &temporal) in s.urgent.as_mut_slice().iter_mut().zip(s.cur.temporal_reason.as_slice()) {
             *urgent = u8::from(!(temporal_valid && is_reprojected(temporal)));
         }
         self.trace_wanted(eye, Target::Traced, stats, start)
@@ -588,8 +677,8 @@ impl<S: FrameSource> Pipeline<S> {
         let s = &mut self.eyes[eye as usize];
         let request = TraceRequest { eye, frame: stats.frame, spp: config.spp, seed: config.seed, first_sample: 0 };
         let out = match target {
-            Target::Traced => &mut s.traced,
-            Target::Work => &mut s.work,
+            Target::Traced => &mut s.cur.traced,
+            Target::Work => &mut s.cur.work,
         };
         let wanted_count = s.wanted.as_slice().iter().filter(|&&w| w != 0).count() as u64;
         stats.wanted_pixels[eye as usize] += wanted_count;
@@ -653,12 +742,12 @@ impl<S: FrameSource> Pipeline<S> {
         let ramp = self.config.ramp;
         let s = &mut self.eyes[eye as usize];
         let (new, reason) = match source {
-            Source::Traced => (s.traced.view(), s.temporal_reason.view()),
-            Source::Work => (s.work.view(), s.temporal_reason.view()),
-            Source::WorkCombined => (s.work.view(), s.ema_reason.view()),
+            Source::Traced => (s.cur.traced.view(), s.cur.temporal_reason.view()),
+            Source::Work => (s.cur.work.view(), s.cur.temporal_reason.view()),
+            Source::WorkCombined => (s.cur.work.view(), s.ema_reason.view()),
         };
         let input = EmaInput { new, reason, has_new: Some(s.has_new.view()) };
-        let state = EmaState { accum: s.history.view_mut(), history_len: ramp.then(|| s.len.view_mut()) };
+        let state = EmaState { accum: s.cur.history.view_mut(), history_len: ramp.then(|| s.cur.len.view_mut()) };
         let acc = accumulate::ema(&input, state, &params)?;
         let total = &mut stats.accumulation[eye as usize];
         total.non_finite += acc.non_finite;

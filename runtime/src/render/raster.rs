@@ -62,6 +62,19 @@ impl RasterGBuffers {
         }
     }
 
+    /// [`RasterGBuffers::new`] that reports an allocation failure of the per-pixel buffers
+    /// instead of aborting. (The binning buffers grow with the first frames, by the scene's
+    /// triangles: those allocations are not fallible.)
+    pub fn try_new(extent: Extent) -> Result<Self, FrameError> {
+        Ok(Self {
+            rasterizer: Rasterizer::new(),
+            visibility: [VisibilityBuffer::try_new(extent)?, VisibilityBuffer::try_new(extent)?],
+            extra: Vec::new(),
+            body: Body::Simd,
+            planes: GBufferPlanes::All,
+        })
+    }
+
     /// Each eye's visibility of the last frame (`[left, right]`).
     pub fn visibility(&self) -> &[VisibilityBuffer; 2] {
         &self.visibility
