@@ -1,17 +1,28 @@
 /*
- * stereotrace: the C ABI of the reprojection, accumulation, blend and SSIM kernels.
+ * stereotrace: the C ABI of the reprojection, accumulation, blend and SSIM kernels, and of
+ * the frame pipeline (over stereotrace's renderer, or over an engine's own callbacks).
  *
  * Rules every function keeps:
- * - A context (stereotrace_context_create / _destroy) owns the worker threads the kernels
- *   run on; use one context from one thread at a time.
+ * - Objects. A context (stereotrace_context_create / _destroy) owns the worker threads the
+ *   kernels run on; a pipeline owns its buffers and worker threads. Each takes one call at a
+ *   time: a call on an object that is in a call already (from another thread, or from the
+ *   running call's own callbacks) returns ST_STATUS_BUSY, names the call in progress and
+ *   changes nothing. Different objects may be used from different threads at once.
  * - Buffers belong to the caller: planes of float, uint8_t or uint32_t given as pointer,
  *   width, height and stride (in elements). Pixel (x, y) is data[y * stride + x]. Nothing
- *   is kept after a call returns.
- * - Every pointer, size, stride, camera, enum value and parameter is checked. A refused
- *   call returns a status other than ST_STATUS_OK, writes no output, and
- *   stereotrace_last_error() says why. An output that overlaps another buffer of the same
- *   call is refused (ST_STATUS_ALIASING).
- * - No panic crosses the boundary: an internal error returns ST_STATUS_PANIC.
+ *   is kept after a call returns. Inputs are read, outputs written, during the call only.
+ * - Every pointer, size, stride, camera, enum value, parameter and value with a defined
+ *   range (reason codes, history lengths) is checked. A refused call returns a status other
+ *   than ST_STATUS_OK, writes no output, and stereotrace_last_error() says why. An output
+ *   that overlaps another buffer of the same call is refused (ST_STATUS_ALIASING).
+ * - Limits are the STEREOTRACE_MAX_* and STEREOTRACE_SSIM_MIN_SIDE constants below; the
+ *   checks use exactly these values.
+ * - Memory is allocated when an object is created, never per frame or per kernel call; a
+ *   failed allocation returns ST_STATUS_OUT_OF_MEMORY and keeps nothing.
+ * - stereotrace_last_error() is per thread: the message of that thread's last failed call
+ *   (empty after a success), valid until that thread's next call into the library.
+ * - No panic crosses the boundary: an internal error returns ST_STATUS_PANIC, after which
+ *   the object it happened in refuses every call but its destruction.
  *
  * Link libstereotrace_capi.a (with -lpthread -ldl -lm) or libstereotrace_capi.so.
  */
@@ -30,11 +41,33 @@
 // The library's major version: a header and a library agree when their majors are equal.
 #define STEREOTRACE_VERSION_MAJOR 0
 
-// The library's minor version.
-#define STEREOTRACE_VERSION_MINOR 1
+// The library's minor version. 0.2: `ST_STATUS_CALLBACK_FAILED`, `_OUT_OF_MEMORY` and
+// `_BUSY`; the destroy functions return a status; the `STEREOTRACE_MAX_*` limits.
+#define STEREOTRACE_VERSION_MINOR 2
 
 // The library's patch version.
 #define STEREOTRACE_VERSION_PATCH 0
+
+// The largest width or height of a plane, camera or pipeline frame, in pixels (2^15).
+#define STEREOTRACE_MAX_DIMENSION 32768
+
+// The most pixels of a plane, camera or pipeline frame (2^28: 16384 × 16384).
+#define STEREOTRACE_MAX_PIXELS 268435456
+
+// The largest row stride of a plane, in elements (4 × `STEREOTRACE_MAX_DIMENSION`).
+#define STEREOTRACE_MAX_STRIDE 131072
+
+// The most worker threads of a context or a pipeline (0 asks for one per logical CPU).
+#define STEREOTRACE_MAX_THREADS 1024
+
+// The most samples per pixel of a pipeline (2^20).
+#define STEREOTRACE_MAX_SPP 1048576
+
+// The largest per-frame budget of a pipeline, in milliseconds (0 means none).
+#define STEREOTRACE_MAX_BUDGET_MS 1000000.0
+
+// The smallest width and height `stereotrace_ssim` accepts: its 11×11 window.
+#define STEREOTRACE_SSIM_MIN_SIDE 11
 
 // The number of reason codes.
 #define ST_REASON_COUNT 6
@@ -53,8 +86,20 @@ typedef enum StStatus {
   // A pointer is not aligned for its element type.
   ST_STATUS_MISALIGNED = 4,
   // A bug inside the library was caught before it could unwind into the caller; the
-  // outputs may be partly written. Please report it with the message.
+  // outputs may be partly written, and the pipeline or context it happened in refuses
+  // every later call but its destruction. Please report it with the message.
   ST_STATUS_PANIC = 5,
+  // A callback of the caller's (`fill_gbuffers` or `trace`) returned non-zero; the
+  // message gives its return value. The frame was refused: output, history and
+  // statistics are as before the call.
+  ST_STATUS_CALLBACK_FAILED = 6,
+  // Memory for a buffer the call needed could not be allocated (the message gives the
+  // size). Nothing was created or changed; the process goes on.
+  ST_STATUS_OUT_OF_MEMORY = 7,
+  // The pipeline or context is in a call already: this call came from one of its own
+  // callbacks or from another thread while that call runs. The message names the call in
+  // progress. Nothing was changed; calls on other pipelines and contexts are unaffected.
+  ST_STATUS_BUSY = 8,
 } StStatus;
 
 // How a G-buffer stores its surfaces: the values of [`StGBuffer::layout`]. (Enum values
@@ -103,18 +148,22 @@ typedef enum StSsimVariant {
 } StSsimVariant;
 
 // The pipeline's modes (the paper's Section IV): the values of [`StPipelineConfig::mode`].
+// Each names which eye the trace callback is asked for: "both" means every pixel of each eye
+// (under a budget, the pixels without valid history first, then tiles while time remains).
 typedef enum StMode {
-  // Both eyes fully path traced.
+  // Both eyes fully path traced. Traces both eyes.
   ST_MODE_PATH_TRACED = 0,
-  // The left eye reprojected from the right, traced where discarded.
+  // The left eye reprojected from the right, traced where discarded. Traces the right
+  // eye, and the left eye's discarded pixels only.
   ST_MODE_STEREO = 1,
-  // Each eye accumulates its own reprojected history.
+  // Each eye accumulates its own reprojected history. Traces both eyes.
   ST_MODE_TEMPORAL = 2,
-  // Stereo and temporal reprojection combined.
+  // Stereo and temporal reprojection combined. Traces the right eye, and the left eye's
+  // pixels where stereo reprojection was discarded only.
   ST_MODE_SPATIOTEMPORAL = 3,
-  // Each eye blends its own samples with the other's reprojection.
+  // Each eye blends its own samples with the other's reprojection. Traces both eyes.
   ST_MODE_STEREO_BLEND = 4,
-  // The blend over accumulated histories.
+  // The blend over accumulated histories. Traces both eyes.
   ST_MODE_SPATIOTEMPORAL_BLEND = 5,
 } StMode;
 
@@ -126,10 +175,14 @@ typedef enum StOrder {
   ST_ORDER_STEREO_FIRST = 1,
 } StOrder;
 
-// What the kernels run on: a pool of worker threads. Opaque to C.
+// What the kernels run on: a pool of worker threads. Opaque to C. One call at a time:
+// a kernel call on a context that is in a call on another thread is refused with
+// `ST_STATUS_BUSY`.
 typedef struct StContext StContext;
 
-// A frame pipeline (opaque to C).
+// A frame pipeline (opaque to C). One call at a time: a call on a pipeline that is in a
+// call already (from that call's callbacks, or from another thread) is refused with
+// `ST_STATUS_BUSY`.
 typedef struct StPipeline StPipeline;
 
 // Discard tests and schedule of one reprojection (see
@@ -152,11 +205,11 @@ typedef struct StReprojectParams {
 typedef struct StPlaneF32 {
   // Pixel `(0, 0)`; pixel `(x, y)` is `data[y * stride + x]`.
   const float *data;
-  // Pixels per row (1 ..= 65536).
+  // Pixels per row (1 ..= `STEREOTRACE_MAX_DIMENSION`).
   uint32_t width;
-  // Rows (1 ..= 65536; at most 2^28 pixels in all).
+  // Rows (1 ..= `STEREOTRACE_MAX_DIMENSION`; at most `STEREOTRACE_MAX_PIXELS` in all).
   uint32_t height;
-  // Elements from one row's start to the next (at least `width`).
+  // Elements from one row's start to the next (`width` ..= `STEREOTRACE_MAX_STRIDE`).
   uint32_t stride;
 } StPlaneF32;
 
@@ -164,11 +217,11 @@ typedef struct StPlaneF32 {
 typedef struct StPlaneU32 {
   // Pixel `(0, 0)`; pixel `(x, y)` is `data[y * stride + x]`.
   const uint32_t *data;
-  // Pixels per row (1 ..= 65536).
+  // Pixels per row (1 ..= `STEREOTRACE_MAX_DIMENSION`).
   uint32_t width;
-  // Rows (1 ..= 65536; at most 2^28 pixels in all).
+  // Rows (1 ..= `STEREOTRACE_MAX_DIMENSION`; at most `STEREOTRACE_MAX_PIXELS` in all).
   uint32_t height;
-  // Elements from one row's start to the next (at least `width`).
+  // Elements from one row's start to the next (`width` ..= `STEREOTRACE_MAX_STRIDE`).
   uint32_t stride;
 } StPlaneU32;
 
@@ -219,11 +272,11 @@ typedef struct StRgb {
 typedef struct StPlaneU8 {
   // Pixel `(0, 0)`; pixel `(x, y)` is `data[y * stride + x]`.
   const uint8_t *data;
-  // Pixels per row (1 ..= 65536).
+  // Pixels per row (1 ..= `STEREOTRACE_MAX_DIMENSION`).
   uint32_t width;
-  // Rows (1 ..= 65536; at most 2^28 pixels in all).
+  // Rows (1 ..= `STEREOTRACE_MAX_DIMENSION`; at most `STEREOTRACE_MAX_PIXELS` in all).
   uint32_t height;
-  // Elements from one row's start to the next (at least `width`).
+  // Elements from one row's start to the next (`width` ..= `STEREOTRACE_MAX_STRIDE`).
   uint32_t stride;
 } StPlaneU8;
 
@@ -243,11 +296,11 @@ typedef struct StReprojectInput {
 typedef struct StPlaneMutF32 {
   // Pixel `(0, 0)`; pixel `(x, y)` is `data[y * stride + x]`.
   float *data;
-  // Pixels per row (1 ..= 65536).
+  // Pixels per row (1 ..= `STEREOTRACE_MAX_DIMENSION`).
   uint32_t width;
-  // Rows (1 ..= 65536; at most 2^28 pixels in all).
+  // Rows (1 ..= `STEREOTRACE_MAX_DIMENSION`; at most `STEREOTRACE_MAX_PIXELS` in all).
   uint32_t height;
-  // Elements from one row's start to the next (at least `width`).
+  // Elements from one row's start to the next (`width` ..= `STEREOTRACE_MAX_STRIDE`).
   uint32_t stride;
 } StPlaneMutF32;
 
@@ -265,11 +318,11 @@ typedef struct StRgbMut {
 typedef struct StPlaneMutU8 {
   // Pixel `(0, 0)`; pixel `(x, y)` is `data[y * stride + x]`.
   uint8_t *data;
-  // Pixels per row (1 ..= 65536).
+  // Pixels per row (1 ..= `STEREOTRACE_MAX_DIMENSION`).
   uint32_t width;
-  // Rows (1 ..= 65536; at most 2^28 pixels in all).
+  // Rows (1 ..= `STEREOTRACE_MAX_DIMENSION`; at most `STEREOTRACE_MAX_PIXELS` in all).
   uint32_t height;
-  // Elements from one row's start to the next (at least `width`).
+  // Elements from one row's start to the next (`width` ..= `STEREOTRACE_MAX_STRIDE`).
   uint32_t stride;
 } StPlaneMutU8;
 
@@ -337,21 +390,28 @@ typedef struct StPipelineConfig {
   // A `StLayout` value: the G-buffer planes reprojection reads (and a callback source
   // must fill).
   uint32_t layout;
-  // Samples per traced pixel, 1 ..= 2^20.
+  // Samples per traced pixel, 1 ..= `STEREOTRACE_MAX_SPP` (passed to the trace callback).
   uint32_t spp;
-  // Frame width per eye, in pixels.
+  // Frame width per eye, in pixels (1 ..= `STEREOTRACE_MAX_DIMENSION`).
   uint32_t width;
-  // Frame height per eye, in pixels.
+  // Frame height per eye, in pixels (1 ..= `STEREOTRACE_MAX_DIMENSION`, at most
+  // `STEREOTRACE_MAX_PIXELS` with the width).
   uint32_t height;
-  // Worker threads (0: one per logical CPU).
+  // Worker threads (0: one per logical CPU; at most `STEREOTRACE_MAX_THREADS`).
   uint32_t threads;
-  // Time budget per stereo frame in milliseconds, 0 for none (trace everything).
+  // Time budget per stereo frame in milliseconds, 0 for none (trace everything); else
+  // finite, > 0 and at most `STEREOTRACE_MAX_BUDGET_MS`. It covers the whole render call,
+  // the callbacks' time included. G-buffers, reprojection, accumulation and the pixels
+  // with no reprojected data run whatever the budget; the rest is traced tile by tile
+  // (8 rows) while the planner predicts the frame still fits, so a frame may overrun by
+  // about one tile's misprediction, or by the work that always runs.
   double budget_ms;
-  // Seed of the path tracer's random numbers.
+  // Seed of the path tracer's random numbers (scene pipelines; a callback source has its
+  // own).
   uint64_t seed;
-  // Reprojection tolerances and tap policy; null for the scene's own tolerances (scene
-  // pipelines) or the room-scale defaults of `stereotrace_reproject_params_default`
-  // (callback pipelines).
+  // In, read during the create call only: reprojection tolerances and tap policy; null
+  // for the scene's own tolerances (scene pipelines) or the room-scale defaults of
+  // `stereotrace_reproject_params_default` (callback pipelines).
   const struct StReprojectParams *reprojection;
 } StPipelineConfig;
 
@@ -367,42 +427,60 @@ typedef struct StPlaneMutU32 {
   uint32_t stride;
 } StPlaneMutU32;
 
-// One eye's G-buffer for a callback source to fill (packed planes: stride = width). With
+// One eye's G-buffer for a callback source to fill: planes owned by the pipeline, of the
+// pipeline's size (packed: stride = width), valid only during the `fill_gbuffers` call.
+// Every plane is an output the callback writes for every pixel; `camera` is an input. With
 // `ST_LAYOUT_COMPACT` the pipeline reads `depth` and `normal_octahedral` only; with
 // `ST_LAYOUT_FULL`, `depth`, `position` and `normal`. `material` is the source's own (kept,
-// not read by the pipeline). Depth is `+INFINITY` where the pixel sees no surface.
+// not read by the pipeline). Depth is `+INFINITY` where the pixel sees no surface. Units
+// are the scene's (the reprojection tolerances are in the same units).
 typedef struct StGBufferMut {
-  // View-axis depth of the surface (`+INFINITY`: none).
+  // Out: view-axis depth of the surface at the pixel centre, > 0 (`+INFINITY`: none).
   struct StPlaneMutF32 depth;
-  // World position x, y, z (full layout).
+  // Out: world position x, y, z (full layout).
   struct StPlaneMutF32 position[3];
-  // World shading normal x, y, z (full layout; need not be unit length).
+  // Out: world shading normal x, y, z (full layout; need not be unit length).
   struct StPlaneMutF32 normal[3];
-  // `stereotrace_encode_normal` of the shading normal (compact layout).
+  // Out: `stereotrace_encode_normal` of the shading normal (compact layout).
   struct StPlaneMutU32 normal_octahedral;
-  // The source's own material id per pixel (not read by the pipeline).
+  // Out: the source's own material id per pixel (not read by the pipeline).
   struct StPlaneMutU32 material;
-  // The camera this frame's G-buffer is for (the one given to
-  // `stereotrace_pipeline_render_frame_at`).
+  // In: the camera this G-buffer is for, as given to `stereotrace_pipeline_render_frame_at`
+  // (left: `cameras[0]`, right: `cameras[1]`). A copy: writing it changes nothing.
   struct StCamera camera;
 } StGBufferMut;
 
-// An engine's renderer as the pipeline's frame source. The callbacks are called on one of
-// the pipeline's worker threads, one at a time, while `stereotrace_pipeline_render_frame_at`
-// runs (the calling thread waits), so `user` must be usable from another thread.
+// An engine's renderer as the pipeline's frame source.
+//
+// **Threads.** The callbacks run on one of the pipeline's worker threads (not the thread
+// that called `stereotrace_pipeline_render_frame_at`, which waits), one at a time, only
+// during that call: first `fill_gbuffers` once, then `trace` once per eye without a budget
+// or once per tile of rows under one. `user` must be usable from that thread, and anything
+// the callbacks share with the engine's other threads needs the engine's own
+// synchronisation. From a callback, any call on the same pipeline returns `ST_STATUS_BUSY`
+// (and changes nothing); calls on other pipelines and contexts are allowed.
+//
+// **Failure.** A callback that returns non-zero refuses the frame: the render call returns
+// `ST_STATUS_CALLBACK_FAILED` with the value in the message, and the pipeline's output,
+// history and statistics stay exactly as they were before the call (transactional frames).
 typedef struct StFrameSourceCallbacks {
-  // Passed to both callbacks as is.
+  // Passed to both callbacks as is; owned by the engine, which keeps it alive while the
+  // pipeline lives.
   void *user;
-  // Fills both eyes' G-buffers for frame `frame`; returns 0 on success, anything else to
-  // fail the frame.
+  // Fills both eyes' G-buffers for frame `frame` (see [`StGBufferMut`]: every pixel of
+  // every plane the layout reads); returns 0 on success, anything else to refuse the frame.
   int32_t (*fill_gbuffers)(void *user,
                            uint32_t frame,
                            const struct StGBufferMut *left,
                            const struct StGBufferMut *right);
   // Path traces `spp` samples per pixel of eye `eye` (0 left, 1 right) at frame `frame`,
-  // for the pixels of rows `row_start .. row_end` where `mask` is non-zero (a null `mask`:
-  // every pixel of those rows), into `out`, leaving other pixels as they are; returns 0 on
-  // success.
+  // seen by `camera` (that eye's camera as given to the render call), and writes each
+  // selected pixel's estimate, the **mean** of its samples (linear RGB radiance), into
+  // `out`. `out` and `mask` are whole-frame planes of the pipeline's size, owned by the
+  // pipeline and valid during the call only, indexed by absolute row: the selected pixels
+  // are those of rows `row_start .. row_end` (end exclusive) where `mask` is non-zero (a
+  // null `mask`: every pixel of those rows). Other pixels of `out` must be left as they
+  // are. Returns 0 on success, anything else to refuse the frame.
   int32_t (*trace)(void *user,
                    uint32_t eye,
                    uint32_t frame,
@@ -440,7 +518,7 @@ extern "C" {
 // header's `STEREOTRACE_VERSION_*` constants at run time.
 uint32_t stereotrace_version(void);
 
-// The library's version as text (`"0.1.0"`); a static string, never freed.
+// The library's version as text (`"0.2.0"`); a static string, never freed.
 const char *stereotrace_version_string(void);
 
 // Creates a context with `threads` worker threads (0: one per logical CPU) and stores it in
@@ -450,12 +528,13 @@ const char *stereotrace_version_string(void);
 // `out` must be null (refused) or point to writable storage for one pointer.
 enum StStatus stereotrace_context_create(uint32_t threads, struct StContext **out);
 
-// Destroys a context made by [`stereotrace_context_create`] (null is ignored).
+// Destroys a context made by [`stereotrace_context_create`] (null is ignored: OK). A
+// context in a call (on another thread) is not destroyed: `ST_STATUS_BUSY`.
 //
 // # Safety
 // `context` must be null or a context from [`stereotrace_context_create`] not yet
-// destroyed, with no call using it in progress.
-void stereotrace_context_destroy(struct StContext *context);
+// destroyed; no call may start on it once this one has returned OK.
+enum StStatus stereotrace_context_destroy(struct StContext *context);
 
 // The message of the last failed call on this thread, or an empty string after a call
 // that succeeded. Never null. The text stays valid until the next call into the library
@@ -494,9 +573,18 @@ struct StEmaParams stereotrace_ema_params_default(void);
 
 // One EMA step in place: where `reason` is `ST_REASON_REPROJECTED` the reprojected history
 // in `accum` moves towards the new sample by `alpha`; elsewhere it is reset to the new
-// sample. `has_new` (optional, null: everywhere) marks where a new sample exists;
-// `history_len` (optional unless `ramp`) is updated in place. `params` may be null (the
-// defaults); `stats` may be null.
+// sample. `has_new` (optional, null: everywhere) marks where a new sample exists.
+// `params` may be null (the defaults); `stats` may be null.
+//
+// - `reason` (in): one `StReason` code per pixel; any other value (6 ..= 255) is refused
+//   with the first such pixel named.
+// - `history_len` (in/out; optional unless `ramp`): samples accumulated per pixel, finite
+//   and >= 0 (a negative, NaN or infinite length is refused). Per pixel it becomes
+//   `n + 1` where the history was kept and a sample added, `1` where the history was reset
+//   to a new sample, `n` where no usable new sample came (the history kept as it is) and
+//   `0` for a hole (no history and no sample).
+// - A new sample with a non-finite channel never enters the history (counted in
+//   `stats.non_finite`); the results are clamped to ±FLT_MAX.
 //
 // # Safety
 // As [`stereotrace_reproject`].
@@ -511,8 +599,8 @@ enum StStatus stereotrace_ema(const struct StContext *context,
 
 // The stereo blend in place: where `reason` is `ST_REASON_REPROJECTED`,
 // `reprojected = own + (1 - own_weight) * (reprojected - own)`; elsewhere `reprojected = own`.
-// `own_weight` is in [0, 1] (the paper: 0.5); `band_rows >= 1` (0 picks 16). `stats` may
-// be null.
+// `own_weight` is in [0, 1] (the paper: 0.5); `band_rows >= 1` (0 picks 16); `reason` holds
+// `StReason` codes only (any other value is refused). `stats` may be null.
 //
 // # Safety
 // As [`stereotrace_reproject`].
@@ -524,7 +612,9 @@ enum StStatus stereotrace_blend(const struct StContext *context,
                                 uint32_t band_rows,
                                 struct StAccumulateStats *stats);
 
-// SSIM and RMSE of two RGB images of one extent; `variant` is a [`StSsimVariant`] value. Non-finite samples are left out (and
+// SSIM and RMSE of two RGB images of one extent, at least `STEREOTRACE_SSIM_MIN_SIDE` (11,
+// the window) on each side: smaller images are refused, as their windows would see mostly
+// padding. `variant` is a [`StSsimVariant`] value. Non-finite samples are left out (and
 // counted in `non_finite`) rather than poisoning the mean.
 //
 // # Safety
@@ -541,8 +631,10 @@ struct StPipelineConfig stereotrace_pipeline_config_default(void);
 
 // Creates a pipeline over this project's renderer on `scene`: a built-in scene name
 // ("cornell", "atrium", ...), a TOML manifest or a scene folder (UTF-8 path). Reprojection
-// tolerances are the scene's, scaled to the frame height. Destroy it with
-// [`stereotrace_pipeline_destroy`].
+// tolerances are `config.reprojection`, or when null the scene's, scaled to the frame
+// height. The per-pixel buffers are allocated here (`ST_STATUS_OUT_OF_MEMORY` if that
+// fails, with nothing kept); the rasteriser's binning buffers grow with the first frames,
+// by the scene's triangles. Destroy it with [`stereotrace_pipeline_destroy`].
 //
 // # Safety
 // `scene` must be null or a NUL-terminated string; `config` null or valid; `out` null or
@@ -553,8 +645,10 @@ enum StStatus stereotrace_pipeline_create_scene(const char *scene,
 
 // Creates a pipeline over an engine's own G-buffers and tracer (`callbacks`, both
 // required), for frames of `config`'s size; `cameras` points to the two eye cameras
-// (left, right) of the first frame. Reprojection uses the default tolerances (room scale,
-// in metres). Frames are rendered with [`stereotrace_pipeline_render_frame_at`].
+// (left, right) of the first frame. Reprojection uses `config.reprojection`, or when null
+// the room-scale defaults of `stereotrace_reproject_params_default` (in metres). Frames are
+// rendered with [`stereotrace_pipeline_render_frame_at`]. Every buffer is allocated here
+// (none per frame): `ST_STATUS_OUT_OF_MEMORY` if that fails, with nothing kept.
 //
 // # Safety
 // As [`stereotrace_pipeline_create_scene`]; `cameras` null or two valid cameras; the
@@ -576,6 +670,17 @@ enum StStatus stereotrace_pipeline_render_frame(struct StPipeline *pipeline,
 // Renders frame `frame` with the two eye cameras `cameras` (left, right; the pipeline's
 // size). For a callback pipeline the callbacks run during this call. `stats` may be null.
 //
+// - **Frame numbers** key the samples only (the callbacks' `frame`; a scene's random numbers
+//   and moving lights). They may repeat, go backwards or reach `UINT32_MAX`: the history
+//   follows the order of the calls, not the numbers.
+// - **Cameras** are taken as given: eye 0's output is always `cameras[0]`'s view. Swapped
+//   eyes, eyes far apart or both eyes at one camera are computed as such (stereo
+//   reprojection is valid where the two views see the same surface; elsewhere the eye that
+//   reprojects is traced).
+// - **Refused frames change nothing.** Whatever refuses the frame (a camera, a callback, a
+//   kernel's check), the output, the histories and what the next frame reprojects stay as
+//   they were, and `stats` is not written.
+//
 // # Safety
 // As [`stereotrace_pipeline_render_frame`]; `cameras` null or two valid cameras.
 enum StStatus stereotrace_pipeline_render_frame_at(struct StPipeline *pipeline,
@@ -583,8 +688,9 @@ enum StStatus stereotrace_pipeline_render_frame_at(struct StPipeline *pipeline,
                                                    const struct StCamera *cameras,
                                                    struct StFrameStats *stats);
 
-// Copies the image eye `eye` (0 left, 1 right) shows after the last frame into the
-// caller's planes `out` (the pipeline's size, any stride).
+// Copies the image eye `eye` (0 left, 1 right) shows after the last successful frame into
+// the caller's planes `out` (the pipeline's size, any stride). Refused before the first
+// successful frame (there is no image yet).
 //
 // # Safety
 // `pipeline` null or a live pipeline; `out` null or valid, its planes writable.
@@ -592,12 +698,13 @@ enum StStatus stereotrace_pipeline_output(const struct StPipeline *pipeline,
                                           uint32_t eye,
                                           const struct StRgbMut *out);
 
-// Destroys a pipeline (null is ignored).
+// Destroys a pipeline (null is ignored: OK). A pipeline in a call (from that call's
+// callbacks, or on another thread) is not destroyed: `ST_STATUS_BUSY`.
 //
 // # Safety
-// `pipeline` null or from a `stereotrace_pipeline_create_*` call, not yet destroyed and not
-// in use.
-void stereotrace_pipeline_destroy(struct StPipeline *pipeline);
+// `pipeline` null or from a `stereotrace_pipeline_create_*` call, not yet destroyed; no call
+// may start on it once this one has returned OK.
+enum StStatus stereotrace_pipeline_destroy(struct StPipeline *pipeline);
 
 #ifdef __cplusplus
 }  // extern "C"

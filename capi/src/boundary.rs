@@ -5,6 +5,7 @@
 use std::cell::RefCell;
 use std::ffi::{CString, c_char};
 use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::sync::{Mutex, MutexGuard, PoisonError, TryLockError};
 
 use stereotrace_kernels::FrameError;
 
@@ -24,8 +25,20 @@ pub enum StStatus {
     /// A pointer is not aligned for its element type.
     Misaligned = 4,
     /// A bug inside the library was caught before it could unwind into the caller; the
-    /// outputs may be partly written. Please report it with the message.
+    /// outputs may be partly written, and the pipeline or context it happened in refuses
+    /// every later call but its destruction. Please report it with the message.
     Panic = 5,
+    /// A callback of the caller's (`fill_gbuffers` or `trace`) returned non-zero; the
+    /// message gives its return value. The frame was refused: output, history and
+    /// statistics are as before the call.
+    CallbackFailed = 6,
+    /// Memory for a buffer the call needed could not be allocated (the message gives the
+    /// size). Nothing was created or changed; the process goes on.
+    OutOfMemory = 7,
+    /// The pipeline or context is in a call already: this call came from one of its own
+    /// callbacks or from another thread while that call runs. The message names the call in
+    /// progress. Nothing was changed; calls on other pipelines and contexts are unaffected.
+    Busy = 8,
 }
 
 /// A refused call: the status and what to tell the caller.
@@ -51,7 +64,68 @@ impl Failure {
 
 impl From<FrameError> for Failure {
     fn from(e: FrameError) -> Self {
-        Self::invalid(e.to_string())
+        let status = match e {
+            FrameError::OutOfMemory { .. } => StStatus::OutOfMemory,
+            _ => StStatus::InvalidArgument,
+        };
+        Self::new(status, e.to_string())
+    }
+}
+
+/// An object of the C ABI (a pipeline, a context) that one call at a time may use. Every
+/// exported function on it enters first: a second call while one runs (from the running
+/// call's own callbacks, or from another thread) is refused with [`StStatus::Busy`] and
+/// changes nothing, instead of forming a second `&mut` to the same state (undefined
+/// behaviour in Rust, and a nested frame inside the outer one's buffers).
+pub(crate) struct Exclusive<T> {
+    /// `"pipeline"` or `"context"`, for messages.
+    what: &'static str,
+    state: Mutex<T>,
+    /// The exported function that holds `state` (or held it last).
+    call: Mutex<&'static str>,
+}
+
+impl<T> Exclusive<T> {
+    pub fn new(what: &'static str, state: T) -> Self {
+        Self { what, state: Mutex::new(state), call: Mutex::new("") }
+    }
+
+    /// The state, for the duration of `call` (the exported function's name), or why not.
+    pub fn enter(&self, call: &'static str) -> Result<MutexGuard<'_, T>, Failure> {
+        match self.state.try_lock() {
+            Ok(state) => {
+                *self.call.lock().unwrap_or_else(PoisonError::into_inner) = call;
+                Ok(state)
+            }
+            Err(TryLockError::WouldBlock) => {
+                let current = *self.call.lock().unwrap_or_else(PoisonError::into_inner);
+                Err(Failure::new(
+                    StStatus::Busy,
+                    format!(
+                        "{call}: this {} is busy in {current} (called from one of its callbacks, or from another \
+                         thread during that call); nothing was changed",
+                        self.what
+                    ),
+                ))
+            }
+            Err(TryLockError::Poisoned(_)) => Err(Failure::new(
+                StStatus::Panic,
+                format!(
+                    "{call}: an earlier call on this {} panicked and left it in an unknown state; destroy it",
+                    self.what
+                ),
+            )),
+        }
+    }
+
+    /// Whether no call is in progress (a destroy checks it; a panicked object may be
+    /// destroyed).
+    pub fn idle(&self, call: &'static str) -> Result<(), Failure> {
+        match self.enter(call) {
+            Ok(_) => Ok(()),
+            Err(f) if f.status == StStatus::Panic => Ok(()),
+            Err(f) => Err(f),
+        }
     }
 }
 

@@ -323,7 +323,9 @@ unsafe fn reproject_views<L: SurfaceLayout>(
             reason: output.reason.view("output.reason", b)?,
             weight: output.weight.as_ref().map(|p| p.view("output.weight", b)).transpose()?,
         };
-        context.run(|| reproject::reproject(&kernel_input, kernel_output, params)).map_err(Failure::from)
+        context
+            .run("stereotrace_reproject", || reproject::reproject(&kernel_input, kernel_output, params))?
+            .map_err(Failure::from)
     }
 }
 
@@ -367,9 +369,18 @@ pub extern "C" fn stereotrace_ema_params_default() -> StEmaParams {
 
 /// One EMA step in place: where `reason` is `ST_REASON_REPROJECTED` the reprojected history
 /// in `accum` moves towards the new sample by `alpha`; elsewhere it is reset to the new
-/// sample. `has_new` (optional, null: everywhere) marks where a new sample exists;
-/// `history_len` (optional unless `ramp`) is updated in place. `params` may be null (the
-/// defaults); `stats` may be null.
+/// sample. `has_new` (optional, null: everywhere) marks where a new sample exists.
+/// `params` may be null (the defaults); `stats` may be null.
+///
+/// - `reason` (in): one `StReason` code per pixel; any other value (6 ..= 255) is refused
+///   with the first such pixel named.
+/// - `history_len` (in/out; optional unless `ramp`): samples accumulated per pixel, finite
+///   and >= 0 (a negative, NaN or infinite length is refused). Per pixel it becomes
+///   `n + 1` where the history was kept and a sample added, `1` where the history was reset
+///   to a new sample, `n` where no usable new sample came (the history kept as it is) and
+///   `0` for a hole (no history and no sample).
+/// - A new sample with a non-finite channel never enters the history (counted in
+///   `stats.non_finite`); the results are clamped to ±FLT_MAX.
 ///
 /// # Safety
 /// As [`stereotrace_reproject`].
@@ -406,7 +417,7 @@ pub unsafe extern "C" fn stereotrace_ema(
             accum: required(accum, "accum")?.view(["accum.r", "accum.g", "accum.b"], &mut b)?,
             history_len: history_len.as_ref().map(|p| p.view("history_len", &mut b)).transpose()?,
         };
-        let result = context.run(|| accumulate::ema(&input, state, &params))?;
+        let result = context.run("stereotrace_ema", || accumulate::ema(&input, state, &params))??;
         if let Some(stats) = stats.as_mut() {
             *stats = result.into();
         }
@@ -416,8 +427,8 @@ pub unsafe extern "C" fn stereotrace_ema(
 
 /// The stereo blend in place: where `reason` is `ST_REASON_REPROJECTED`,
 /// `reprojected = own + (1 - own_weight) * (reprojected - own)`; elsewhere `reprojected = own`.
-/// `own_weight` is in [0, 1] (the paper: 0.5); `band_rows >= 1` (0 picks 16). `stats` may
-/// be null.
+/// `own_weight` is in [0, 1] (the paper: 0.5); `band_rows >= 1` (0 picks 16); `reason` holds
+/// `StReason` codes only (any other value is refused). `stats` may be null.
 ///
 /// # Safety
 /// As [`stereotrace_reproject`].
@@ -439,7 +450,7 @@ pub unsafe extern "C" fn stereotrace_blend(
         let reason = required(reason, "reason")?.view("reason", &mut b)?;
         let out =
             required(reprojected, "reprojected")?.view(["reprojected.r", "reprojected.g", "reprojected.b"], &mut b)?;
-        let result = context.run(|| accumulate::blend(&own, out, &reason, &params))?;
+        let result = context.run("stereotrace_blend", || accumulate::blend(&own, out, &reason, &params))??;
         if let Some(stats) = stats.as_mut() {
             *stats = result.into();
         }
@@ -475,7 +486,9 @@ pub struct StSsimResult {
     pub non_finite: u64,
 }
 
-/// SSIM and RMSE of two RGB images of one extent; `variant` is a [`StSsimVariant`] value. Non-finite samples are left out (and
+/// SSIM and RMSE of two RGB images of one extent, at least `STEREOTRACE_SSIM_MIN_SIDE` (11,
+/// the window) on each side: smaller images are refused, as their windows would see mostly
+/// padding. `variant` is a [`StSsimVariant`] value. Non-finite samples are left out (and
 /// counted in `non_finite`) rather than poisoning the mean.
 ///
 /// # Safety
@@ -501,7 +514,7 @@ pub unsafe extern "C" fn stereotrace_ssim(
             1 => SsimVariant::PerChannel,
             other => return Err(Failure::invalid(format!("variant {other} is not a StSsimVariant (0 or 1)"))),
         };
-        let r = context.run(|| ssim::ssim(&a, &b, &SsimParams::with_variant(variant)))?;
+        let r = context.run("stereotrace_ssim", || ssim::ssim(&a, &b, &SsimParams::with_variant(variant)))??;
         result.write(StSsimResult {
             ssim: r.ssim,
             per_channel: r.per_channel,

@@ -19,25 +19,29 @@ use stereotrace_runtime::render::{GBufferBuf, PixelSelection, Renderer, TraceReq
 use stereotrace_runtime::source::{FrameSource, RendererSource};
 
 use crate::StStatus;
-use crate::boundary::{Context, Failure, guard};
+use crate::boundary::{Context, Exclusive, Failure, guard};
 use crate::kernels::{StCamera, StLayout, StReprojectParams};
 use crate::views::{Borrows, StPlaneMutF32, StPlaneU8, StRgbMut, required};
 
 /// The pipeline's modes (the paper's Section IV): the values of [`StPipelineConfig::mode`].
+/// Each names which eye the trace callback is asked for: "both" means every pixel of each eye
+/// (under a budget, the pixels without valid history first, then tiles while time remains).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum StMode {
-    /// Both eyes fully path traced.
+    /// Both eyes fully path traced. Traces both eyes.
     PathTraced = 0,
-    /// The left eye reprojected from the right, traced where discarded.
+    /// The left eye reprojected from the right, traced where discarded. Traces the right
+    /// eye, and the left eye's discarded pixels only.
     Stereo = 1,
-    /// Each eye accumulates its own reprojected history.
+    /// Each eye accumulates its own reprojected history. Traces both eyes.
     Temporal = 2,
-    /// Stereo and temporal reprojection combined.
+    /// Stereo and temporal reprojection combined. Traces the right eye, and the left eye's
+    /// pixels where stereo reprojection was discarded only.
     Spatiotemporal = 3,
-    /// Each eye blends its own samples with the other's reprojection.
+    /// Each eye blends its own samples with the other's reprojection. Traces both eyes.
     StereoBlend = 4,
-    /// The blend over accumulated histories.
+    /// The blend over accumulated histories. Traces both eyes.
     SpatiotemporalBlend = 5,
 }
 
@@ -62,21 +66,28 @@ pub struct StPipelineConfig {
     /// A `StLayout` value: the G-buffer planes reprojection reads (and a callback source
     /// must fill).
     pub layout: u32,
-    /// Samples per traced pixel, 1 ..= 2^20.
+    /// Samples per traced pixel, 1 ..= `STEREOTRACE_MAX_SPP` (passed to the trace callback).
     pub spp: u32,
-    /// Frame width per eye, in pixels.
+    /// Frame width per eye, in pixels (1 ..= `STEREOTRACE_MAX_DIMENSION`).
     pub width: u32,
-    /// Frame height per eye, in pixels.
+    /// Frame height per eye, in pixels (1 ..= `STEREOTRACE_MAX_DIMENSION`, at most
+    /// `STEREOTRACE_MAX_PIXELS` with the width).
     pub height: u32,
-    /// Worker threads (0: one per logical CPU).
+    /// Worker threads (0: one per logical CPU; at most `STEREOTRACE_MAX_THREADS`).
     pub threads: u32,
-    /// Time budget per stereo frame in milliseconds, 0 for none (trace everything).
+    /// Time budget per stereo frame in milliseconds, 0 for none (trace everything); else
+    /// finite, > 0 and at most `STEREOTRACE_MAX_BUDGET_MS`. It covers the whole render call,
+    /// the callbacks' time included. G-buffers, reprojection, accumulation and the pixels
+    /// with no reprojected data run whatever the budget; the rest is traced tile by tile
+    /// (8 rows) while the planner predicts the frame still fits, so a frame may overrun by
+    /// about one tile's misprediction, or by the work that always runs.
     pub budget_ms: f64,
-    /// Seed of the path tracer's random numbers.
+    /// Seed of the path tracer's random numbers (scene pipelines; a callback source has its
+    /// own).
     pub seed: u64,
-    /// Reprojection tolerances and tap policy; null for the scene's own tolerances (scene
-    /// pipelines) or the room-scale defaults of `stereotrace_reproject_params_default`
-    /// (callback pipelines).
+    /// In, read during the create call only: reprojection tolerances and tap policy; null
+    /// for the scene's own tolerances (scene pipelines) or the room-scale defaults of
+    /// `stereotrace_reproject_params_default` (callback pipelines).
     pub reprojection: *const StReprojectParams,
 }
 
@@ -118,7 +129,10 @@ impl StPipelineConfig {
             other => return Err(Failure::invalid(format!("config.mode {other} is not a StMode (0 ..= 5)"))),
         };
         if !(1..=MAX_SPP).contains(&self.spp) {
-            return Err(Failure::invalid(format!("config.spp must be in 1 ..= {MAX_SPP}, got {}", self.spp)));
+            return Err(Failure::invalid(format!(
+                "config.spp must be in 1 ..= STEREOTRACE_MAX_SPP ({MAX_SPP}), got {}",
+                self.spp
+            )));
         }
         let mut c = PipelineConfig::paper(mode, self.spp, tolerances);
         c.order = match self.order {
@@ -145,15 +159,15 @@ impl StPipelineConfig {
         Ok(c)
     }
 
+    fn check_threads(&self) -> Result<(), Failure> {
+        crate::check_threads(self.threads, "config.threads")
+    }
+
+    /// The worker threads, started after every buffer is allocated: nothing to stop if an
+    /// allocation fails, and the buffers exist before the threads that fill them (what a
+    /// race detector needs to see).
     fn pool(&self) -> Result<rayon::ThreadPool, Failure> {
-        if self.threads > 1024 {
-            return Err(Failure::invalid(format!("config.threads must be at most 1024, got {}", self.threads)));
-        }
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(self.threads as usize)
-            .thread_name(|i| format!("stereotrace-pipeline-{i}"))
-            .build()
-            .map_err(|e| Failure::invalid(format!("could not start {} worker threads: {e}", self.threads)))
+        crate::thread_pool(self.threads, "config.threads", "stereotrace-pipeline")
     }
 }
 
@@ -171,38 +185,52 @@ pub struct StPlaneMutU32 {
     pub stride: u32,
 }
 
-/// One eye's G-buffer for a callback source to fill (packed planes: stride = width). With
+/// One eye's G-buffer for a callback source to fill: planes owned by the pipeline, of the
+/// pipeline's size (packed: stride = width), valid only during the `fill_gbuffers` call.
+/// Every plane is an output the callback writes for every pixel; `camera` is an input. With
 /// `ST_LAYOUT_COMPACT` the pipeline reads `depth` and `normal_octahedral` only; with
 /// `ST_LAYOUT_FULL`, `depth`, `position` and `normal`. `material` is the source's own (kept,
-/// not read by the pipeline). Depth is `+INFINITY` where the pixel sees no surface.
+/// not read by the pipeline). Depth is `+INFINITY` where the pixel sees no surface. Units
+/// are the scene's (the reprojection tolerances are in the same units).
 #[repr(C)]
 #[derive(Clone, Copy, Debug)]
 pub struct StGBufferMut {
-    /// View-axis depth of the surface (`+INFINITY`: none).
+    /// Out: view-axis depth of the surface at the pixel centre, > 0 (`+INFINITY`: none).
     pub depth: StPlaneMutF32,
-    /// World position x, y, z (full layout).
+    /// Out: world position x, y, z (full layout).
     pub position: [StPlaneMutF32; 3],
-    /// World shading normal x, y, z (full layout; need not be unit length).
+    /// Out: world shading normal x, y, z (full layout; need not be unit length).
     pub normal: [StPlaneMutF32; 3],
-    /// `stereotrace_encode_normal` of the shading normal (compact layout).
+    /// Out: `stereotrace_encode_normal` of the shading normal (compact layout).
     pub normal_octahedral: StPlaneMutU32,
-    /// The source's own material id per pixel (not read by the pipeline).
+    /// Out: the source's own material id per pixel (not read by the pipeline).
     pub material: StPlaneMutU32,
-    /// The camera this frame's G-buffer is for (the one given to
-    /// `stereotrace_pipeline_render_frame_at`).
+    /// In: the camera this G-buffer is for, as given to `stereotrace_pipeline_render_frame_at`
+    /// (left: `cameras[0]`, right: `cameras[1]`). A copy: writing it changes nothing.
     pub camera: StCamera,
 }
 
-/// An engine's renderer as the pipeline's frame source. The callbacks are called on one of
-/// the pipeline's worker threads, one at a time, while `stereotrace_pipeline_render_frame_at`
-/// runs (the calling thread waits), so `user` must be usable from another thread.
+/// An engine's renderer as the pipeline's frame source.
+///
+/// **Threads.** The callbacks run on one of the pipeline's worker threads (not the thread
+/// that called `stereotrace_pipeline_render_frame_at`, which waits), one at a time, only
+/// during that call: first `fill_gbuffers` once, then `trace` once per eye without a budget
+/// or once per tile of rows under one. `user` must be usable from that thread, and anything
+/// the callbacks share with the engine's other threads needs the engine's own
+/// synchronisation. From a callback, any call on the same pipeline returns `ST_STATUS_BUSY`
+/// (and changes nothing); calls on other pipelines and contexts are allowed.
+///
+/// **Failure.** A callback that returns non-zero refuses the frame: the render call returns
+/// `ST_STATUS_CALLBACK_FAILED` with the value in the message, and the pipeline's output,
+/// history and statistics stay exactly as they were before the call (transactional frames).
 #[repr(C)]
 #[derive(Clone, Copy, Debug)]
 pub struct StFrameSourceCallbacks {
-    /// Passed to both callbacks as is.
+    /// Passed to both callbacks as is; owned by the engine, which keeps it alive while the
+    /// pipeline lives.
     pub user: *mut c_void,
-    /// Fills both eyes' G-buffers for frame `frame`; returns 0 on success, anything else to
-    /// fail the frame.
+    /// Fills both eyes' G-buffers for frame `frame` (see [`StGBufferMut`]: every pixel of
+    /// every plane the layout reads); returns 0 on success, anything else to refuse the frame.
     pub fill_gbuffers: Option<
         unsafe extern "C" fn(
             user: *mut c_void,
@@ -212,9 +240,13 @@ pub struct StFrameSourceCallbacks {
         ) -> i32,
     >,
     /// Path traces `spp` samples per pixel of eye `eye` (0 left, 1 right) at frame `frame`,
-    /// for the pixels of rows `row_start .. row_end` where `mask` is non-zero (a null `mask`:
-    /// every pixel of those rows), into `out`, leaving other pixels as they are; returns 0 on
-    /// success.
+    /// seen by `camera` (that eye's camera as given to the render call), and writes each
+    /// selected pixel's estimate, the **mean** of its samples (linear RGB radiance), into
+    /// `out`. `out` and `mask` are whole-frame planes of the pipeline's size, owned by the
+    /// pipeline and valid during the call only, indexed by absolute row: the selected pixels
+    /// are those of rows `row_start .. row_end` (end exclusive) where `mask` is non-zero (a
+    /// null `mask`: every pixel of those rows). Other pixels of `out` must be left as they
+    /// are. Returns 0 on success, anything else to refuse the frame.
     #[allow(clippy::type_complexity)]
     pub trace: Option<
         unsafe extern "C" fn(
@@ -285,7 +317,10 @@ impl FrameSource for CallbackSource {
             self.callbacks.fill_gbuffers.ok_or(PipelineError::Source("no fill_gbuffers callback".into()))?;
         let code = unsafe { fill_gbuffers(self.callbacks.user, self.frame, &l, &r) };
         if code != 0 {
-            return Err(PipelineError::Source(format!("fill_gbuffers callback returned {code}")));
+            return Err(PipelineError::Source(format!(
+                "fill_gbuffers callback returned {code} (frame {}); the frame was refused",
+                self.frame
+            )));
         }
         Ok(None)
     }
@@ -325,7 +360,10 @@ impl FrameSource for CallbackSource {
             )
         };
         if code != 0 {
-            return Err(PipelineError::Source(format!("trace callback returned {code}")));
+            return Err(PipelineError::Source(format!(
+                "trace callback returned {code} (eye {eye}, frame {}, rows {}..{}); the frame was refused",
+                request.frame, rows.start, rows.end
+            )));
         }
         Ok(TraceStats::default())
     }
@@ -336,10 +374,25 @@ enum Inner {
     Callbacks(Box<Pipeline<CallbackSource>>),
 }
 
-/// A frame pipeline (opaque to C).
+/// A frame pipeline (opaque to C). One call at a time: a call on a pipeline that is in a
+/// call already (from that call's callbacks, or from another thread) is refused with
+/// `ST_STATUS_BUSY`.
 pub struct StPipeline {
+    state: Exclusive<PipelineState>,
+}
+
+/// What a pipeline's calls share, behind its [`Exclusive`] guard.
+struct PipelineState {
     pool: rayon::ThreadPool,
     inner: Inner,
+    /// Frames rendered (refused frames not counted): the output exists from the first.
+    frames_rendered: u64,
+}
+
+impl StPipeline {
+    fn new(pool: rayon::ThreadPool, inner: Inner) -> Self {
+        Self { state: Exclusive::new("pipeline", PipelineState { pool, inner, frames_rendered: 0 }) }
+    }
 }
 
 /// What one frame did.
@@ -378,14 +431,22 @@ impl From<&FrameStats> for StFrameStats {
     }
 }
 
+/// The status of a refused frame or creation: a callback's failure and an allocation
+/// failure have their own, so an engine can tell them from a bad argument.
 fn pipeline_error(e: PipelineError) -> Failure {
-    Failure::invalid(e.to_string())
+    match e {
+        PipelineError::Source(message) => Failure::new(StStatus::CallbackFailed, message),
+        PipelineError::Frame(frame) => frame.into(),
+        other => Failure::invalid(other.to_string()),
+    }
 }
 
 /// Creates a pipeline over this project's renderer on `scene`: a built-in scene name
 /// ("cornell", "atrium", ...), a TOML manifest or a scene folder (UTF-8 path). Reprojection
-/// tolerances are the scene's, scaled to the frame height. Destroy it with
-/// [`stereotrace_pipeline_destroy`].
+/// tolerances are `config.reprojection`, or when null the scene's, scaled to the frame
+/// height. The per-pixel buffers are allocated here (`ST_STATUS_OUT_OF_MEMORY` if that
+/// fails, with nothing kept); the rasteriser's binning buffers grow with the first frames,
+/// by the scene's triangles. Destroy it with [`stereotrace_pipeline_destroy`].
 ///
 /// # Safety
 /// `scene` must be null or a NUL-terminated string; `config` null or valid; `out` null or
@@ -406,21 +467,24 @@ pub unsafe extern "C" fn stereotrace_pipeline_create_scene(
         let config = required(config, "config")?;
         let spec = CStr::from_ptr(scene).to_str().map_err(|_| Failure::invalid("scene is not UTF-8"))?;
         let extent = config.extent()?;
-        let pool = config.pool()?;
+        config.check_threads()?;
         let scene = stereotrace_runtime::scene::resolve(spec).map_err(|e| Failure::invalid(e.to_string()))?;
         let renderer = Renderer::new(scene).map_err(|e| Failure::invalid(e.to_string()))?;
         let runtime = config.runtime(renderer.scene().tolerances.at_height(extent.height()))?;
         let pipeline =
             Pipeline::new(Box::new(renderer), runtime, StereoRig::default(), extent).map_err(pipeline_error)?;
-        out.write(Box::into_raw(Box::new(StPipeline { pool, inner: Inner::Scene(Box::new(pipeline)) })));
+        let pool = config.pool()?;
+        out.write(Box::into_raw(Box::new(StPipeline::new(pool, Inner::Scene(Box::new(pipeline))))));
         Ok(())
     })
 }
 
 /// Creates a pipeline over an engine's own G-buffers and tracer (`callbacks`, both
 /// required), for frames of `config`'s size; `cameras` points to the two eye cameras
-/// (left, right) of the first frame. Reprojection uses the default tolerances (room scale,
-/// in metres). Frames are rendered with [`stereotrace_pipeline_render_frame_at`].
+/// (left, right) of the first frame. Reprojection uses `config.reprojection`, or when null
+/// the room-scale defaults of `stereotrace_reproject_params_default` (in metres). Frames are
+/// rendered with [`stereotrace_pipeline_render_frame_at`]. Every buffer is allocated here
+/// (none per frame): `ST_STATUS_OUT_OF_MEMORY` if that fails, with nothing kept.
 ///
 /// # Safety
 /// As [`stereotrace_pipeline_create_scene`]; `cameras` null or two valid cameras; the
@@ -446,11 +510,12 @@ pub unsafe extern "C" fn stereotrace_pipeline_create_callbacks(
         let config = required(config, "config")?;
         let extent = config.extent()?;
         let (given, models) = eye_cameras(cameras, extent)?;
-        let pool = config.pool()?;
+        config.check_threads()?;
         let runtime = config.runtime(Tolerances::default())?;
         let source = CallbackSource { callbacks, frame: 0, cameras: given };
         let pipeline = Pipeline::with_source(source, runtime, models).map_err(pipeline_error)?;
-        out.write(Box::into_raw(Box::new(StPipeline { pool, inner: Inner::Callbacks(Box::new(pipeline)) })));
+        let pool = config.pool()?;
+        out.write(Box::into_raw(Box::new(StPipeline::new(pool, Inner::Callbacks(Box::new(pipeline))))));
         Ok(())
     })
 }
@@ -485,14 +550,17 @@ pub unsafe extern "C" fn stereotrace_pipeline_render_frame(
     stats: *mut StFrameStats,
 ) -> StStatus {
     guard(|| unsafe {
-        let p = pipeline.as_mut().ok_or_else(|| Failure::null("pipeline"))?;
-        let Inner::Scene(inner) = &mut p.inner else {
+        let p = pipeline.as_ref().ok_or_else(|| Failure::null("pipeline"))?;
+        let mut state = p.state.enter("stereotrace_pipeline_render_frame")?;
+        let PipelineState { pool, inner, frames_rendered } = &mut *state;
+        let Inner::Scene(inner) = inner else {
             return Err(Failure::invalid(
                 "this pipeline has no scene (made with callbacks): use stereotrace_pipeline_render_frame_at",
             ));
         };
         let head = inner.source().renderer().scene().camera.pose_back_and_forth(frame);
-        let s = p.pool.install(|| inner.render_frame(frame, &head)).map_err(pipeline_error)?;
+        let s = pool.install(|| inner.render_frame(frame, &head)).map_err(pipeline_error)?;
+        *frames_rendered += 1;
         if let Some(out) = stats.as_mut() {
             *out = (&s).into();
         }
@@ -502,6 +570,17 @@ pub unsafe extern "C" fn stereotrace_pipeline_render_frame(
 
 /// Renders frame `frame` with the two eye cameras `cameras` (left, right; the pipeline's
 /// size). For a callback pipeline the callbacks run during this call. `stats` may be null.
+///
+/// - **Frame numbers** key the samples only (the callbacks' `frame`; a scene's random numbers
+///   and moving lights). They may repeat, go backwards or reach `UINT32_MAX`: the history
+///   follows the order of the calls, not the numbers.
+/// - **Cameras** are taken as given: eye 0's output is always `cameras[0]`'s view. Swapped
+///   eyes, eyes far apart or both eyes at one camera are computed as such (stereo
+///   reprojection is valid where the two views see the same surface; elsewhere the eye that
+///   reprojects is traced).
+/// - **Refused frames change nothing.** Whatever refuses the frame (a camera, a callback, a
+///   kernel's check), the output, the histories and what the next frame reprojects stay as
+///   they were, and `stats` is not written.
 ///
 /// # Safety
 /// As [`stereotrace_pipeline_render_frame`]; `cameras` null or two valid cameras.
@@ -513,9 +592,10 @@ pub unsafe extern "C" fn stereotrace_pipeline_render_frame_at(
     stats: *mut StFrameStats,
 ) -> StStatus {
     guard(|| unsafe {
-        let p = pipeline.as_mut().ok_or_else(|| Failure::null("pipeline"))?;
-        let pool = &p.pool;
-        let s = match &mut p.inner {
+        let p = pipeline.as_ref().ok_or_else(|| Failure::null("pipeline"))?;
+        let mut state = p.state.enter("stereotrace_pipeline_render_frame_at")?;
+        let PipelineState { pool, inner, frames_rendered } = &mut *state;
+        let s = match inner {
             Inner::Scene(inner) => {
                 let (_, models) = eye_cameras(cameras, inner.extent())?;
                 pool.install(|| inner.render_frame_at(frame, models))
@@ -527,6 +607,7 @@ pub unsafe extern "C" fn stereotrace_pipeline_render_frame_at(
             }
         }
         .map_err(pipeline_error)?;
+        *frames_rendered += 1;
         if let Some(out) = stats.as_mut() {
             *out = (&s).into();
         }
@@ -534,8 +615,9 @@ pub unsafe extern "C" fn stereotrace_pipeline_render_frame_at(
     })
 }
 
-/// Copies the image eye `eye` (0 left, 1 right) shows after the last frame into the
-/// caller's planes `out` (the pipeline's size, any stride).
+/// Copies the image eye `eye` (0 left, 1 right) shows after the last successful frame into
+/// the caller's planes `out` (the pipeline's size, any stride). Refused before the first
+/// successful frame (there is no image yet).
 ///
 /// # Safety
 /// `pipeline` null or a live pipeline; `out` null or valid, its planes writable.
@@ -547,12 +629,18 @@ pub unsafe extern "C" fn stereotrace_pipeline_output(
 ) -> StStatus {
     guard(|| unsafe {
         let p = pipeline.as_ref().ok_or_else(|| Failure::null("pipeline"))?;
+        let state = p.state.enter("stereotrace_pipeline_output")?;
+        if state.frames_rendered == 0 {
+            return Err(Failure::invalid(
+                "no frame has been rendered yet: the output exists after the first successful render call",
+            ));
+        }
         let eye = match eye {
             0 => Eye::Left,
             1 => Eye::Right,
             other => return Err(Failure::invalid(format!("eye {other} is not 0 (left) or 1 (right)"))),
         };
-        let image = match &p.inner {
+        let image = match &state.inner {
             Inner::Scene(inner) => inner.output(eye),
             Inner::Callbacks(inner) => inner.output(eye),
         };
@@ -568,15 +656,21 @@ pub unsafe extern "C" fn stereotrace_pipeline_output(
     })
 }
 
-/// Destroys a pipeline (null is ignored).
+/// Destroys a pipeline (null is ignored: OK). A pipeline in a call (from that call's
+/// callbacks, or on another thread) is not destroyed: `ST_STATUS_BUSY`.
 ///
 /// # Safety
-/// `pipeline` null or from a `stereotrace_pipeline_create_*` call, not yet destroyed and not
-/// in use.
+/// `pipeline` null or from a `stereotrace_pipeline_create_*` call, not yet destroyed; no call
+/// may start on it once this one has returned OK.
 #[unsafe(no_mangle)]
-pub unsafe extern "C" fn stereotrace_pipeline_destroy(pipeline: *mut StPipeline) {
-    if !pipeline.is_null() {
-        // SAFETY: the caller's contract: made by `Box::into_raw` in a create function.
+pub unsafe extern "C" fn stereotrace_pipeline_destroy(pipeline: *mut StPipeline) -> StStatus {
+    guard(|| {
+        // SAFETY: null, or a live pipeline (the caller's contract).
+        let Some(p) = (unsafe { pipeline.as_ref() }) else { return Ok(()) };
+        p.state.idle("stereotrace_pipeline_destroy")?;
+        // SAFETY: the caller's contract: made by `Box::into_raw` in a create function, and no
+        // call holds it (checked above).
         drop(unsafe { Box::from_raw(pipeline) });
-    }
+        Ok(())
+    })
 }

@@ -23,11 +23,11 @@ use crate::boundary::{Context, Failure, StStatus};
 pub struct StPlaneF32 {
     /// Pixel `(0, 0)`; pixel `(x, y)` is `data[y * stride + x]`.
     pub data: *const f32,
-    /// Pixels per row (1 ..= 65536).
+    /// Pixels per row (1 ..= `STEREOTRACE_MAX_DIMENSION`).
     pub width: u32,
-    /// Rows (1 ..= 65536; at most 2^28 pixels in all).
+    /// Rows (1 ..= `STEREOTRACE_MAX_DIMENSION`; at most `STEREOTRACE_MAX_PIXELS` in all).
     pub height: u32,
-    /// Elements from one row's start to the next (at least `width`).
+    /// Elements from one row's start to the next (`width` ..= `STEREOTRACE_MAX_STRIDE`).
     pub stride: u32,
 }
 
@@ -37,11 +37,11 @@ pub struct StPlaneF32 {
 pub struct StPlaneMutF32 {
     /// Pixel `(0, 0)`; pixel `(x, y)` is `data[y * stride + x]`.
     pub data: *mut f32,
-    /// Pixels per row (1 ..= 65536).
+    /// Pixels per row (1 ..= `STEREOTRACE_MAX_DIMENSION`).
     pub width: u32,
-    /// Rows (1 ..= 65536; at most 2^28 pixels in all).
+    /// Rows (1 ..= `STEREOTRACE_MAX_DIMENSION`; at most `STEREOTRACE_MAX_PIXELS` in all).
     pub height: u32,
-    /// Elements from one row's start to the next (at least `width`).
+    /// Elements from one row's start to the next (`width` ..= `STEREOTRACE_MAX_STRIDE`).
     pub stride: u32,
 }
 
@@ -51,11 +51,11 @@ pub struct StPlaneMutF32 {
 pub struct StPlaneU8 {
     /// Pixel `(0, 0)`; pixel `(x, y)` is `data[y * stride + x]`.
     pub data: *const u8,
-    /// Pixels per row (1 ..= 65536).
+    /// Pixels per row (1 ..= `STEREOTRACE_MAX_DIMENSION`).
     pub width: u32,
-    /// Rows (1 ..= 65536; at most 2^28 pixels in all).
+    /// Rows (1 ..= `STEREOTRACE_MAX_DIMENSION`; at most `STEREOTRACE_MAX_PIXELS` in all).
     pub height: u32,
-    /// Elements from one row's start to the next (at least `width`).
+    /// Elements from one row's start to the next (`width` ..= `STEREOTRACE_MAX_STRIDE`).
     pub stride: u32,
 }
 
@@ -65,11 +65,11 @@ pub struct StPlaneU8 {
 pub struct StPlaneMutU8 {
     /// Pixel `(0, 0)`; pixel `(x, y)` is `data[y * stride + x]`.
     pub data: *mut u8,
-    /// Pixels per row (1 ..= 65536).
+    /// Pixels per row (1 ..= `STEREOTRACE_MAX_DIMENSION`).
     pub width: u32,
-    /// Rows (1 ..= 65536; at most 2^28 pixels in all).
+    /// Rows (1 ..= `STEREOTRACE_MAX_DIMENSION`; at most `STEREOTRACE_MAX_PIXELS` in all).
     pub height: u32,
-    /// Elements from one row's start to the next (at least `width`).
+    /// Elements from one row's start to the next (`width` ..= `STEREOTRACE_MAX_STRIDE`).
     pub stride: u32,
 }
 
@@ -79,11 +79,11 @@ pub struct StPlaneMutU8 {
 pub struct StPlaneU32 {
     /// Pixel `(0, 0)`; pixel `(x, y)` is `data[y * stride + x]`.
     pub data: *const u32,
-    /// Pixels per row (1 ..= 65536).
+    /// Pixels per row (1 ..= `STEREOTRACE_MAX_DIMENSION`).
     pub width: u32,
-    /// Rows (1 ..= 65536; at most 2^28 pixels in all).
+    /// Rows (1 ..= `STEREOTRACE_MAX_DIMENSION`; at most `STEREOTRACE_MAX_PIXELS` in all).
     pub height: u32,
-    /// Elements from one row's start to the next (at least `width`).
+    /// Elements from one row's start to the next (`width` ..= `STEREOTRACE_MAX_STRIDE`).
     pub stride: u32,
 }
 

@@ -11,8 +11,9 @@
  *    checks the left image against the closed form.
  *
  * Then bad input: an unknown scene, a zero size, a NaN budget, unknown enum values, a
- * missing callback, cameras of the wrong size, a failing callback. Each call must return
- * its error code with a message. Built by examples/c/run.sh under AddressSanitizer; exits 0
+ * missing callback, cameras of the wrong size, the output before any frame, a failing
+ * callback (which must leave the output as it was). Each call must return its error code
+ * with a message. Built by examples/c/run.sh under AddressSanitizer; exits 0
  * only if every check holds.
  */
 #include <math.h>
@@ -164,6 +165,10 @@ static void callback_pipeline(void) {
     StPipeline *p = NULL;
     expect(stereotrace_pipeline_create_callbacks(&callbacks, &config, cameras, &p), ST_STATUS_OK, "callback pipeline");
     if (p == NULL) return;
+    Image none = image_new(CW, CH);
+    StRgbMut none_view = image_view(&none);
+    expect(stereotrace_pipeline_output(p, 0, &none_view), ST_STATUS_INVALID_ARGUMENT, "output before any frame");
+    image_free(&none);
     StFrameStats stats;
     expect(stereotrace_pipeline_render_frame_at(p, 0, cameras, &stats), ST_STATUS_OK, "callback frame");
     /* The right eye is traced everywhere; the left only where reprojection was discarded:
@@ -199,10 +204,22 @@ static void callback_pipeline(void) {
     expect(stereotrace_pipeline_render_frame_at(p, 1, small, NULL), ST_STATUS_INVALID_ARGUMENT,
            "cameras of another size");
     expect(stereotrace_pipeline_render_frame(p, 1, NULL), ST_STATUS_INVALID_ARGUMENT, "frame without a scene");
+    /* A failing callback refuses the frame with its own status; the output is the last
+     * frame's, untouched (transactional frames). */
+    Image before = image_new(CW, CH), after = image_new(CW, CH);
+    StRgbMut before_view = image_view(&before), after_view = image_view(&after);
+    expect(stereotrace_pipeline_output(p, 0, &before_view), ST_STATUS_OK, "left output before a refused frame");
     engine.fail_trace = 1;
-    expect(stereotrace_pipeline_render_frame_at(p, 1, cameras, NULL), ST_STATUS_INVALID_ARGUMENT,
+    expect(stereotrace_pipeline_render_frame_at(p, 1, cameras, NULL), ST_STATUS_CALLBACK_FAILED,
            "a failing trace callback");
-    stereotrace_pipeline_destroy(p);
+    expect(stereotrace_pipeline_output(p, 0, &after_view), ST_STATUS_OK, "left output after a refused frame");
+    int changed = 0;
+    for (int c = 0; c < 3; c++)
+        changed += memcmp(before.planes[c], after.planes[c], sizeof(float) * before.stride * CH) != 0;
+    CHECK(changed == 0, "a refused frame changed %d planes of the output", changed);
+    image_free(&before);
+    image_free(&after);
+    expect(stereotrace_pipeline_destroy(p), ST_STATUS_OK, "destroy");
 
     StFrameSourceCallbacks missing = {&engine, fill_gbuffers, NULL};
     p = NULL;

@@ -1,0 +1,251 @@
+//! What the C ABI refuses and what it documents instead, each case pinned:
+//!
+//! - kernels refuse inputs they cannot compute honestly: SSIM below its 11×11 window (every
+//!   size, both variants), reason codes outside the defined set (every code, every kernel
+//!   that reads them), history lengths that are not counts; refused calls write nothing;
+//! - a pipeline's output before its first frame is refused;
+//! - cases the header documents as accepted (frame numbers in any order, swapped eyes, eyes
+//!   far apart, both eyes at one camera) do what it says.
+
+mod common;
+
+use common::{RoomEngine, camera, expect, outputs, room_pipeline};
+use stereotrace_capi::*;
+
+fn context() -> *mut StContext {
+    let mut ctx = std::ptr::null_mut();
+    expect(unsafe { stereotrace_context_create(1, &mut ctx) }, StStatus::Ok);
+    ctx
+}
+
+/// Three planes of `w`×`h` floats.
+struct Image {
+    w: u32,
+    h: u32,
+    planes: [Vec<f32>; 3],
+}
+
+impl Image {
+    fn new(w: u32, h: u32, f: impl Fn(usize) -> f32) -> Self {
+        let n = (w * h) as usize;
+        Self { w, h, planes: [0, 1, 2].map(|c| (0..n).map(|i| f(i * 3 + c)).collect()) }
+    }
+
+    fn view(&self) -> StRgb {
+        let [r, g, b] = [0, 1, 2].map(|c| StPlaneF32 {
+            data: self.planes[c].as_ptr(),
+            width: self.w,
+            height: self.h,
+            stride: self.w,
+        });
+        StRgb { r, g, b }
+    }
+
+    fn view_mut(&mut self) -> StRgbMut {
+        let (w, h) = (self.w, self.h);
+        let [r, g, b] =
+            self.planes.each_mut().map(|p| StPlaneMutF32 { data: p.as_mut_ptr(), width: w, height: h, stride: w });
+        StRgbMut { r, g, b }
+    }
+}
+
+#[test]
+fn ssim_refuses_every_size_below_its_window_in_both_variants() {
+    let ctx = context();
+    let mut refused = 0;
+    for w in 1..=STEREOTRACE_SSIM_MIN_SIDE {
+        for h in 1..=STEREOTRACE_SSIM_MIN_SIDE {
+            let (a, b) = (Image::new(w, h, |i| (i % 7) as f32 * 0.1), Image::new(w, h, |i| (i % 5) as f32 * 0.1));
+            for variant in [StSsimVariant::Volume, StSsimVariant::PerChannel] {
+                let mut result = StSsimResult { ssim: -7.0, ..StSsimResult::default() };
+                let status = unsafe { stereotrace_ssim(ctx, &a.view(), &b.view(), variant as u32, &mut result) };
+                if w < STEREOTRACE_SSIM_MIN_SIDE || h < STEREOTRACE_SSIM_MIN_SIDE {
+                    let message = expect(status, StStatus::InvalidArgument);
+                    assert!(message.contains(&format!("{w}x{h} is smaller than the 11x11 window")), "{message}");
+                    assert_eq!(result.ssim, -7.0, "{w}x{h}: a refused call wrote its result");
+                    refused += 1;
+                } else {
+                    expect(status, StStatus::Ok);
+                    assert!(result.ssim < 1.0 && result.voxels == 11 * 11 * 3, "{result:?}");
+                }
+            }
+        }
+    }
+    assert_eq!(refused, 2 * 120, "every size from 1x1 to 11x10 in both variants");
+    unsafe { stereotrace_context_destroy(ctx) };
+}
+
+#[test]
+fn every_kernel_that_reads_reasons_refuses_every_undefined_code() {
+    let (w, h) = (13u32, 7u32);
+    let ctx = context();
+    let new = Image::new(w, h, |i| 0.25 + (i % 11) as f32 * 0.05);
+    let n = (w * h) as usize;
+    for code in ST_REASON_COUNT as u32..=255 {
+        // Valid codes everywhere but one pixel, placed differently for each code.
+        let bad = (code as usize * 37) % n;
+        let reasons: Vec<u8> =
+            (0..n).map(|i| if i == bad { code as u8 } else { (i % ST_REASON_COUNT) as u8 }).collect();
+        let reason = StPlaneU8 { data: reasons.as_ptr(), width: w, height: h, stride: w };
+        let want = format!("reason plane holds {code} at pixel ({}, {})", bad % w as usize, bad / w as usize);
+
+        let mut accum = Image::new(w, h, |i| i as f32);
+        let before = accum.planes.clone();
+        let mut stats = StAccumulateStats { resets: 77, ..Default::default() };
+        let (new_c, accum_c) = (new.view(), accum.view_mut());
+        let status = unsafe {
+            stereotrace_ema(
+                ctx,
+                &new_c,
+                &reason,
+                std::ptr::null(),
+                &accum_c,
+                std::ptr::null(),
+                std::ptr::null(),
+                &mut stats,
+            )
+        };
+        let message = expect(status, StStatus::InvalidArgument);
+        assert!(message.contains(&want) && message.contains("0 ..= 5"), "EMA, code {code}: {message}");
+        assert!(accum.planes == before && stats.resets == 77, "EMA, code {code}: a refused call wrote");
+
+        let reprojected = accum.view_mut();
+        let status = unsafe { stereotrace_blend(ctx, &new_c, &reprojected, &reason, 0.5, 4, &mut stats) };
+        let message = expect(status, StStatus::InvalidArgument);
+        assert!(message.contains(&want), "blend, code {code}: {message}");
+        assert!(accum.planes == before, "blend, code {code}: a refused call wrote");
+    }
+    unsafe { stereotrace_context_destroy(ctx) };
+}
+
+#[test]
+fn the_ema_refuses_history_lengths_that_are_not_counts() {
+    let (w, h) = (9u32, 4u32);
+    let ctx = context();
+    let new = Image::new(w, h, |_| 1.0);
+    let reasons = vec![0u8; (w * h) as usize];
+    let reason = StPlaneU8 { data: reasons.as_ptr(), width: w, height: h, stride: w };
+    let params = StEmaParams { ramp: 1, ..stereotrace_ema_params_default() };
+    for bad in [-5.0, -0.5, f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+        let mut len = vec![3.0f32; (w * h) as usize];
+        len[22] = bad;
+        let len_c = StPlaneMutF32 { data: len.as_mut_ptr(), width: w, height: h, stride: w };
+        let mut accum = Image::new(w, h, |_| 0.5);
+        let accum_c = accum.view_mut();
+        let status = unsafe {
+            stereotrace_ema(
+                ctx,
+                &new.view(),
+                &reason,
+                std::ptr::null(),
+                &accum_c,
+                &len_c,
+                &params,
+                std::ptr::null_mut(),
+            )
+        };
+        let message = expect(status, StStatus::InvalidArgument);
+        assert!(message.contains("history length plane holds") && message.contains("(4, 2)"), "{bad}: {message}");
+        assert!(accum.planes.iter().all(|p| p.iter().all(|&v| v == 0.5)), "{bad}: a refused call wrote");
+    }
+    // Zero and large finite counts are counts.
+    let mut len = vec![0.0f32; (w * h) as usize];
+    len[1] = 1e30;
+    let len_c = StPlaneMutF32 { data: len.as_mut_ptr(), width: w, height: h, stride: w };
+    let mut accum = Image::new(w, h, |_| 0.5);
+    let accum_c = accum.view_mut();
+    let status = unsafe {
+        stereotrace_ema(ctx, &new.view(), &reason, std::ptr::null(), &accum_c, &len_c, &params, std::ptr::null_mut())
+    };
+    expect(status, StStatus::Ok);
+    unsafe { stereotrace_context_destroy(ctx) };
+}
+
+const W: u32 = 40;
+const H: u32 = 24;
+
+#[test]
+fn the_output_before_any_frame_is_refused_and_exists_after_the_first() {
+    let mut engine = RoomEngine::new();
+    let p = room_pipeline(&mut engine, StMode::Stereo, W, H);
+    let mut image = Image::new(W, H, |_| -1.0);
+    let out = image.view_mut();
+    let message = expect(unsafe { stereotrace_pipeline_output(p, 0, &out) }, StStatus::InvalidArgument);
+    assert!(message.contains("no frame has been rendered yet"), "{message}");
+    assert!(image.planes.iter().all(|p| p.iter().all(|&v| v == -1.0)), "a refused output wrote");
+    let cameras = [camera(-0.03, W, H), camera(0.03, W, H)];
+    let null = std::ptr::null_mut();
+    expect(unsafe { stereotrace_pipeline_render_frame_at(p, 0, cameras.as_ptr(), null) }, StStatus::Ok);
+    expect(unsafe { stereotrace_pipeline_output(p, 0, &out) }, StStatus::Ok);
+    expect(unsafe { stereotrace_pipeline_destroy(p) }, StStatus::Ok);
+}
+
+/// Documented: frame numbers may go backwards, repeat and reach `UINT32_MAX`; the history
+/// follows the order of the calls, and a frame number keys only the samples (the engine's,
+/// or the scene's random numbers and time).
+#[test]
+fn frame_numbers_in_any_order_are_accepted_and_key_only_the_samples() {
+    let mut config = stereotrace_pipeline_config_default();
+    (config.mode, config.width, config.height, config.threads) = (StMode::PathTraced as u32, 32, 18, 1);
+    let mut p = std::ptr::null_mut();
+    expect(unsafe { stereotrace_pipeline_create_scene(c"cornell".as_ptr(), &config, &mut p) }, StStatus::Ok);
+    let mut seen = Vec::new();
+    for frame in [5, 3, 3, u32::MAX, 3] {
+        expect(unsafe { stereotrace_pipeline_render_frame(p, frame, std::ptr::null_mut()) }, StStatus::Ok);
+        seen.push(outputs(p, 32, 18));
+    }
+    assert_eq!(seen[1], seen[2], "a repeated frame number gives the same path-traced samples");
+    assert_eq!(seen[1], seen[4], "frame 3 after UINT32_MAX is frame 3");
+    assert_ne!(seen[0], seen[1], "another frame number gives other samples");
+    expect(unsafe { stereotrace_pipeline_destroy(p) }, StStatus::Ok);
+
+    // With history (temporal), repeating a frame number accumulates: history follows calls.
+    let mut engine = RoomEngine::new();
+    let p = room_pipeline(&mut engine, StMode::Temporal, W, H);
+    let cameras = [camera(-0.03, W, H), camera(0.03, W, H)];
+    let mut images = Vec::new();
+    for frame in [7, 7, 2] {
+        let status = unsafe { stereotrace_pipeline_render_frame_at(p, frame, cameras.as_ptr(), std::ptr::null_mut()) };
+        expect(status, StStatus::Ok);
+        images.push(outputs(p, W, H));
+    }
+    assert_eq!(images[0], images[1], "the same samples averaged with themselves");
+    assert_ne!(images[1], images[2]);
+    expect(unsafe { stereotrace_pipeline_destroy(p) }, StStatus::Ok);
+}
+
+/// Documented: the pipeline assumes nothing about where the eyes are. Eye 0's output is
+/// always the first camera's view; swapped eyes, eyes a kilometre apart and both eyes at one
+/// camera give the images of the cameras as given, with stereo reprojection valid wherever
+/// the two views show the same surface.
+#[test]
+fn eye_placement_is_the_callers_swapped_far_apart_or_coincident() {
+    let run = |cameras: [StCamera; 2]| {
+        let mut engine = RoomEngine::new();
+        let p = room_pipeline(&mut engine, StMode::Stereo, W, H);
+        let mut stats = StFrameStats::default();
+        let status = unsafe { stereotrace_pipeline_render_frame_at(p, 0, cameras.as_ptr(), &mut stats) };
+        expect(status, StStatus::Ok);
+        let images = outputs(p, W, H);
+        expect(unsafe { stereotrace_pipeline_destroy(p) }, StStatus::Ok);
+        (stats.traced_pixels, images)
+    };
+    let all = u64::from(W * H);
+    let (normal, normal_images) = run([camera(-0.03, W, H), camera(0.03, W, H)]);
+    assert!(normal[0] < all / 4 && normal[1] == all, "{normal:?}");
+
+    // Swapped: the right camera is eye 0 now; its (right) eye 1 is fully traced.
+    let (swapped, swapped_images) = run([camera(0.03, W, H), camera(-0.03, W, H)]);
+    assert!(swapped[0] < all / 4 && swapped[1] == all, "{swapped:?}");
+    assert_ne!(swapped_images[1], normal_images[1], "eye 1 shows the camera it was given");
+
+    // A kilometre apart: nothing reprojects, eye 0 is traced in full.
+    let (far, _) = run([camera(-500.0, W, H), camera(500.0, W, H)]);
+    assert_eq!(far, [all, all]);
+
+    // One camera for both: every pixel reprojects, eye 0 traces nothing, and shows eye 1's
+    // samples.
+    let (same, same_images) = run([camera(0.03, W, H), camera(0.03, W, H)]);
+    assert_eq!(same, [0, all]);
+    assert_eq!(same_images[0], same_images[1]);
+}
