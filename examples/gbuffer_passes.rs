@@ -7,7 +7,8 @@
 //! resolve writes only the compact layout's planes, as the pipeline does with that layout.
 //! `RASTER_RUNS` and `TRACED_RUNS` change the number of passes (9 and 3; a profile of the
 //! rasterised pass alone wants many of the one and none of the other); at least one rasterised
-//! pass runs, and with no traced pass its column reads NaN.
+//! pass runs, and with no traced pass its column reads NaN. `VISIBILITY=fixed` rasterises with
+//! the fixed-point rasteriser instead of the exact one (`--gbuffer fixed`).
 
 use std::time::Instant;
 
@@ -49,6 +50,11 @@ fn main() -> Result<(), String> {
     if std::env::var_os("COMPACT").is_some() {
         raster.planes = stereotrace::render::raster::GBufferPlanes::Compact;
     }
+    raster.visibility_by = match std::env::var("VISIBILITY").as_deref() {
+        Ok("fixed") => stereotrace::render::raster::Visibility::Fixed,
+        Ok("exact") | Err(_) => stereotrace::render::raster::Visibility::Exact,
+        Ok(other) => return Err(format!("VISIBILITY={other}: expected exact or fixed")),
+    };
     let (mut gl, mut gr) = (GBufferBuf::new(left), GBufferBuf::new(right));
     pool.install(|| {
         let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
@@ -76,10 +82,12 @@ fn main() -> Result<(), String> {
         );
         let s = runs[0].1.raster;
         println!(
-            "{name} ({} triangles, {threads} threads): raster + resolve {total:.1} ms (setup {:.1}, binning {:.1}, \
+            "{name} ({} triangles, {threads} threads, {:?} visibility): raster + resolve {total:.1} ms (setup {:.1}, \
+             binning {:.1}, \
              fragments {:.1}, resolve {:.1}); traced {traced:.1} ms; {:.2}x; visible {} clipped {} band-records {} \
              exact-path fragments {} (near ties {})",
             s.triangles,
+            raster.visibility_by,
             step(&|r| ms(r.raster.setup)),
             step(&|r| ms(r.raster.binning)),
             step(&|r| ms(r.raster.fragments)),

@@ -397,19 +397,19 @@ fn exact_explains(camera: &CameraModel, tris: &[TriVerts], prim: u32, tracer: u3
     })
 }
 
-/// Fuzzes the stereo rasteriser: up to 24 triangles around a camera (the grid puts many
-/// through the eye, behind it, coincident or degenerate), an extent from 1×1 to 24×16, any
-/// eye separation from the bytes. Both bodies (in bands of different heights) must give the
-/// same buffers, and every pixel of
-/// both eyes the tracer's closest hit, unless one of these explains the difference:
-/// - the raster's near plane: the tracer's hit lies nearer than `RASTER_NEAR` (10⁻⁶), which the
-///   raster does not draw by design;
-/// - the tracer's self-intersection guard refused the raster's triangle there (a hit the
-///   watertight test takes for one within its rounding bound of the eye);
-/// - the tracer's rounding: a vertex lies far from the eye (beyond `FAR_VERTEX`, 50 units), two
-///   hits are a near tie, or the raster's triangle passes within the f32 test's `t` error of
-///   the eye (grazing), and the exact f64 answer is the raster's.
-pub fn raster(data: &[u8]) {
+/// One rasteriser fuzz case: a frame size, a head pose, an eye separation and up to 24
+/// triangles, decoded from the bytes (shared by both rasterisers' targets, so a corpus input
+/// means the same scene to both).
+struct RasterCase {
+    extent: Extent,
+    head: CameraPose,
+    separation: f32,
+    tris: Vec<TriVerts>,
+    left: CameraModel,
+    right: CameraModel,
+}
+
+fn raster_case(data: &[u8]) -> Option<RasterCase> {
     let mut bytes = Bytes(data);
     let extent = Extent::new(1 + usize::from(bytes.u8() % 24), 1 + usize::from(bytes.u8() % 16)).expect("small");
     let eye = Vec3::new(bytes.unit(-0.5, 0.5), bytes.unit(-0.5, 0.5), bytes.unit(0.5, 2.0));
@@ -423,13 +423,29 @@ pub fn raster(data: &[u8]) {
         2 => bytes.unit(0.0, 20.0),
         _ => 0.064,
     };
-    let Ok(rig) = StereoRig::new(separation) else { return };
+    let rig = StereoRig::new(separation).ok()?;
     let scale = bytes.unit(0.1, 4.0);
     let n = usize::from(bytes.u8() % 25);
     let tris: Vec<TriVerts> =
         (0..n).map(|_| core::array::from_fn(|_| coordinate(&mut bytes, scale, RASTER_FUZZ_EXTENT))).collect();
-    let cams = Eye::BOTH.map(|e| rig.eye_camera(&head, e, extent));
-    let [Ok(left), Ok(right)] = cams else { return };
+    let [left, right] = Eye::BOTH.map(|e| rig.eye_camera(&head, e, extent));
+    Some(RasterCase { extent, head, separation, tris, left: left.ok()?, right: right.ok()? })
+}
+
+/// Fuzzes the stereo rasteriser: up to 24 triangles around a camera (the grid puts many
+/// through the eye, behind it, coincident or degenerate), an extent from 1×1 to 24×16, any
+/// eye separation from the bytes. Both bodies (in bands of different heights) must give the
+/// same buffers, and every pixel of
+/// both eyes the tracer's closest hit, unless one of these explains the difference:
+/// - the raster's near plane: the tracer's hit lies nearer than `RASTER_NEAR` (10⁻⁶), which the
+///   raster does not draw by design;
+/// - the tracer's self-intersection guard refused the raster's triangle there (a hit the
+///   watertight test takes for one within its rounding bound of the eye);
+/// - the tracer's rounding: a vertex lies far from the eye (beyond `FAR_VERTEX`, 50 units), two
+///   hits are a near tie, or the raster's triangle passes within the f32 test's `t` error of
+///   the eye (grazing), and the exact f64 answer is the raster's.
+pub fn raster(data: &[u8]) {
+    let Some(RasterCase { extent, head, separation, tris, left, right }) = raster_case(data) else { return };
     let run = |body, mut rasterizer: Rasterizer| {
         let mut out = [VisibilityBuffer::new(extent), VisibilityBuffer::new(extent)];
         let [l, r] = &mut out;
@@ -474,4 +490,184 @@ pub fn raster(data: &[u8]) {
             }
         }
     }
+}
+
+/// The fixed-point rasteriser's snap: vertices land on a 1/256-pixel grid.
+const SNAP_PX: f64 = 1.0 / 256.0;
+
+/// Fuzzes the fixed-point rasteriser on the cases of [`raster`]: both bodies (in bands of
+/// different heights) must give the same buffers, and every pixel of both eyes the tracer's
+/// closest hit, unless one of these explains the difference:
+/// - the near plane or the tracer's self-intersection guard, as in [`raster`];
+/// - **the snap**: exact (f64) geometry shows the raster's answer from some point within
+///   1/256 px of the pixel centre (sampled on three circles, and at the raster's triangle's
+///   nearest point to the centre);
+/// - **a depth tie within the snap**: both triangles' planes pass the centre ray at depth keys
+///   `q = 1/depth` closer than what moving their vertices by the snap can change
+///   (`|∇q|₁/256` each, in pixels), plus the tracer's own rounding.
+pub fn raster_fixed(data: &[u8]) {
+    use crate::kernels::raster::fixed::FixedRasterizer;
+    let Some(RasterCase { extent, head, separation, tris, left, right }) = raster_case(data) else { return };
+    let run = |body, mut rasterizer: FixedRasterizer| {
+        let mut out = [VisibilityBuffer::new(extent), VisibilityBuffer::new(extent)];
+        let [l, r] = &mut out;
+        let cams = [&left, &right];
+        let result =
+            rasterizer.rasterize(Triangles { main: &tris, extra: &[] }, cams, &NoMasks, RASTER_NEAR, [l, r], body);
+        result.map(|_| out)
+    };
+    let small_bands = FixedRasterizer::with_band_rows(1 + (extent.width() + extent.height()) % 8);
+    let (simd, scalar) = match (run(Body::Simd, small_bands), run(Body::Scalar, FixedRasterizer::new())) {
+        (Ok(simd), Ok(scalar)) => (simd, scalar),
+        (Err(a), Err(b)) => {
+            assert_eq!(a, b, "the bodies refuse differently");
+            return;
+        }
+        (a, b) => panic!("one body refuses: {:?} vs {:?}", a.err(), b.err()),
+    };
+    assert_eq!(simd, scalar, "the SIMD body and the scalar reference differ");
+    for (vis, cam) in simd.iter().zip([&left, &right]) {
+        for y in 0..extent.height() {
+            for x in 0..extent.width() {
+                let got = vis.prim.as_slice()[y * extent.width() + x];
+                let (want, tracer_t) = closest(cam, &tris, x, y);
+                assert!(
+                    got == want
+                        || near_plane_explains(cam, &tris, got, want, tracer_t, x, y)
+                        || (got != NO_PRIM && guard_rejected(cam, &tris, got, x, y, tracer_t))
+                        || snap_explains(cam, &tris, got, x, y)
+                        || depth_tie_within_snap(cam, &tris, got, want, x, y),
+                    "pixel ({x}, {y}) of {extent:?}: fixed raster {got}, tracer {want} (the tracer's t: {:?} and \
+                     {:?}); camera {head:?}, separation {separation}, triangles {tris:?}",
+                    tracer_hit(cam, &tris, got, x, y),
+                    tracer_hit(cam, &tris, want, x, y),
+                );
+            }
+        }
+    }
+}
+
+/// The pixel ray through screen point `(px, py)` in f64: origin and unit-view-depth direction.
+fn ray_f64(camera: &CameraModel, px: f64, py: f64) -> (DVec3, DVec3) {
+    let v = |a: [f32; 3]| DVec3::from(Vec3::from(a));
+    (v(camera.centre), v(camera.ray_origin_corner) + px * v(camera.ray_dx) + py * v(camera.ray_dy))
+}
+
+/// Exact geometry's answer at screen point `(px, py)`: the nearest triangle hit beyond the
+/// near plane (Möller–Trumbore in f64, edges inclusive), the smaller id on equal depth.
+fn exact_nearest_at(camera: &CameraModel, tris: &[TriVerts], px: f64, py: f64) -> u32 {
+    let (o, d) = ray_f64(camera, px, py);
+    let mut best = (f64::INFINITY, NO_PRIM);
+    for (i, t) in tris.iter().enumerate() {
+        let (e1, e2) = (vertex(t, 1) - vertex(t, 0), vertex(t, 2) - vertex(t, 0));
+        let p = d.cross(e2);
+        let det = e1.dot(p);
+        if det == 0.0 || !det.is_finite() {
+            continue;
+        }
+        let s = o - vertex(t, 0);
+        let (u, q) = (s.dot(p) / det, s.cross(e1));
+        let v = d.dot(q) / det;
+        let depth = e2.dot(q) / det;
+        if u >= 0.0 && v >= 0.0 && u + v <= 1.0 && depth > f64::from(RASTER_NEAR) && depth < best.0 {
+            best = (depth, i as u32);
+        }
+    }
+    best.1
+}
+
+/// Whether exact geometry shows `got` from a point within the snap of pixel `(x, y)`'s
+/// centre: on circles of 1/4, 1/2 and 1 snap, and at `got`'s screen image's nearest point to
+/// the centre (a sliver thinner than the circles' spacing).
+fn snap_explains(camera: &CameraModel, tris: &[TriVerts], got: u32, x: usize, y: usize) -> bool {
+    let (cx, cy) = (x as f64 + 0.5, y as f64 + 0.5);
+    let sees = |px: f64, py: f64| exact_nearest_at(camera, tris, px, py) == got;
+    let circles = [0.25, 0.5, 1.0].iter().any(|&r| {
+        (0..16).any(|k| {
+            let a = k as f64 * std::f64::consts::TAU / 16.0;
+            sees(cx + r * SNAP_PX * a.cos(), cy + r * SNAP_PX * a.sin())
+        })
+    });
+    circles
+        || tris.get(got as usize).is_some_and(|t| {
+            nearest_screen_point(camera, t, cx, cy).is_some_and(|(px, py, dist)| {
+                // The nearest point itself, and a hair inside it towards the centre's side.
+                dist <= SNAP_PX && (sees(px, py) || sees(px + (px - cx) * 1e-3, py + (py - cy) * 1e-3))
+            })
+        })
+}
+
+/// The point of `tri`'s screen image (its part in front of the near plane) nearest to
+/// `(cx, cy)`, and its distance; the centre itself when inside.
+fn nearest_screen_point(camera: &CameraModel, tri: &TriVerts, cx: f64, cy: f64) -> Option<(f64, f64, f64)> {
+    let rows = camera.rows.map(|r| r.map(f64::from));
+    let (hw, hh) = (camera.extent.width() as f64 * 0.5, camera.extent.height() as f64 * 0.5);
+    let clip: Vec<[f64; 3]> = (0..3)
+        .map(|k| {
+            let p = vertex(tri, k);
+            let dot = |r: &[f64; 4]| r[0] * p.x + r[1] * p.y + r[2] * p.z + r[3];
+            [dot(&rows[0]), dot(&rows[1]), dot(&rows[3])]
+        })
+        .collect();
+    let near = f64::from(RASTER_NEAR);
+    let mut poly = Vec::new();
+    for k in 0..3 {
+        let (a, b) = (clip[k], clip[(k + 1) % 3]);
+        if a[2] > near {
+            poly.push(a);
+        }
+        if (a[2] > near) != (b[2] > near) {
+            let s = (near - a[2]) / (b[2] - a[2]);
+            poly.push([a[0] + (b[0] - a[0]) * s, a[1] + (b[1] - a[1]) * s, near]);
+        }
+    }
+    if poly.len() < 3 || !poly.iter().flatten().all(|v| v.is_finite()) {
+        return None;
+    }
+    let pts: Vec<[f64; 2]> = poly.iter().map(|c| [c[0] / c[2] * hw + hw, -c[1] / c[2] * hh + hh]).collect();
+    let n = pts.len();
+    let cross = |a: [f64; 2], b: [f64; 2]| (b[0] - a[0]) * (cy - a[1]) - (b[1] - a[1]) * (cx - a[0]);
+    let signs: Vec<f64> = (0..n).map(|k| cross(pts[k], pts[(k + 1) % n])).collect();
+    if signs.iter().all(|&s| s >= 0.0) || signs.iter().all(|&s| s <= 0.0) {
+        return Some((cx, cy, 0.0));
+    }
+    (0..n)
+        .map(|k| {
+            let (a, b) = (pts[k], pts[(k + 1) % n]);
+            let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+            let len2 = dx * dx + dy * dy;
+            let s = if len2 > 0.0 { (((cx - a[0]) * dx + (cy - a[1]) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };
+            let (px, py) = (a[0] + s * dx, a[1] + s * dy);
+            (px, py, ((px - cx).powi(2) + (py - cy).powi(2)).sqrt())
+        })
+        .min_by(|a, b| a.2.total_cmp(&b.2))
+}
+
+/// `tri`'s plane as a depth key along the pixel rays: `q(px, py) = 1/depth`, linear in screen
+/// space, and `|∂q/∂x| + |∂q/∂y|` (per pixel). `None` for a degenerate triangle or a plane
+/// through the eye.
+fn depth_key(camera: &CameraModel, tri: &TriVerts, px: f64, py: f64) -> Option<(f64, f64)> {
+    let v = |a: [f32; 3]| DVec3::from(Vec3::from(a));
+    let n = area_vector(tri);
+    let c = n.dot(vertex(tri, 0) - v(camera.centre));
+    if c == 0.0 || !c.is_finite() || n == DVec3::ZERO {
+        return None;
+    }
+    let (_, d) = ray_f64(camera, px, py);
+    let grad = (n.dot(v(camera.ray_dx)) / c).abs() + (n.dot(v(camera.ray_dy)) / c).abs();
+    Some((n.dot(d) / c, grad))
+}
+
+/// Whether `got` and `want` are a depth tie at pixel `(x, y)` for the fixed rasteriser: their
+/// planes' depth keys at the centre are closer than the snap can move them, plus the tracer's
+/// rounding (relative `tracer_error / reach` of each).
+fn depth_tie_within_snap(camera: &CameraModel, tris: &[TriVerts], got: u32, want: u32, x: usize, y: usize) -> bool {
+    let (Some(a), Some(b)) = (tris.get(got as usize), tris.get(want as usize)) else { return false };
+    let (cx, cy) = (x as f64 + 0.5, y as f64 + 0.5);
+    let (Some((qa, ga)), Some((qb, gb))) = (depth_key(camera, a, cx, cy), depth_key(camera, b, cx, cy)) else {
+        return false;
+    };
+    let eye = DVec3::from(Vec3::from(camera.centre));
+    let rounding = |t: &TriVerts, q: f64| q * q * tracer_error(eye, t) + 1e-6 * q.abs();
+    (qa - qb).abs() <= (ga + gb) * SNAP_PX + rounding(a, qa) + rounding(b, qb)
 }

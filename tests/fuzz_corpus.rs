@@ -18,6 +18,13 @@ fn raster_corpus() {
     replay("raster", stereotrace::fuzzing::raster);
 }
 
+/// The fixed-point rasteriser decodes the same cases as the exact one: both corpora seed it.
+#[test]
+fn raster_fixed_corpus() {
+    replay("raster_fixed", stereotrace::fuzzing::raster_fixed);
+    replay("raster", stereotrace::fuzzing::raster_fixed);
+}
+
 #[test]
 fn scene_folder_corpus() {
     replay("scene_folder", stereotrace::fuzzing::scene_folder);

@@ -1,12 +1,20 @@
-//! The rasterised G-buffer against the traced one, pixel for pixel, on every built-in and
-//! every scene in `../shared/scenes` (SKIP when absent), at 1280×720 and at odd sizes.
+//! The rasterised G-buffers against the traced one, pixel for pixel, on every built-in and
+//! every scene in `../shared/scenes` (SKIP when absent), at 1280×720 and at odd sizes, for
+//! both rasterisers:
 //!
-//! Where both passes see the same triangle the texels (depth, position, normals, material)
-//! must be identical bit for bit. Where they see different triangles the pixel must be
-//! explained: a **depth tie** (the pixel's traced ray hits both triangles at depths within
-//! 1e-5 relative, so which one a closest-hit search returns is a matter of order) or an
-//! **edge** (its centre within 1e-5 px of an edge of one of the two triangles); the test
-//! prints how many of each it found. At least 99.9 % of pixels must agree.
+//! - **exact** (`--gbuffer raster`): where the passes see different triangles the pixel must
+//!   be a **depth tie** (the pixel's traced ray hits both triangles at depths within 1e-5
+//!   relative, so which one a closest-hit search returns is a matter of order) or an
+//!   **edge** (its centre within 1e-5 px of an edge of one of the two triangles); at least
+//!   99.9 % of pixels agree;
+//! - **fixed** (`--gbuffer fixed`, vertices snapped to 1/256 px): an edge within the snap
+//!   (1/256 px), or a depth tie within 1e-3 relative (the depth key is interpolated between
+//!   snapped vertices, which tilts a grazing surface's plane by up to that much); at least
+//!   99 % of the pixels of a frame of 10⁴ pixels or more agree.
+//!
+//! Where both see the same triangle the texels (depth, position, normals, material) must be
+//! identical bit for bit: the resolve is the traced pass's own texel function on the pixel's
+//! own ray. The test prints how many pixels of each kind it found.
 
 mod common;
 
@@ -18,7 +26,7 @@ use stereotrace::kernels::bvh::{PreparedRay, Ray, TriVerts, intersect_triangle};
 use stereotrace::kernels::raster::{Body, NO_PRIM};
 use stereotrace::kernels::{CameraModel, Extent, PlaneBuf};
 use stereotrace::render::lights::FrameLights;
-use stereotrace::render::raster::{GBufferPlanes, RasterGBuffers};
+use stereotrace::render::raster::{GBufferPlanes, RasterGBuffers, Visibility};
 use stereotrace::render::{GBufferBuf, Renderer};
 use stereotrace::scene::{builtin_names, resolve};
 
@@ -57,7 +65,9 @@ fn depth_on(
 }
 
 /// Distance in pixels from the centre of `(x, y)` to the nearest projected edge of `prim`
-/// (f64 projection through the camera's matrix); `inf` if a vertex is behind the eye.
+/// (f64 projection through the camera's matrix). An edge that passes behind the eye is cut
+/// at the eye plane first: what shows on screen is the part in front (a wall of a box the
+/// camera stands in has vertices behind it).
 fn edge_distance(
     renderer: &Renderer,
     lights: &FrameLights,
@@ -69,24 +79,35 @@ fn edge_distance(
     let t = triangle(renderer, lights, prim);
     let rows = camera.rows.map(|r| r.map(f64::from));
     let (hw, hh) = (camera.extent.width() as f64 * 0.5, camera.extent.height() as f64 * 0.5);
-    let mut s = [[0.0f64; 2]; 3];
-    for k in 0..3 {
+    let clip: [[f64; 3]; 3] = core::array::from_fn(|k| {
         let p = DVec3::new(t[3 * k] as f64, t[3 * k + 1] as f64, t[3 * k + 2] as f64);
         let dot = |r: &[f64; 4]| r[0] * p.x + r[1] * p.y + r[2] * p.z + r[3];
-        let w = dot(&rows[3]);
-        if !(w > 0.0) {
-            return f64::INFINITY;
-        }
-        s[k] = [dot(&rows[0]) / w * hw + hw, -dot(&rows[1]) / w * hh + hh];
-    }
+        [dot(&rows[0]), dot(&rows[1]), dot(&rows[3])]
+    });
+    let eps = 1e-9 * clip.iter().map(|c| c[2].abs()).fold(0.0, f64::max);
+    let project = |c: [f64; 3]| [c[0] / c[2] * hw + hw, -c[1] / c[2] * hh + hh];
     let c = [x as f64 + 0.5, y as f64 + 0.5];
     (0..3)
-        .map(|k| {
-            let (a, b) = (s[k], s[(k + 1) % 3]);
+        .filter_map(|k| {
+            let (mut a, mut b) = (clip[k], clip[(k + 1) % 3]);
+            if a[2] <= eps && b[2] <= eps {
+                return None;
+            }
+            // Cut the edge at the eye plane (w = eps): only its front part is on screen.
+            let cut = |p: [f64; 3], q: [f64; 3]| {
+                let s = (eps - p[2]) / (q[2] - p[2]);
+                [p[0] + (q[0] - p[0]) * s, p[1] + (q[1] - p[1]) * s, eps]
+            };
+            if a[2] <= eps {
+                a = cut(a, b);
+            } else if b[2] <= eps {
+                b = cut(b, a);
+            }
+            let (a, b) = (project(a), project(b));
             let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
             let len2 = dx * dx + dy * dy;
             let s = if len2 > 0.0 { (((c[0] - a[0]) * dx + (c[1] - a[1]) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };
-            ((c[0] - a[0] - s * dx).powi(2) + (c[1] - a[1] - s * dy).powi(2)).sqrt()
+            Some(((c[0] - a[0] - s * dx).powi(2) + (c[1] - a[1] - s * dy).powi(2)).sqrt())
         })
         .fold(f64::INFINITY, f64::min)
 }
@@ -107,14 +128,31 @@ fn texel_bits(g: &GBufferBuf, i: usize) -> [u32; 10] {
     ]
 }
 
+/// What explains a disagreement, and how many pixels must agree, per rasteriser.
+#[derive(Clone, Copy)]
+struct Rules {
+    edge_px: f64,
+    tie_relative: f32,
+    min_agree: f64,
+}
+
+fn rules(kind: Visibility) -> Rules {
+    match kind {
+        Visibility::Exact => Rules { edge_px: 1e-5, tie_relative: 1e-5, min_agree: 0.999 },
+        Visibility::Fixed => Rules { edge_px: 1.0 / 256.0, tie_relative: 1e-3, min_agree: 0.99 },
+    }
+}
+
 /// Both passes on frame `frame` of `renderer`'s camera path at `extent`, compared.
-fn compare(renderer: &Renderer, extent: Extent, frame: u32, body: Body) -> Tally {
+fn compare(renderer: &Renderer, extent: Extent, frame: u32, body: Body, kind: Visibility) -> Tally {
+    let rules = rules(kind);
     let lights = renderer.frame_lights(frame);
     let head = renderer.scene().camera.pose_at(frame as f32);
     let rig = StereoRig::default();
     let cams = Eye::BOTH.map(|eye| rig.eye_camera(&head, eye, extent).unwrap());
     let mut raster = RasterGBuffers::new(extent);
     raster.body = body;
+    raster.visibility_by = kind;
     let [mut gl, mut gr] = cams.map(GBufferBuf::new);
     renderer.render_gbuffers_raster(&lights, [&mut gl, &mut gr], &mut raster).unwrap();
     let mut tally = Tally::default();
@@ -138,7 +176,7 @@ fn compare(renderer: &Renderer, extent: Extent, frame: u32, body: Body) -> Tally
             let dr = (r != NO_PRIM).then(|| depth_on(renderer, &lights, camera, r, x, y)).flatten();
             let dt = (t != NO_PRIM).then(|| depth_on(renderer, &lights, camera, t, x, y)).flatten();
             if let (Some(a), Some(b)) = (dr, dt)
-                && (a - b).abs() <= 1e-5 * a.max(b)
+                && (a - b).abs() <= rules.tie_relative * a.max(b)
             {
                 tally.ties += 1;
                 continue;
@@ -148,7 +186,7 @@ fn compare(renderer: &Renderer, extent: Extent, frame: u32, body: Body) -> Tally
                 .filter(|&p| p != NO_PRIM)
                 .map(|p| edge_distance(renderer, &lights, camera, p, x, y))
                 .fold(f64::INFINITY, f64::min);
-            if edge <= 1e-5 {
+            if edge <= rules.edge_px {
                 tally.edges += 1;
             } else if tally.unexplained.len() < 10 {
                 tally.unexplained.push(format!(
@@ -163,9 +201,15 @@ fn compare(renderer: &Renderer, extent: Extent, frame: u32, body: Body) -> Tally
 }
 
 fn check(name: &str, renderer: &Renderer, extent: Extent, frame: u32) {
-    let t = compare(renderer, extent, frame, Body::Simd);
+    for kind in [Visibility::Exact, Visibility::Fixed] {
+        check_kind(name, renderer, extent, frame, kind);
+    }
+}
+
+fn check_kind(name: &str, renderer: &Renderer, extent: Extent, frame: u32, kind: Visibility) {
+    let t = compare(renderer, extent, frame, Body::Simd, kind);
     println!(
-        "{name} {}x{} frame {frame}: {} px, {} agree ({:.4} %), {} depth ties, {} edges, {} unexplained",
+        "{name} {kind:?} {}x{} frame {frame}: {} px, {} agree ({:.4} %), {} depth ties, {} edges, {} unexplained",
         extent.width(),
         extent.height(),
         t.pixels,
@@ -181,7 +225,17 @@ fn check(name: &str, renderer: &Renderer, extent: Extent, frame: u32) {
         "{name}: unexplained disagreements: {:?}",
         &t.unexplained[..t.unexplained.len().min(10)]
     );
-    assert!(t.agree as f64 >= 0.999 * t.pixels as f64, "{name}: only {} of {} pixels agree", t.agree, t.pixels);
+    // The share is a statistic of whole frames: in a 7×3 frame two snapped edge pixels are 5 %
+    // (and still explained, above).
+    let min = rules(kind).min_agree;
+    if kind == Visibility::Exact || t.pixels >= 10_000 {
+        assert!(
+            t.agree as f64 >= min * t.pixels as f64,
+            "{name} {kind:?}: only {} of {} pixels agree",
+            t.agree,
+            t.pixels
+        );
+    }
 }
 
 #[test]
@@ -224,32 +278,35 @@ fn the_scalar_reference_and_the_simd_body_give_the_same_buffers_in_bands_of_any_
         let lights = renderer.frame_lights(5);
         let head = renderer.scene().camera.pose_at(5.0);
         let cams = Eye::BOTH.map(|eye| StereoRig::default().eye_camera(&head, eye, extent).unwrap());
-        let run = |body: Body, band_rows: Option<usize>| {
-            let mut raster = RasterGBuffers::new(extent);
-            raster.body = body;
-            if let Some(rows) = band_rows {
-                raster.set_band_rows(rows);
+        for kind in [Visibility::Exact, Visibility::Fixed] {
+            let run = |body: Body, band_rows: Option<usize>| {
+                let mut raster = RasterGBuffers::new(extent);
+                raster.body = body;
+                raster.visibility_by = kind;
+                if let Some(rows) = band_rows {
+                    raster.set_band_rows(rows);
+                }
+                let [mut gl, mut gr] = cams.map(GBufferBuf::new);
+                let stats = renderer.render_gbuffers_raster(&lights, [&mut gl, &mut gr], &mut raster).unwrap();
+                (raster.visibility().clone(), stats)
+            };
+            let (simd, s1) = run(Body::Simd, None);
+            let (scalar, s2) = run(Body::Scalar, None);
+            // Other band heights: the same buffers bit for bit (only the work's partition moves).
+            for rows in [1, 7, 8] {
+                assert_eq!(run(Body::Simd, Some(rows)).0, simd, "{name}: bands of {rows} rows");
             }
-            let [mut gl, mut gr] = cams.map(GBufferBuf::new);
-            let stats = renderer.render_gbuffers_raster(&lights, [&mut gl, &mut gr], &mut raster).unwrap();
-            (raster.visibility().clone(), stats)
-        };
-        let (simd, s1) = run(Body::Simd, None);
-        let (scalar, s2) = run(Body::Scalar, None);
-        // Other band heights: the same buffers bit for bit (only the work's partition moves).
-        for rows in [1, 7, 8] {
-            assert_eq!(run(Body::Simd, Some(rows)).0, simd, "{name}: bands of {rows} rows");
-        }
-        let counts = |s: &stereotrace::render::raster::RasterPassStats| {
-            let r = &s.raster;
-            (r.triangles, r.visible, r.clipped, r.band_records, r.exact, r.exact_ties)
-        };
-        assert_eq!(counts(&s1), counts(&s2), "{name}: statistics");
-        for eye in 0..2 {
-            assert_eq!(simd[eye].prim.as_slice(), scalar[eye].prim.as_slice(), "{name}: ids");
-            let bits = |p: &PlaneBuf| p.as_slice().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
-            assert_eq!(bits(&simd[eye].q), bits(&scalar[eye].q), "{name}: depth keys");
-            assert_eq!(bits(&simd[eye].q_err), bits(&scalar[eye].q_err), "{name}: error bounds");
+            let counts = |s: &stereotrace::render::raster::RasterPassStats| {
+                let r = &s.raster;
+                (r.triangles, r.visible, r.clipped, r.band_records, r.exact, r.exact_ties)
+            };
+            assert_eq!(counts(&s1), counts(&s2), "{name}: statistics");
+            for eye in 0..2 {
+                assert_eq!(simd[eye].prim.as_slice(), scalar[eye].prim.as_slice(), "{name}: ids");
+                let bits = |p: &PlaneBuf| p.as_slice().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&simd[eye].q), bits(&scalar[eye].q), "{name}: depth keys");
+                assert_eq!(bits(&simd[eye].q_err), bits(&scalar[eye].q_err), "{name}: error bounds");
+            }
         }
     }
 }
@@ -294,13 +351,18 @@ fn raster_and_traced_visibility_agree_on_degenerate_and_coincident_triangles() {
         // Not `check`: the coincident pair covers ~9 % of the frame, all of it depth ties
         // (which of the two a BVH returns depends on its order), so the 99.9 % share does
         // not apply; everything else does.
-        let t = compare(&renderer, Extent::new(w, h).unwrap(), 0, Body::Simd);
-        println!("degenerate {w}x{h}: {} px, {} agree, {} depth ties, {} edges", t.pixels, t.agree, t.ties, t.edges);
-        assert!(t.texel_mismatches.is_empty(), "same triangle, different texels: {:?}", t.texel_mismatches);
-        assert!(t.unexplained.is_empty(), "unexplained: {:?}", &t.unexplained[..t.unexplained.len().min(10)]);
-        assert_eq!(t.agree + t.ties + t.edges, t.pixels);
-        if w == 320 {
-            assert!(t.ties > 1000, "the coincident pair must be seen: {} ties", t.ties);
+        for kind in [Visibility::Exact, Visibility::Fixed] {
+            let t = compare(&renderer, Extent::new(w, h).unwrap(), 0, Body::Simd, kind);
+            println!(
+                "degenerate {kind:?} {w}x{h}: {} px, {} agree, {} depth ties, {} edges",
+                t.pixels, t.agree, t.ties, t.edges
+            );
+            assert!(t.texel_mismatches.is_empty(), "same triangle, different texels: {:?}", t.texel_mismatches);
+            assert!(t.unexplained.is_empty(), "unexplained: {:?}", &t.unexplained[..t.unexplained.len().min(10)]);
+            assert_eq!(t.agree + t.ties + t.edges, t.pixels);
+            if w == 320 {
+                assert!(t.ties > 1000, "the coincident pair must be seen: {} ties", t.ties);
+            }
         }
     }
     std::fs::remove_dir_all(&dir).ok();

@@ -9,10 +9,13 @@
 //! million tiny triangles inside one pixel, and NaN or infinite vertices (the scene loader
 //! refuses them, `tests/scenes.rs`; the kernel must still not let one reach a pixel). Scalar
 //! reference and SIMD body must give the same buffers on each, and so must bands of any height.
+//! The fixed-point rasteriser runs every case too, against the same oracle within its
+//! tolerance (`check_fixed`).
 
 use glam::Vec3;
 use stereotrace::camera::{Eye, StereoRig};
 use stereotrace::kernels::bvh::{PreparedRay, Ray, TriVerts, intersect_triangle};
+use stereotrace::kernels::raster::fixed::FixedRasterizer;
 use stereotrace::kernels::raster::{Body, NO_PRIM, NoMasks, Rasterizer, Triangles, VisibilityBuffer};
 use stereotrace::kernels::{CameraModel, Extent};
 use stereotrace::scene::CameraPose;
@@ -29,8 +32,13 @@ fn tri(a: [f32; 3], b: [f32; 3], c: [f32; 3]) -> TriVerts {
 
 /// The oracle's answer at pixel `(x, y)`.
 fn brute_force(camera: &CameraModel, tris: &[TriVerts], x: usize, y: usize) -> u32 {
-    let d = camera.ray(x as f32 + 0.5, y as f32 + 0.5);
-    let Some(r) = PreparedRay::new(&Ray::new(camera.centre.into(), d.into())) else { return NO_PRIM };
+    brute_force_at(camera, tris, x as f32 + 0.5, y as f32 + 0.5).1
+}
+
+/// The oracle's closest hit `(t, id)` along the ray through screen point `(px, py)`.
+fn brute_force_at(camera: &CameraModel, tris: &[TriVerts], px: f32, py: f32) -> (f32, u32) {
+    let d = camera.ray(px, py);
+    let Some(r) = PreparedRay::new(&Ray::new(camera.centre.into(), d.into())) else { return (f32::INFINITY, NO_PRIM) };
     let mut best = (f32::INFINITY, NO_PRIM);
     for (i, t) in tris.iter().enumerate() {
         if let Some(hit) = intersect_triangle(&r, t, f32::INFINITY)
@@ -39,7 +47,57 @@ fn brute_force(camera: &CameraModel, tris: &[TriVerts], x: usize, y: usize) -> u
             best = (hit.t, i as u32);
         }
     }
-    best.1
+    best
+}
+
+/// The pixel-centre ray's hit depth on triangle `prim` alone.
+fn depth_on(camera: &CameraModel, tri: &TriVerts, x: usize, y: usize) -> Option<f32> {
+    let d = camera.ray(x as f32 + 0.5, y as f32 + 0.5);
+    let r = PreparedRay::new(&Ray::new(camera.centre.into(), d.into()))?;
+    intersect_triangle(&r, tri, f32::INFINITY).map(|h| h.t)
+}
+
+/// The fixed-point rasteriser on the same case: both bodies and every band height give the
+/// same buffers, and every pixel shows the oracle's triangle, or one the oracle sees from a
+/// point within the snap (1/256 px) of the centre, or one at a depth tie (1e-3 relative).
+fn check_fixed(name: &str, tris: &[TriVerts], cams: &[CameraModel; 2], only: Option<(usize, usize)>) {
+    let extent = cams[0].extent;
+    let run = |body, mut rasterizer: FixedRasterizer| {
+        let mut out = [VisibilityBuffer::new(extent), VisibilityBuffer::new(extent)];
+        let [l, r] = &mut out;
+        let tris = Triangles { main: tris, extra: &[] };
+        rasterizer.rasterize(tris, [&cams[0], &cams[1]], &NoMasks, 1e-6, [l, r], body).unwrap();
+        out
+    };
+    let simd = run(Body::Simd, FixedRasterizer::new());
+    assert_eq!(simd, run(Body::Scalar, FixedRasterizer::new()), "{name}: fixed: SIMD and scalar differ");
+    for rows in [1, 3, 8] {
+        assert_eq!(simd, run(Body::Simd, FixedRasterizer::with_band_rows(rows)), "{name}: fixed: bands of {rows}");
+    }
+    for (eye, vis) in simd.iter().enumerate() {
+        let cam = &cams[eye];
+        for y in 0..extent.height() {
+            for x in 0..extent.width() {
+                if only.is_some_and(|p| p != (x, y)) {
+                    continue;
+                }
+                let got = vis.prim.as_slice()[y * extent.width() + x];
+                let (t, want) = brute_force_at(cam, tris, x as f32 + 0.5, y as f32 + 0.5);
+                if got == want {
+                    continue;
+                }
+                let snap = (0..16).any(|k| {
+                    let a = k as f32 * std::f32::consts::TAU / 16.0;
+                    let (ox, oy) = (a.cos() / 256.0, a.sin() / 256.0);
+                    brute_force_at(cam, tris, x as f32 + 0.5 + ox, y as f32 + 0.5 + oy).1 == got
+                });
+                let tie = got != NO_PRIM
+                    && want != NO_PRIM
+                    && depth_on(cam, &tris[got as usize], x, y).is_some_and(|d| (d - t).abs() <= 1e-3 * t);
+                assert!(snap || tie, "{name}: fixed: eye {eye} pixel ({x}, {y}): raster {got}, oracle {want}");
+            }
+        }
+    }
 }
 
 /// Rasterises `tris` for both eyes of `head` at `extent` with both bodies; checks them equal
@@ -85,6 +143,7 @@ fn check_rig(
             }
         }
     }
+    check_fixed(name, tris, &cams, only);
     simd[0].prim.as_slice().to_vec()
 }
 

@@ -18,7 +18,7 @@ use crate::kernels::{CameraModel, Extent, RgbBuf};
 // From the configuration module only: the pipeline proper sits above this seam.
 use crate::pipeline::config::{GBufferPass, Layout, PipelineConfig, PipelineError};
 use crate::render::lights::FrameLights;
-use crate::render::raster::{GBufferPlanes, RasterGBuffers, RasterPassStats};
+use crate::render::raster::{GBufferPlanes, RasterGBuffers, RasterPassStats, Visibility};
 use crate::render::{GBufferBuf, PixelSelection, Renderer, TraceRequest, TraceStats};
 
 /// What makes a frame's G-buffers and samples for [`crate::pipeline::Pipeline`].
@@ -73,10 +73,13 @@ impl<R: Borrow<Renderer>> RendererSource<R> {
     /// per-pixel buffers cannot be allocated ([`crate::kernels::FrameError::OutOfMemory`]).
     pub fn new(renderer: R, config: &PipelineConfig, extent: Extent) -> Result<Self, PipelineError> {
         let raster = match config.gbuffer {
-            GBufferPass::Raster => {
+            GBufferPass::Raster | GBufferPass::Fixed => {
                 let mut raster = RasterGBuffers::try_new(extent)?;
                 if config.layout == Layout::Compact {
                     raster.planes = GBufferPlanes::Compact;
+                }
+                if config.gbuffer == GBufferPass::Fixed {
+                    raster.visibility_by = Visibility::Fixed;
                 }
                 Some(raster)
             }

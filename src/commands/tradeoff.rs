@@ -182,7 +182,7 @@ impl Setting {
 pub fn settings(opts: &TradeoffOptions) -> Vec<Setting> {
     let mut out = Vec::new();
     let other_pass = match opts.gbuffer {
-        GBufferPass::Raster => GBufferPass::Traced,
+        GBufferPass::Raster | GBufferPass::Fixed => GBufferPass::Traced,
         GBufferPass::Traced => GBufferPass::Raster,
     };
     for &spp in &opts.input_spp {

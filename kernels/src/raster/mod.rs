@@ -58,6 +58,7 @@
 //! The [`Rasterizer`] keeps its records and bins between calls and grows them only when a
 //! frame needs more than any before (a second frame of the same size allocates nothing).
 
+pub mod fixed;
 mod scalar;
 mod simd;
 
@@ -292,7 +293,7 @@ pub(crate) struct EyeView<'a, M: AlphaTest> {
 impl<M: AlphaTest> EyeView<'_, M> {
     /// The tracer's pixel-centre ray of `(x, y)`, prepared for triangle tests.
     #[inline]
-    fn pixel_ray(&self, x: usize, y: usize) -> Option<PreparedRay> {
+    pub(crate) fn pixel_ray(&self, x: usize, y: usize) -> Option<PreparedRay> {
         let cam = self.camera;
         let d = cam.ray(x as f32 + 0.5, y as f32 + 0.5);
         PreparedRay::for_triangles(&Ray::new(cam.centre.into(), d.into()))
@@ -300,7 +301,7 @@ impl<M: AlphaTest> EyeView<'_, M> {
 
     /// The tracer's hit of the ray `r` on `prim`, if any (and opaque where masked).
     #[inline]
-    fn exact_hit(&self, r: &PreparedRay, prim: u32) -> Option<TriHit> {
+    pub(crate) fn exact_hit(&self, r: &PreparedRay, prim: u32) -> Option<TriHit> {
         let hit = intersect_triangle(r, self.tris.get(prim), f32::INFINITY)?;
         if self.mask.has_mask(prim) {
             let (u, v) = hit.uv();

@@ -130,6 +130,11 @@ pub enum GBufferPass {
     Raster,
     /// One primary ray per pixel through the BVH (the reference).
     Traced,
+    /// Both eyes rasterised as GPUs rasterise (vertices snapped to 1/256 px, integer edge
+    /// functions, the top-left rule), then resolved like `raster`: the traced pass's triangle
+    /// except within 1/256 px of an edge or at a depth tie, and where the triangle is the
+    /// same, the same texel.
+    Fixed,
 }
 
 impl GBufferPass {
@@ -138,6 +143,7 @@ impl GBufferPass {
         match self {
             GBufferPass::Raster => "raster",
             GBufferPass::Traced => "traced",
+            GBufferPass::Fixed => "fixed",
         }
     }
 }

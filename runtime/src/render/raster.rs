@@ -21,6 +21,7 @@ use super::{GBufferBuf, GLanes, GTexel, RenderError, Renderer, Surface, for_each
 use crate::kernels::CameraModel;
 use crate::kernels::bvh::{Hit, PreparedRay, Ray, TriVerts, intersect_triangle_line};
 use crate::kernels::gbuffer::encode_normals;
+use crate::kernels::raster::fixed::FixedRasterizer;
 use crate::kernels::raster::{AlphaTest, Body, NO_PRIM, RasterStats, Rasterizer, Triangles, VisibilityBuffer};
 use crate::kernels::simd::{F32s, LANES, lane_offsets};
 use crate::kernels::{Extent, FrameError};
@@ -29,6 +30,10 @@ use crate::kernels::{Extent, FrameError};
 #[derive(Clone, Debug)]
 pub struct RasterGBuffers {
     rasterizer: Rasterizer,
+    /// The fixed-point rasteriser, used instead of `rasterizer` with [`Visibility::Fixed`].
+    fixed: FixedRasterizer,
+    /// Which rasteriser decides visibility.
+    pub visibility_by: Visibility,
     visibility: [VisibilityBuffer; 2],
     /// This frame's moving-light triangles (ids after the mesh's).
     extra: Vec<TriVerts>,
@@ -36,6 +41,19 @@ pub struct RasterGBuffers {
     pub body: Body,
     /// Which planes the resolve writes.
     pub planes: GBufferPlanes,
+}
+
+/// Which rasteriser finds each pixel's triangle; the resolve is the same for both.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Visibility {
+    /// [`Rasterizer`]: the tracer's own triangle test wherever rounding could decide, so the
+    /// same triangle as the traced pass except at exact depth ties.
+    #[default]
+    Exact,
+    /// [`FixedRasterizer`]: snapped vertices, integer edge functions and the top-left rule,
+    /// as GPUs rasterise; the traced pass's triangle except within 1/256 px of an edge or at
+    /// a depth tie.
+    Fixed,
 }
 
 /// Which planes of a [`GBufferBuf`] a rasterised pass writes.
@@ -55,6 +73,8 @@ impl RasterGBuffers {
     pub fn new(extent: Extent) -> Self {
         Self {
             rasterizer: Rasterizer::new(),
+            fixed: FixedRasterizer::new(),
+            visibility_by: Visibility::Exact,
             visibility: [VisibilityBuffer::new(extent), VisibilityBuffer::new(extent)],
             extra: Vec::new(),
             body: Body::Simd,
@@ -68,6 +88,8 @@ impl RasterGBuffers {
     pub fn try_new(extent: Extent) -> Result<Self, FrameError> {
         Ok(Self {
             rasterizer: Rasterizer::new(),
+            fixed: FixedRasterizer::new(),
+            visibility_by: Visibility::Exact,
             visibility: [VisibilityBuffer::try_new(extent)?, VisibilityBuffer::try_new(extent)?],
             extra: Vec::new(),
             body: Body::Simd,
@@ -84,6 +106,7 @@ impl RasterGBuffers {
     /// same buffers, another partition of the work (for tests and tuning).
     pub fn set_band_rows(&mut self, rows: usize) {
         self.rasterizer = Rasterizer::with_band_rows(rows);
+        self.fixed = FixedRasterizer::with_band_rows(rows);
     }
 }
 
@@ -136,10 +159,14 @@ impl Renderer {
         let tris = Triangles { main: bytemuck::cast_slice(&self.scene.mesh.positions), extra: &raster.extra };
         let masks = CutOuts { renderer: self, mesh_len: self.scene.mesh.len() as u32 };
         let [vl, vr] = &mut raster.visibility;
-        let stats = raster
-            .rasterizer
-            .rasterize(tris, [&left.camera, &right.camera], &masks, self.raster_near, [vl, vr], raster.body)
-            .map_err(|e: FrameError| RenderError::Frame(e))?;
+        let cameras = [&left.camera, &right.camera];
+        let stats = match raster.visibility_by {
+            Visibility::Exact => {
+                raster.rasterizer.rasterize(tris, cameras, &masks, self.raster_near, [vl, vr], raster.body)
+            }
+            Visibility::Fixed => raster.fixed.rasterize(tris, cameras, &masks, self.raster_near, [vl, vr], raster.body),
+        }
+        .map_err(|e: FrameError| RenderError::Frame(e))?;
         let start = std::time::Instant::now();
         let all_planes = raster.planes == GBufferPlanes::All;
         self.resolve(lights, &raster.visibility[0], left, &tris, all_planes);

@@ -1,0 +1,624 @@
+//! A stereo visibility buffer rasterised as GPUs rasterise: vertices snapped to fixed point,
+//! integer edge functions with the top-left fill rule at pixel centres, a per-pixel depth
+//! test on `q = 1/w` interpolated linearly in screen space. It answers "which triangle does
+//! the surface at this pixel centre belong to" to within the snap of the vertices (1/256 px),
+//! not bit for bit as the tracer does (that is [`super::Rasterizer`]'s job): a G-buffer
+//! describes the surface at the pixel centre, every path-traced sample is jittered inside
+//! its pixel anyway, and engines hand the pipeline G-buffers from GPU rasterisers, which
+//! agree with no tracer bit for bit either.
+//!
+//! # Pipeline of one call ([`FixedRasterizer::rasterize`])
+//! 1. **Setup** (parallel over fixed chunks of triangles, in triangle order): vertices move
+//!    into the left camera's frame (camera-relative, f64), are clipped against the near plane
+//!    `w > near` and, only if a vertex projects beyond the guard band (±2¹⁹ px around the
+//!    frame) in either eye, against both eyes' guard-band planes; the polygon left is fanned
+//!    into triangles. Each vertex is projected for both eyes (the parallel rig's eyes differ by a
+//!    constant clip-space offset, so the right eye costs one more division per vertex) and
+//!    snapped to [`SUBPIXEL_BITS`] fractional bits. A triangle whose snapped area is zero, or
+//!    whose bounding box holds no pixel centre, in both eyes, keeps no record.
+//! 2. **Binning** to bands of rows per eye, in triangle order (as [`super::Rasterizer`]).
+//! 3. **Fragments** (parallel over bands): each record's bounding box is walked eight pixel
+//!    columns at a time ([`Body::Simd`]: two `i64x4` per edge; [`Body::Scalar`]: the
+//!    reference, a pixel at a time). Edge functions are exact integers, so coverage is
+//!    decided without rounding: a pixel centre is covered when every edge function is
+//!    positive, or zero on a top or left edge (shared edges cover each pixel exactly once).
+//!    The depth key `q = qc + qb·y' + qa·x'` (f32, relative to the record's first pixel,
+//!    the same two products and sums in both bodies) is tested against the stored one:
+//!    larger `q` is nearer, equal `q` goes to the smaller triangle id, so the result does not
+//!    depend on the order records arrive in, the band height or the thread count.
+//!    Cut-out (masked) triangles are tested per covered fragment with the tracer's own pixel
+//!    ray and triangle test (the barycentrics the mask needs).
+//!
+//! # Limits
+//! Screen coordinates stay within ±2²⁰ px after the guard-band clip, so every edge function
+//! fits an `i64` with room to spare (|E| < 2⁶⁰). (A coordinate past ±2²¹ px after the clip,
+//! which rounding alone cannot produce, would drop its triangle rather than overflow.) A vertex
+//! that is NaN or infinite drops its triangle (the tracer never hits one).
+
+use std::time::Instant;
+
+use rayon::prelude::*;
+use wide::{i64x4, u32x8};
+
+use super::{AlphaTest, Body, EyeView, NO_PRIM, Projection, RasterStats, Triangles, VisibilityBuffer, band_range};
+use crate::camera::CameraModel;
+use crate::frame::{Extent, FrameError, same_extent};
+use crate::simd::{F32s, LANES, lane_offsets};
+
+/// Fractional bits of the snapped vertex coordinates: vertices land on a 1/256-pixel grid,
+/// as on most GPUs.
+pub const SUBPIXEL_BITS: u32 = 8;
+/// One pixel in fixed point.
+const ONE: i64 = 1 << SUBPIXEL_BITS;
+/// Half the guard band, in pixels: polygons are clipped to screen coordinates within about
+/// this far from the frame's centre.
+const GUARD_HALF_PX: f64 = (1u64 << 19) as f64;
+/// Coordinates past this (pixels) after the guard-band clip drop the triangle.
+const HARD_LIMIT_PX: f64 = (1u64 << 21) as f64;
+/// Triangles per setup chunk (fixed, so bin order does not depend on the thread count).
+const CHUNK: usize = 4096;
+/// A clipped triangle has at most 3 + 9 vertices (the near plane and each eye's four guard
+/// planes add one each): at most ten fan triangles.
+const MAX_POLYGON: usize = 12;
+
+/// One eye's view of a record: the three edge functions with the fill rule folded in (the
+/// pixel centre is covered when all three are ≥ 0) at the record's first pixel centre
+/// `(cols.0, rows.0)`, their steps per pixel to the right and per row down, the depth-key
+/// plane relative to the same pixel (`x' = x − cols.0`, `y' = y − rows.0`), and the columns
+/// to visit.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct FixedEyeEdges {
+    pub e0: [i64; 3],
+    pub dx: [i64; 3],
+    pub dy: [i64; 3],
+    pub qa: f32,
+    pub qb: f32,
+    pub qc: f32,
+    /// Columns `cols.0..=cols.1` (empty when the first exceeds the second).
+    pub cols: (i32, i32),
+}
+
+/// One snapped triangle (a fan piece of a clipped one) for both eyes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct FixedRecord {
+    pub eyes: [FixedEyeEdges; 2],
+    /// Rows `rows.0..=rows.1` (the union of both eyes').
+    pub rows: (i32, i32),
+    pub prim: u32,
+    pub masked: bool,
+}
+
+impl FixedRecord {
+    fn visible_in(&self, eye: usize) -> bool {
+        self.rows.0 <= self.rows.1 && self.eyes[eye].cols.0 <= self.eyes[eye].cols.1
+    }
+}
+
+/// A vertex after clipping and projection: for each eye the snapped screen position (fixed
+/// point) and the depth key `q = 1/w`.
+#[derive(Clone, Copy, Debug, Default)]
+struct Snapped {
+    x: [i64; 2],
+    y: [i64; 2],
+    q: [f64; 2],
+}
+
+/// The fixed-point stereo rasteriser; keeps its records and bins between calls (a second
+/// frame of the same scene and size allocates nothing).
+#[derive(Clone, Debug)]
+pub struct FixedRasterizer {
+    band_rows: usize,
+    /// The records of each chunk of [`CHUNK`] triangles, in triangle order.
+    records: Vec<Vec<FixedRecord>>,
+    /// `counts[(chunk · 2 + eye) · bands + band]`, then the write cursor there.
+    counts: Vec<u32>,
+    bin_start: Vec<u32>,
+    /// `chunk << 16 | index in the chunk` (a chunk holds at most 6 × 4096 records).
+    bins: Vec<u32>,
+}
+
+impl Default for FixedRasterizer {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl FixedRasterizer {
+    /// A rasteriser in bands of [`super::BAND_ROWS`] rows.
+    pub fn new() -> Self {
+        Self::with_band_rows(super::BAND_ROWS)
+    }
+
+    /// A rasteriser in bands of `rows` rows (at least 1): the same buffers, bit for bit, for
+    /// any band height.
+    pub fn with_band_rows(rows: usize) -> Self {
+        Self {
+            band_rows: rows.max(1),
+            records: Vec::new(),
+            counts: Vec::new(),
+            bin_start: Vec::new(),
+            bins: Vec::new(),
+        }
+    }
+
+    /// Fills `out[0]` (left eye, `cameras[0]`) and `out[1]` with the triangle whose snapped
+    /// image covers each pixel centre nearest the eye (`prim`) and its depth key (`q`;
+    /// `q_err` is written 0: the key is exact for the snapped triangle up to its f32
+    /// evaluation). `near` is the nearest view depth rasterised. The cameras must be a
+    /// parallel stereo pair of one extent, and each buffer of that extent.
+    pub fn rasterize<M: AlphaTest>(
+        &mut self,
+        tris: Triangles<'_>,
+        cameras: [&CameraModel; 2],
+        mask: &M,
+        near: f32,
+        out: [&mut VisibilityBuffer; 2],
+        body: Body,
+    ) -> Result<RasterStats, FrameError> {
+        let extent = cameras[0].extent;
+        same_extent("right camera", extent, cameras[1].extent)?;
+        for buf in &out {
+            same_extent("visibility buffer", extent, buf.extent())?;
+        }
+        if !(near > 0.0 && near.is_finite()) {
+            return Err(FrameError::InvalidParameter("near plane must be finite and > 0"));
+        }
+        if tris.len() >= NO_PRIM as usize || tris.len().div_ceil(CHUNK) > 1 << 16 {
+            return Err(FrameError::InvalidParameter("too many triangles for 32-bit ids"));
+        }
+        let proj = Projection::new(cameras[0], cameras[1])?;
+        let start = Instant::now();
+        let mut stats = self.setup(tris, &proj, mask, near);
+        let setup_done = Instant::now();
+        self.bin(extent);
+        let binned = Instant::now();
+        stats = stats + self.fragments(tris, cameras, mask, out, body);
+        stats.triangles = tris.len() as u64;
+        (stats.setup, stats.binning, stats.fragments) = (setup_done - start, binned - setup_done, binned.elapsed());
+        Ok(stats)
+    }
+
+    fn bands(&self, extent: Extent) -> usize {
+        extent.height().div_ceil(self.band_rows)
+    }
+
+    fn setup<M: AlphaTest>(&mut self, tris: Triangles<'_>, proj: &Projection, mask: &M, near: f32) -> RasterStats {
+        let n = tris.len();
+        let chunks = n.div_ceil(CHUNK);
+        let (band_rows, bands) = (self.band_rows, (proj.height as usize).div_ceil(self.band_rows));
+        self.records.resize_with(chunks, Vec::new);
+        self.counts.clear();
+        self.counts.resize(chunks * 2 * bands, 0);
+        self.records
+            .par_iter_mut()
+            .zip(self.counts.par_chunks_mut(2 * bands))
+            .enumerate()
+            .map(|(chunk, (records, counts))| {
+                records.clear();
+                let mut stats = RasterStats::default();
+                let first = chunk * CHUNK;
+                for prim in first..(first + CHUNK).min(n) {
+                    let prim = prim as u32;
+                    let before = records.len();
+                    stats.clipped += u64::from(setup_triangle(tris.get(prim), prim, proj, near, records));
+                    if records.len() == before {
+                        continue;
+                    }
+                    stats.visible += 1;
+                    let masked = mask.has_mask(prim);
+                    for rec in &mut records[before..] {
+                        rec.masked = masked;
+                        for eye in 0..2 {
+                            if rec.visible_in(eye) {
+                                for band in band_range(rec.rows, band_rows) {
+                                    counts[eye * bands + band] += 1;
+                                }
+                            }
+                        }
+                    }
+                }
+                stats
+            })
+            .reduce(RasterStats::default, |a, b| a + b)
+    }
+
+    fn bin(&mut self, extent: Extent) {
+        let (band_rows, bands) = (self.band_rows, self.bands(extent));
+        let chunks = self.records.len();
+        self.bin_start.clear();
+        self.bin_start.resize(2 * (bands + 1), 0);
+        let mut total = 0u32;
+        for eye in 0..2 {
+            for band in 0..bands {
+                self.bin_start[eye * (bands + 1) + band] = total;
+                for chunk in 0..chunks {
+                    let c = &mut self.counts[(chunk * 2 + eye) * bands + band];
+                    let count = *c;
+                    *c = total;
+                    total += count;
+                }
+            }
+            self.bin_start[eye * (bands + 1) + bands] = total;
+        }
+        self.bins.resize(total as usize, 0);
+        let bins = super::SharedSlice::new(&mut self.bins);
+        self.records.par_iter().zip(self.counts.par_chunks_mut(2 * bands)).enumerate().for_each(
+            |(chunk, (records, cursors))| {
+                for (i, rec) in records.iter().enumerate() {
+                    for eye in 0..2 {
+                        if rec.visible_in(eye) {
+                            for band in band_range(rec.rows, band_rows) {
+                                let at = &mut cursors[eye * bands + band];
+                                // SAFETY: the prefix sum gave every (chunk, eye, band) its own
+                                // range of `bins`, and this chunk's cursors only walk its own.
+                                unsafe { bins.write(*at as usize, ((chunk as u32) << 16) | i as u32) };
+                                *at += 1;
+                            }
+                        }
+                    }
+                }
+            },
+        );
+    }
+
+    fn fragments<M: AlphaTest>(
+        &self,
+        tris: Triangles<'_>,
+        cameras: [&CameraModel; 2],
+        mask: &M,
+        out: [&mut VisibilityBuffer; 2],
+        body: Body,
+    ) -> RasterStats {
+        let extent = cameras[0].extent;
+        let (w, band_rows, bands) = (extent.width(), self.band_rows, self.bands(extent));
+        let [left, right] = out;
+        let views = [0, 1].map(|eye| EyeView { camera: cameras[eye], tris, mask });
+        let run = |eye: usize, band: usize, ((prim, q), q_err): ((&mut [u32], &mut [f32]), &mut [f32])| {
+            prim.fill(NO_PRIM);
+            q.fill(0.0);
+            q_err.fill(0.0);
+            let at = eye * (bands + 1) + band;
+            let list = &self.bins[self.bin_start[at] as usize..self.bin_start[at + 1] as usize];
+            let rows = band * band_rows..(band * band_rows + band_rows).min(extent.height());
+            let mut band_out = Band { prim, q, width: w, rows };
+            let mut stats = RasterStats { band_records: list.len() as u64, ..RasterStats::default() };
+            for &r in list {
+                let rec = &self.records[(r >> 16) as usize][(r & 0xffff) as usize];
+                stats.exact += match body {
+                    Body::Simd => walk_simd(rec, eye, &views[eye], &mut band_out),
+                    Body::Scalar => walk_scalar(rec, eye, &views[eye], &mut band_out),
+                };
+            }
+            stats
+        };
+        let l = super::band_planes(left, w, band_rows).enumerate().map(|(band, bufs)| run(0, band, bufs));
+        let r = super::band_planes(right, w, band_rows).enumerate().map(|(band, bufs)| run(1, band, bufs));
+        l.chain(r).reduce(RasterStats::default, |a, b| a + b)
+    }
+}
+
+/// One band of one eye's visibility buffer.
+struct Band<'a> {
+    prim: &'a mut [u32],
+    q: &'a mut [f32],
+    width: usize,
+    rows: core::ops::Range<usize>,
+}
+
+/// Clips, projects and snaps one triangle, pushing its records (none when culled). Returns
+/// whether it was clipped (by the near plane or the guard band) or dropped past the limits.
+fn setup_triangle(t: &[f32; 9], prim: u32, p: &Projection, near: f32, out: &mut Vec<FixedRecord>) -> bool {
+    let d: [[f64; 3]; 3] =
+        core::array::from_fn(|k| core::array::from_fn(|c| f64::from(t[3 * k + c]) - f64::from(p.centre[c])));
+    if !d.iter().flatten().all(|v| v.is_finite()) {
+        return false;
+    }
+    let dot = |r: &[f32; 3], v: &[f64; 3]| f64::from(r[0]) * v[0] + f64::from(r[1]) * v[1] + f64::from(r[2]) * v[2];
+    let mut poly = [[0.0f64; 3]; MAX_POLYGON];
+    for (c, v) in poly.iter_mut().zip(&d) {
+        *c = [dot(&p.rx, v), dot(&p.ry, v), dot(&p.rw, v)];
+    }
+    let mut n = 3;
+    // The near plane, in the left eye's clip space: both eyes' w must exceed `near` (the
+    // right eye's w differs by the rig's rounding noise).
+    let near = f64::from(near).max(f64::from(near) - p.right_offset[2]);
+    let mut clipped = false;
+    if poly[..3].iter().any(|c| !(c[2] > near)) {
+        if poly[..3].iter().all(|c| !(c[2] > near)) {
+            return false;
+        }
+        n = clip_polygon(&mut poly, n, |c| c[2] - near);
+        clipped = true;
+    }
+    // The guard band, for each eye (the right eye's clip coordinates are the left's plus
+    // `right_offset`): only polygons that reach past it pay for these planes.
+    let (hw, hh) = (f64::from(p.hw), f64::from(p.hh));
+    let (gx, gy) = (GUARD_HALF_PX / hw, GUARD_HALF_PX / hh);
+    let offsets = [[0.0; 3], p.right_offset];
+    let beyond = |c: &[f64; 3], o: &[f64; 3]| {
+        let w = c[2] + o[2];
+        !((c[0] + o[0]).abs() <= gx * w && (c[1] + o[1]).abs() <= gy * w)
+    };
+    if poly[..n].iter().any(|c| offsets.iter().any(|o| beyond(c, o))) {
+        for o in offsets {
+            for (axis, g, sign) in [(0, gx, 1.0), (0, gx, -1.0), (1, gy, 1.0), (1, gy, -1.0)] {
+                n = clip_polygon(&mut poly, n, |c| g * (c[2] + o[2]) - sign * (c[axis] + o[axis]));
+                if n < 3 {
+                    return true;
+                }
+            }
+        }
+        clipped = true;
+    }
+    if n < 3 {
+        return clipped;
+    }
+    let mut verts = [Snapped::default(); MAX_POLYGON];
+    for (v, c) in verts.iter_mut().zip(&poly[..n]) {
+        for eye in 0..2 {
+            let o = if eye == 0 { [0.0; 3] } else { p.right_offset };
+            let w = c[2] + o[2];
+            let (x, y) = ((c[0] + o[0]) / w * hw + hw, -(c[1] + o[1]) / w * hh + hh);
+            if !(x.abs() <= HARD_LIMIT_PX && y.abs() <= HARD_LIMIT_PX) {
+                return true;
+            }
+            v.x[eye] = (x * ONE as f64).round() as i64;
+            v.y[eye] = (y * ONE as f64).round() as i64;
+            v.q[eye] = 1.0 / w;
+        }
+    }
+    for k in 1..n - 1 {
+        if let Some(rec) = record([verts[0], verts[k], verts[k + 1]], prim, p) {
+            out.push(rec);
+        }
+    }
+    clipped
+}
+
+/// Sutherland–Hodgman: clips the convex polygon `poly[..n]` to `inside(c) > 0` in place and
+/// returns the new vertex count (at most one more).
+fn clip_polygon(poly: &mut [[f64; 3]; MAX_POLYGON], n: usize, inside: impl Fn(&[f64; 3]) -> f64) -> usize {
+    let src = *poly;
+    let mut m = 0;
+    for k in 0..n {
+        let (a, b) = (src[k], src[(k + 1) % n]);
+        let (da, db) = (inside(&a), inside(&b));
+        if da > 0.0 {
+            poly[m] = a;
+            m += 1;
+        }
+        if (da > 0.0) != (db > 0.0) && m < MAX_POLYGON {
+            let s = da / (da - db);
+            poly[m] = [a[0] + (b[0] - a[0]) * s, a[1] + (b[1] - a[1]) * s, a[2] + (b[2] - a[2]) * s];
+            m += 1;
+        }
+    }
+    m
+}
+
+/// The record of one snapped triangle, or `None` when it covers no pixel centre in either
+/// eye (zero snapped area, or a bounding box between centres or off screen).
+fn record(v: [Snapped; 3], prim: u32, p: &Projection) -> Option<FixedRecord> {
+    // Pixel centres `i + 1/2` inside [lo, hi] (fixed point), clamped to the frame.
+    let centres = |lo: i64, hi: i64, size: i32| -> (i32, i32) {
+        let first = (lo - ONE / 2).div_euclid(ONE) + i64::from((lo - ONE / 2).rem_euclid(ONE) != 0);
+        let last = (hi - ONE / 2).div_euclid(ONE);
+        let (a, b) = (first.max(0), last.min(i64::from(size) - 1));
+        if a <= b { (a as i32, b as i32) } else { (1, 0) }
+    };
+    let mut rows = [(1, 0); 2];
+    let mut cols = [(1, 0); 2];
+    let mut order = [[0usize, 1, 2]; 2];
+    for eye in 0..2 {
+        let (x, y) = (v.map(|s| s.x[eye]), v.map(|s| s.y[eye]));
+        let area2 = (x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0]);
+        if area2 == 0 {
+            continue;
+        }
+        if area2 < 0 {
+            order[eye] = [0, 2, 1];
+        }
+        let r = centres(*y.iter().min().unwrap(), *y.iter().max().unwrap(), p.height);
+        let c = centres(*x.iter().min().unwrap(), *x.iter().max().unwrap(), p.width);
+        if r.0 <= r.1 && c.0 <= c.1 {
+            (rows[eye], cols[eye]) = (r, c);
+        }
+    }
+    let visible = |eye: usize| cols[eye].0 <= cols[eye].1;
+    if !(visible(0) || visible(1)) {
+        return None;
+    }
+    let rows = match (visible(0), visible(1)) {
+        (true, true) => (rows[0].0.min(rows[1].0), rows[0].1.max(rows[1].1)),
+        (true, false) => rows[0],
+        _ => rows[1],
+    };
+    let mut rec =
+        FixedRecord { eyes: [FixedEyeEdges { cols: (1, 0), ..Default::default() }; 2], rows, prim, masked: false };
+    for eye in 0..2 {
+        if !visible(eye) {
+            continue;
+        }
+        let o = order[eye];
+        let (x, y, q) = (o.map(|k| v[k].x[eye]), o.map(|k| v[k].y[eye]), o.map(|k| v[k].q[eye]));
+        let e = &mut rec.eyes[eye];
+        e.cols = cols[eye];
+        // The first pixel centre, in fixed point.
+        let (px, py) = (i64::from(e.cols.0) * ONE + ONE / 2, i64::from(rows.0) * ONE + ONE / 2);
+        for k in 0..3 {
+            let j = (k + 1) % 3;
+            // E_k(P) = cross(V_j − V_k, P − V_k): positive towards the third vertex.
+            let (ex, ey) = (x[j] - x[k], y[j] - y[k]);
+            let (step_x, step_y) = (-ey, ex);
+            // Top-left rule (rows grow downwards): an edge whose inside lies to its right
+            // (a left edge), or a horizontal one with the inside below (a top edge), owns
+            // the pixel centres exactly on it.
+            let owns = step_x > 0 || (step_x == 0 && step_y > 0);
+            e.e0[k] = ex * (py - y[k]) - ey * (px - x[k]) - i64::from(!owns);
+            e.dx[k] = step_x * ONE;
+            e.dy[k] = step_y * ONE;
+        }
+        // q is linear in screen space: the plane through the three snapped vertices,
+        // relative to the first pixel centre.
+        let fx = x.map(|x| (x - px) as f64 / ONE as f64);
+        let fy = y.map(|y| (y - py) as f64 / ONE as f64);
+        let det = (fx[1] - fx[0]) * (fy[2] - fy[0]) - (fx[2] - fx[0]) * (fy[1] - fy[0]);
+        let (dq1, dq2) = (q[1] - q[0], q[2] - q[0]);
+        let qa = (dq1 * (fy[2] - fy[0]) - dq2 * (fy[1] - fy[0])) / det;
+        let qb = (dq2 * (fx[1] - fx[0]) - dq1 * (fx[2] - fx[0])) / det;
+        let qc = q[0] - qa * fx[0] - qb * fy[0];
+        (e.qa, e.qb, e.qc) = (qa as f32, qb as f32, qc as f32);
+    }
+    Some(rec)
+}
+
+/// The depth test: a fragment of `prim` at `q` replaces the stored one when nearer (larger
+/// `q`), or as near with a smaller id.
+#[inline(always)]
+fn wins(q: f32, prim: u32, stored_q: f32, stored_prim: u32) -> bool {
+    q > stored_q || (q == stored_q && prim < stored_prim)
+}
+
+/// Whether a masked triangle's fragment at `(x, y)` is opaque: the tracer's own pixel ray
+/// and triangle test give the barycentrics (a ray that misses the triangle, at an edge the
+/// two decide differently, counts as transparent).
+#[inline(never)]
+fn opaque<M: AlphaTest>(view: &EyeView<'_, M>, prim: u32, x: usize, y: usize) -> bool {
+    view.pixel_ray(x, y).is_some_and(|r| view.exact_hit(&r, prim).is_some())
+}
+
+/// The rows of `rec` that `band` holds, for `eye`, with its columns; `None` when empty.
+#[inline(always)]
+fn span(rec: &FixedRecord, eye: usize, band: &Band<'_>) -> Option<((i32, i32), (i32, i32))> {
+    let (c0, c1) = rec.eyes[eye].cols;
+    let (y0, y1) = (rec.rows.0.max(band.rows.start as i32), rec.rows.1.min(band.rows.end as i32 - 1));
+    (y0 <= y1 && c0 <= c1).then_some(((c0, c1), (y0, y1)))
+}
+
+/// The scalar reference: every pixel of the record's box, one at a time. Returns the masked
+/// fragments tested.
+fn walk_scalar<M: AlphaTest>(rec: &FixedRecord, eye: usize, view: &EyeView<'_, M>, band: &mut Band<'_>) -> u64 {
+    let e = &rec.eyes[eye];
+    let Some(((c0, c1), (y0, y1))) = span(rec, eye, band) else { return 0 };
+    let mut masked = 0;
+    for y in y0..=y1 {
+        let dy = i64::from(y - rec.rows.0);
+        let q_row = e.qc + e.qb * (y - rec.rows.0) as f32;
+        let row = (y as usize - band.rows.start) * band.width;
+        for x in c0..=c1 {
+            let dx = i64::from(x - c0);
+            if (0..3).any(|k| e.e0[k] + e.dy[k] * dy + e.dx[k] * dx < 0) {
+                continue;
+            }
+            let q = q_row + e.qa * (x - c0) as f32;
+            let at = row + x as usize;
+            if !wins(q, rec.prim, band.q[at], band.prim[at]) {
+                continue;
+            }
+            if rec.masked {
+                masked += 1;
+                if !opaque(view, rec.prim, x as usize, y as usize) {
+                    continue;
+                }
+            }
+            band.q[at] = q;
+            band.prim[at] = rec.prim;
+        }
+    }
+    masked
+}
+
+/// The SIMD body: eight columns of a row at a time, each edge's eight integer values as two
+/// `i64x4` (exact, as the reference's), the same f32 depth key lane for lane. Identical
+/// buffers to [`walk_scalar`], bit for bit.
+fn walk_simd<M: AlphaTest>(rec: &FixedRecord, eye: usize, view: &EyeView<'_, M>, band: &mut Band<'_>) -> u64 {
+    let e = &rec.eyes[eye];
+    let Some(((c0, c1), (y0, y1))) = span(rec, eye, band) else { return 0 };
+    // Per edge, the lane offsets 0..7 steps to the right, and the step of a block of eight.
+    let lanes_lo = |d: i64| i64x4::from([0, d, 2 * d, 3 * d]);
+    let lanes_hi = |d: i64| i64x4::from([4 * d, 5 * d, 6 * d, 7 * d]);
+    let (lo, hi) = (e.dx.map(lanes_lo), e.dx.map(lanes_hi));
+    let prim = u32x8::splat(rec.prim);
+    let lane_bits = u32x8::from([1, 2, 4, 8, 16, 32, 64, 128]);
+    let width = (c1 - c0 + 1) as usize;
+    let mut masked = 0;
+    for y in y0..=y1 {
+        let dy = i64::from(y - rec.rows.0);
+        let q_row = e.qc + e.qb * (y - rec.rows.0) as f32;
+        let row = (y as usize - band.rows.start) * band.width;
+        let mut edge: [i64; 3] = core::array::from_fn(|k| e.e0[k] + e.dy[k] * dy);
+        let mut block = 0;
+        while block < width {
+            // Lane i is column c0 + block + i; its edge values, OR-ed: the sign bit is set
+            // where any edge function is negative (not covered).
+            let mut out_lo = i64x4::splat(0);
+            let mut out_hi = i64x4::splat(0);
+            for k in 0..3 {
+                let base = i64x4::splat(edge[k]);
+                out_lo |= base + lo[k];
+                out_hi |= base + hi[k];
+                edge[k] += 8 * e.dx[k];
+            }
+            let outside = out_lo.to_bitmask() | (out_hi.to_bitmask() << 4);
+            let lanes = (width - block).min(LANES);
+            let mut covered = !outside & ((1u32 << lanes) - 1);
+            if covered != 0 {
+                // (x − c0) as f32 times qa, as the reference: exact lane offsets plus the
+                // block's exact start, then one product and one sum.
+                let xf = F32s::splat(block as f32) + lane_offsets();
+                let q = F32s::splat(q_row) + xf * F32s::splat(e.qa);
+                let at = row + c0 as usize + block;
+                if lanes == LANES && !rec.masked {
+                    let stored_q = F32s::from(<[f32; LANES]>::try_from(&band.q[at..at + LANES]).expect("8 lanes"));
+                    let stored_p = u32x8::from(<[u32; LANES]>::try_from(&band.prim[at..at + LANES]).expect("8 lanes"));
+                    let nearer: u32x8 = bytemuck::cast(q.simd_gt(stored_q));
+                    let tie = bytemuck::cast::<F32s, u32x8>(q.simd_eq(stored_q)) & prim.simd_lt(stored_p);
+                    let lanes_covered = (u32x8::splat(covered) & lane_bits).simd_ne(u32x8::ZERO);
+                    let wins = lanes_covered & (nearer | tie);
+                    if wins.any() {
+                        let new_q = bytemuck::cast::<u32x8, F32s>(wins).select(q, stored_q);
+                        let new_p = wins.select(prim, stored_p);
+                        band.q[at..at + LANES].copy_from_slice(&new_q.to_array());
+                        band.prim[at..at + LANES].copy_from_slice(&new_p.to_array());
+                    }
+                } else {
+                    let qs = q.to_array();
+                    while covered != 0 {
+                        let i = covered.trailing_zeros() as usize;
+                        covered &= covered - 1;
+                        let (qi, ati) = (qs[i], at + i);
+                        if !wins(qi, rec.prim, band.q[ati], band.prim[ati]) {
+                            continue;
+                        }
+                        if rec.masked {
+                            masked += 1;
+                            let x = c0 as usize + block + i;
+                            if !opaque(view, rec.prim, x, y as usize) {
+                                continue;
+                            }
+                        }
+                        band.q[ati] = qi;
+                        band.prim[ati] = rec.prim;
+                    }
+                }
+            }
+            block += LANES;
+        }
+    }
+    masked
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn clipping_keeps_the_inside_and_adds_the_crossings() {
+        let mut poly = [[0.0; 3]; MAX_POLYGON];
+        poly[..3].copy_from_slice(&[[0.0, 0.0, -1.0], [1.0, 0.0, 1.0], [0.0, 1.0, 1.0]]);
+        let n = clip_polygon(&mut poly, 3, |c| c[2]);
+        assert_eq!(n, 4);
+        assert!(poly[..n].iter().all(|c| c[2] >= 0.0));
+        assert!(poly[..n].contains(&[0.5, 0.0, 0.0]) && poly[..n].contains(&[0.0, 0.5, 0.0]));
+    }
+}
