@@ -500,8 +500,9 @@ const SNAP_PX: f64 = 1.0 / 256.0;
 /// closest hit, unless one of these explains the difference:
 /// - the near plane or the tracer's self-intersection guard, as in [`raster`];
 /// - **the snap**: exact (f64) geometry shows the raster's answer from some point within
-///   1/256 px of the pixel centre (sampled on three circles, and at the raster's triangle's
-///   nearest point to the centre);
+///   1/256 px of the pixel centre (sampled on three circles), or every triangle it shows in
+///   front of the raster's at the centre has an edge within 1/256 px of the centre (its
+///   snapped image may leave the centre out) or is a depth tie with it;
 /// - **a depth tie within the snap**: both triangles' planes pass the centre ray at depth keys
 ///   `q = 1/depth` closer than what moving their vertices by the snap can change
 ///   (`|∇q|₁/256` each, in pixels), plus the tracer's own rounding.
@@ -559,26 +560,22 @@ fn exact_nearest_at(camera: &CameraModel, tris: &[TriVerts], px: f64, py: f64) -
     let (o, d) = ray_f64(camera, px, py);
     let mut best = (f64::INFINITY, NO_PRIM);
     for (i, t) in tris.iter().enumerate() {
-        let (e1, e2) = (vertex(t, 1) - vertex(t, 0), vertex(t, 2) - vertex(t, 0));
-        let p = d.cross(e2);
-        let det = e1.dot(p);
-        if det == 0.0 || !det.is_finite() {
-            continue;
-        }
-        let s = o - vertex(t, 0);
-        let (u, q) = (s.dot(p) / det, s.cross(e1));
-        let v = d.dot(q) / det;
-        let depth = e2.dot(q) / det;
-        if u >= 0.0 && v >= 0.0 && u + v <= 1.0 && depth > f64::from(RASTER_NEAR) && depth < best.0 {
+        if let Some(depth) = exact_hit(t, o, d)
+            && depth < best.0
+        {
             best = (depth, i as u32);
         }
     }
     best.1
 }
 
-/// Whether exact geometry shows `got` from a point within the snap of pixel `(x, y)`'s
-/// centre: on circles of 1/4, 1/2 and 1 snap, and at `got`'s screen image's nearest point to
-/// the centre (a sliver thinner than the circles' spacing).
+/// Whether snapping explains the fixed raster's `got` at pixel `(x, y)`:
+/// - exact geometry shows `got` from a point within the snap of the centre (sampled on
+///   circles of 1/4, 1/2 and 1 snap), or
+/// - every triangle exact geometry shows in front of `got` at the centre (all it shows there,
+///   when `got` is none) has an edge within the snap of the centre, so its snapped image may
+///   leave the centre out, and `got` itself covers the centre or has an edge within the snap
+///   (two triangles meeting there without sharing an edge may both be snapped off it).
 fn snap_explains(camera: &CameraModel, tris: &[TriVerts], got: u32, x: usize, y: usize) -> bool {
     let (cx, cy) = (x as f64 + 0.5, y as f64 + 0.5);
     let sees = |px: f64, py: f64| exact_nearest_at(camera, tris, px, py) == got;
@@ -588,18 +585,51 @@ fn snap_explains(camera: &CameraModel, tris: &[TriVerts], got: u32, x: usize, y:
             sees(cx + r * SNAP_PX * a.cos(), cy + r * SNAP_PX * a.sin())
         })
     });
-    circles
-        || tris.get(got as usize).is_some_and(|t| {
-            nearest_screen_point(camera, t, cx, cy).is_some_and(|(px, py, dist)| {
-                // The nearest point itself, and a hair inside it towards the centre's side.
-                dist <= SNAP_PX && (sees(px, py) || sees(px + (px - cx) * 1e-3, py + (py - cy) * 1e-3))
-            })
-        })
+    if circles {
+        return true;
+    }
+    let boundary = |t: &TriVerts| screen_boundary(camera, t, cx, cy);
+    let got_depth = match tris.get(got as usize) {
+        None => f64::INFINITY,
+        Some(t) => match boundary(t) {
+            // Covering the centre, or within the snap of doing so: its plane's depth there.
+            Some((inside, dist)) if inside || dist <= SNAP_PX => {
+                let (o, d) = ray_f64(camera, cx, cy);
+                let n = area_vector(t);
+                let depth = n.dot(vertex(t, 0) - o) / n.dot(d);
+                if depth.is_finite() { depth } else { return false }
+            }
+            _ => return false,
+        },
+    };
+    let (o, d) = ray_f64(camera, cx, cy);
+    tris.iter().enumerate().all(|(i, t)| {
+        i as u32 == got
+            || exact_hit(t, o, d).is_none_or(|depth| depth >= got_depth)
+            || boundary(t).is_some_and(|(_, dist)| dist <= SNAP_PX)
+            || tris.get(got as usize).is_some_and(|g| keys_tie(camera, g, t, cx, cy))
+    })
 }
 
-/// The point of `tri`'s screen image (its part in front of the near plane) nearest to
-/// `(cx, cy)`, and its distance; the centre itself when inside.
-fn nearest_screen_point(camera: &CameraModel, tri: &TriVerts, cx: f64, cy: f64) -> Option<(f64, f64, f64)> {
+/// Möller–Trumbore in f64 (edges inclusive): the depth of `tri` along `o + t·d` beyond the
+/// near plane, if hit.
+fn exact_hit(t: &TriVerts, o: DVec3, d: DVec3) -> Option<f64> {
+    let (e1, e2) = (vertex(t, 1) - vertex(t, 0), vertex(t, 2) - vertex(t, 0));
+    let p = d.cross(e2);
+    let det = e1.dot(p);
+    if det == 0.0 || !det.is_finite() {
+        return None;
+    }
+    let s = o - vertex(t, 0);
+    let (u, q) = (s.dot(p) / det, s.cross(e1));
+    let v = d.dot(q) / det;
+    let depth = e2.dot(q) / det;
+    (u >= 0.0 && v >= 0.0 && u + v <= 1.0 && depth > f64::from(RASTER_NEAR)).then_some(depth)
+}
+
+/// Whether `(cx, cy)` lies in `tri`'s screen image (its part in front of the near plane), and
+/// its distance to the image's boundary. `None` when nothing of it is in front.
+fn screen_boundary(camera: &CameraModel, tri: &TriVerts, cx: f64, cy: f64) -> Option<(bool, f64)> {
     let rows = camera.rows.map(|r| r.map(f64::from));
     let (hw, hh) = (camera.extent.width() as f64 * 0.5, camera.extent.height() as f64 * 0.5);
     let clip: Vec<[f64; 3]> = (0..3)
@@ -628,19 +658,17 @@ fn nearest_screen_point(camera: &CameraModel, tri: &TriVerts, cx: f64, cy: f64) 
     let n = pts.len();
     let cross = |a: [f64; 2], b: [f64; 2]| (b[0] - a[0]) * (cy - a[1]) - (b[1] - a[1]) * (cx - a[0]);
     let signs: Vec<f64> = (0..n).map(|k| cross(pts[k], pts[(k + 1) % n])).collect();
-    if signs.iter().all(|&s| s >= 0.0) || signs.iter().all(|&s| s <= 0.0) {
-        return Some((cx, cy, 0.0));
-    }
-    (0..n)
+    let inside = signs.iter().all(|&s| s >= 0.0) || signs.iter().all(|&s| s <= 0.0);
+    let dist = (0..n)
         .map(|k| {
             let (a, b) = (pts[k], pts[(k + 1) % n]);
             let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
             let len2 = dx * dx + dy * dy;
             let s = if len2 > 0.0 { (((cx - a[0]) * dx + (cy - a[1]) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };
-            let (px, py) = (a[0] + s * dx, a[1] + s * dy);
-            (px, py, ((px - cx).powi(2) + (py - cy).powi(2)).sqrt())
+            ((a[0] + s * dx - cx).powi(2) + (a[1] + s * dy - cy).powi(2)).sqrt()
         })
-        .min_by(|a, b| a.2.total_cmp(&b.2))
+        .fold(f64::INFINITY, f64::min);
+    Some((inside, dist))
 }
 
 /// `tri`'s plane as a depth key along the pixel rays: `q(px, py) = 1/depth`, linear in screen
@@ -663,7 +691,12 @@ fn depth_key(camera: &CameraModel, tri: &TriVerts, px: f64, py: f64) -> Option<(
 /// rounding (relative `tracer_error / reach` of each).
 fn depth_tie_within_snap(camera: &CameraModel, tris: &[TriVerts], got: u32, want: u32, x: usize, y: usize) -> bool {
     let (Some(a), Some(b)) = (tris.get(got as usize), tris.get(want as usize)) else { return false };
-    let (cx, cy) = (x as f64 + 0.5, y as f64 + 0.5);
+    keys_tie(camera, a, b, x as f64 + 0.5, y as f64 + 0.5)
+}
+
+/// Whether triangles `a` and `b` are a depth tie at screen point `(cx, cy)` for the fixed
+/// rasteriser (see [`depth_tie_within_snap`]).
+fn keys_tie(camera: &CameraModel, a: &TriVerts, b: &TriVerts, cx: f64, cy: f64) -> bool {
     let (Some((qa, ga)), Some((qb, gb))) = (depth_key(camera, a, cx, cy), depth_key(camera, b, cx, cy)) else {
         return false;
     };

@@ -304,13 +304,15 @@ fn triangles_through_the_eye_plane_and_far_past_the_frame_are_clipped() {
     assert!(seen(0) > 500 && seen(1) > 500 && seen(2) == 0, "floor {}, wall {}, behind {}", seen(0), seen(1), seen(2));
 }
 
-/// Found by fuzzing (the `raster_fixed` corpus holds the input): with a near plane at 10⁻⁶
-/// and eyes 19 cm apart, a triangle whose plane passes within a centimetre of the left eye
-/// and behind it is cut by the near plane right beside the left eye's axis, inside its guard
-/// band, where the right eye sees the cut 0.19 m / 10⁻⁶ m off to the side: the triangle was
-/// dropped from both eyes. Both eyes' guard bands are clipped now.
+/// Found by fuzzing (the `raster_fixed` corpus holds the inputs): with a near plane at 10⁻⁶
+/// and eyes 18–19 cm apart, a triangle whose plane passes within a centimetre of one eye and
+/// behind it is cut by the near plane beside that eye's axis, where the other eye sees the
+/// cut 0.19 m / 10⁻⁶ m off to the side. First the triangle was dropped from both eyes (past
+/// the coordinate limit in one); then, clipped to both eyes' guard bands at once, the left
+/// eye's band cut away most of what the right eye sees. Each eye is clipped to its own band
+/// now.
 #[test]
-fn a_triangle_behind_the_eye_clips_to_both_eyes_guard_bands() {
+fn a_triangle_behind_the_eye_clips_to_each_eyes_own_guard_band() {
     let extent = Extent::new(10, 6).unwrap();
     let (eye, forward) =
         (Vec3::new(0.24509805, -0.39411765, 1.382353), Vec3::new(-0.19511418, -0.18833314, -0.9625285));

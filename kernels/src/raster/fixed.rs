@@ -11,8 +11,8 @@
 //! 1. **Setup** (parallel over fixed chunks of triangles, in triangle order): vertices move
 //!    into the left camera's frame (camera-relative, f64), are clipped against the near plane
 //!    `w > near` and, only if a vertex projects beyond the guard band (±2¹⁹ px around the
-//!    frame) in either eye, against both eyes' guard-band planes; the polygon left is fanned
-//!    into triangles. Each vertex is projected for both eyes (the parallel rig's eyes differ by a
+//!    frame) in either eye, against each eye's guard-band planes separately (each eye then
+//!    gets records of its own); the polygon left is fanned into triangles. Each vertex is projected for both eyes (the parallel rig's eyes differ by a
 //!    constant clip-space offset, so the right eye costs one more division per vertex) and
 //!    snapped to [`SUBPIXEL_BITS`] fractional bits. A triangle whose snapped area is zero, or
 //!    whose bounding box holds no pixel centre, in both eyes, keeps no record.
@@ -33,12 +33,13 @@
 //! Screen coordinates stay within ±2²⁰ px after the guard-band clip, so every edge function
 //! fits an `i64` with room to spare (|E| < 2⁶⁰). (A coordinate past ±2²¹ px after the clip,
 //! which rounding alone cannot produce, would drop its triangle rather than overflow.) A vertex
-//! that is NaN or infinite drops its triangle (the tracer never hits one).
+//! that is NaN or infinite, or three collinear vertices, drop the triangle (the tracer never
+//! hits one; snapped, a segment's image could cover a pixel centre).
 
 use std::time::Instant;
 
 use rayon::prelude::*;
-use wide::{i64x4, u32x8};
+use wide::{i32x8, i64x4, u32x8};
 
 use super::{AlphaTest, Body, EyeView, NO_PRIM, Projection, RasterStats, Triangles, VisibilityBuffer, band_range};
 use crate::camera::CameraModel;
@@ -74,6 +75,9 @@ pub(crate) struct FixedEyeEdges {
     pub qa: f32,
     pub qb: f32,
     pub qc: f32,
+    /// `1 / dx[k]` (0 where `dx[k]` is 0): where each edge crosses a row, for the SIMD body's
+    /// row spans.
+    pub inv_dx: [f64; 3],
     /// Columns `cols.0..=cols.1` (empty when the first exceeds the second).
     pub cols: (i32, i32),
 }
@@ -282,8 +286,19 @@ impl FixedRasterizer {
             let rows = band * band_rows..(band * band_rows + band_rows).min(extent.height());
             let mut band_out = Band { prim, q, width: w, rows };
             let mut stats = RasterStats { band_records: list.len() as u64, ..RasterStats::default() };
-            for &r in list {
-                let rec = &self.records[(r >> 16) as usize][(r & 0xffff) as usize];
+            let record = |r: u32| &self.records[(r >> 16) as usize][(r & 0xffff) as usize];
+            for (i, &r) in list.iter().enumerate() {
+                // The records of a band are scattered over the frame's records: fetch ahead.
+                if let Some(&ahead) = list.get(i + 6) {
+                    let p = &record(ahead).eyes[eye] as *const FixedEyeEdges as *const i8;
+                    #[cfg(target_arch = "x86_64")]
+                    // SAFETY: a prefetch of a valid reference's address; it reads nothing.
+                    unsafe {
+                        core::arch::x86_64::_mm_prefetch::<{ core::arch::x86_64::_MM_HINT_T0 }>(p);
+                        core::arch::x86_64::_mm_prefetch::<{ core::arch::x86_64::_MM_HINT_T0 }>(p.add(64));
+                    }
+                }
+                let rec = record(r);
                 stats.exact += match body {
                     Body::Simd => walk_simd(rec, eye, &views[eye], &mut band_out),
                     Body::Scalar => walk_scalar(rec, eye, &views[eye], &mut band_out),
@@ -313,15 +328,52 @@ fn setup_triangle(t: &[f32; 9], prim: u32, p: &Projection, near: f32, out: &mut 
     if !d.iter().flatten().all(|v| v.is_finite()) {
         return false;
     }
-    let dot = |r: &[f32; 3], v: &[f64; 3]| f64::from(r[0]) * v[0] + f64::from(r[1]) * v[1] + f64::from(r[2]) * v[2];
-    let mut poly = [[0.0f64; 3]; MAX_POLYGON];
-    for (c, v) in poly.iter_mut().zip(&d) {
-        *c = [dot(&p.rx, v), dot(&p.ry, v), dot(&p.rw, v)];
+    // Collinear vertices: a segment, which the tracer never hits; snapped to the grid its image
+    // could still cover a pixel centre. (Differences of f32 values are exact in f64.)
+    let (e1, e2) = ([0, 1, 2].map(|c| d[1][c] - d[0][c]), [0, 1, 2].map(|c| d[2][c] - d[0][c]));
+    let area = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
+    if area == [0.0; 3] {
+        return false;
     }
-    let mut n = 3;
+    let dot = |r: &[f32; 3], v: &[f64; 3]| f64::from(r[0]) * v[0] + f64::from(r[1]) * v[1] + f64::from(r[2]) * v[2];
+    let clip = d.map(|v| [dot(&p.rx, &v), dot(&p.ry, &v), dot(&p.rw, &v)]);
+    let offsets = [[0.0; 3], p.right_offset];
+    // Outside the frustum for both eyes: all three vertices beyond one side plane (x = ±w,
+    // y = ±w, planes through the eye, so this holds behind it too). No pixel centre lies
+    // beyond them, nor within a snap of them.
+    let outside = |o: &[f64; 3]| {
+        let beyond = |f: &dyn Fn(&[f64; 3]) -> bool| clip.iter().all(f);
+        let (x, y, w) = (|c: &[f64; 3]| c[0] + o[0], |c: &[f64; 3]| c[1] + o[1], |c: &[f64; 3]| c[2] + o[2]);
+        beyond(&|c| x(c) > w(c)) || beyond(&|c| -x(c) > w(c)) || beyond(&|c| y(c) > w(c)) || beyond(&|c| -y(c) > w(c))
+    };
+    if outside(&offsets[0]) && outside(&offsets[1]) {
+        return false;
+    }
     // The near plane, in the left eye's clip space: both eyes' w must exceed `near` (the
     // right eye's w differs by the rig's rounding noise).
     let near = f64::from(near).max(f64::from(near) - p.right_offset[2]);
+    let (hw, hh) = (f64::from(p.hw), f64::from(p.hh));
+    let (gx, gy) = (GUARD_HALF_PX / hw, GUARD_HALF_PX / hh);
+    let beyond = |c: &[f64; 3], o: &[f64; 3]| {
+        let w = c[2] + o[2];
+        !((c[0] + o[0]).abs() <= gx * w && (c[1] + o[1]).abs() <= gy * w)
+    };
+    // Most triangles need no clipping: project them as they are.
+    if clip.iter().all(|c| c[2] > near && !offsets.iter().any(|o| beyond(c, o))) {
+        let mut verts = [Snapped::default(); 3];
+        for (v, c) in verts.iter_mut().zip(&clip) {
+            if !snap(v, c, p) {
+                return true;
+            }
+        }
+        if let Some(rec) = record(verts, prim, p, [true; 2]) {
+            out.push(rec);
+        }
+        return false;
+    }
+    let mut poly = [[0.0f64; 3]; MAX_POLYGON];
+    poly[..3].copy_from_slice(&clip);
+    let mut n = 3;
     let mut clipped = false;
     if poly[..3].iter().any(|c| !(c[2] > near)) {
         if poly[..3].iter().all(|c| !(c[2] > near)) {
@@ -330,49 +382,72 @@ fn setup_triangle(t: &[f32; 9], prim: u32, p: &Projection, near: f32, out: &mut 
         n = clip_polygon(&mut poly, n, |c| c[2] - near);
         clipped = true;
     }
-    // The guard band, for each eye (the right eye's clip coordinates are the left's plus
-    // `right_offset`): only polygons that reach past it pay for these planes.
-    let (hw, hh) = (f64::from(p.hw), f64::from(p.hh));
-    let (gx, gy) = (GUARD_HALF_PX / hw, GUARD_HALF_PX / hh);
-    let offsets = [[0.0; 3], p.right_offset];
-    let beyond = |c: &[f64; 3], o: &[f64; 3]| {
-        let w = c[2] + o[2];
-        !((c[0] + o[0]).abs() <= gx * w && (c[1] + o[1]).abs() <= gy * w)
-    };
-    if poly[..n].iter().any(|c| offsets.iter().any(|o| beyond(c, o))) {
-        for o in offsets {
-            for (axis, g, sign) in [(0, gx, 1.0), (0, gx, -1.0), (1, gy, 1.0), (1, gy, -1.0)] {
-                n = clip_polygon(&mut poly, n, |c| g * (c[2] + o[2]) - sign * (c[axis] + o[axis]));
-                if n < 3 {
-                    return true;
-                }
-            }
-        }
-        clipped = true;
-    }
     if n < 3 {
         return clipped;
     }
-    let mut verts = [Snapped::default(); MAX_POLYGON];
-    for (v, c) in verts.iter_mut().zip(&poly[..n]) {
-        for eye in 0..2 {
-            let o = if eye == 0 { [0.0; 3] } else { p.right_offset };
-            let w = c[2] + o[2];
-            let (x, y) = ((c[0] + o[0]) / w * hw + hw, -(c[1] + o[1]) / w * hh + hh);
-            if !(x.abs() <= HARD_LIMIT_PX && y.abs() <= HARD_LIMIT_PX) {
-                return true;
+    // The guard band: only polygons that reach past it pay for its planes, and then each eye
+    // is clipped to its own (the right eye's clip coordinates are the left's plus
+    // `right_offset`). Not to both at once: near the eye the two views part by far more than
+    // the band, and one eye's band would cut away what the other sees.
+    if poly[..n].iter().any(|c| offsets.iter().any(|o| beyond(c, o))) {
+        for (eye, o) in offsets.iter().enumerate() {
+            let mut own = poly;
+            let mut m = n;
+            for (axis, g, sign) in [(0, gx, 1.0), (0, gx, -1.0), (1, gy, 1.0), (1, gy, -1.0)] {
+                if m >= 3 {
+                    m = clip_polygon(&mut own, m, |c| g * (c[2] + o[2]) - sign * (c[axis] + o[axis]));
+                }
             }
-            v.x[eye] = (x * ONE as f64).round() as i64;
-            v.y[eye] = (y * ONE as f64).round() as i64;
-            v.q[eye] = 1.0 / w;
+            fan(&own[..m], prim, p, [eye == 0, eye == 1], out);
+        }
+        return true;
+    }
+    fan(&poly[..n], prim, p, [true; 2], out);
+    clipped
+}
+
+/// Snaps the convex polygon `poly` (clip space) for `eyes`, and pushes the records of its fan
+/// triangles. A vertex past the coordinate limit in an eye drops the polygon for that eye.
+fn fan(poly: &[[f64; 3]], prim: u32, p: &Projection, eyes: [bool; 2], out: &mut Vec<FixedRecord>) {
+    if poly.len() < 3 {
+        return;
+    }
+    let mut verts = [Snapped::default(); MAX_POLYGON];
+    for (v, c) in verts.iter_mut().zip(poly) {
+        for eye in (0..2).filter(|&e| eyes[e]) {
+            if !snap_eye(v, c, p, eye) {
+                return;
+            }
         }
     }
-    for k in 1..n - 1 {
-        if let Some(rec) = record([verts[0], verts[k], verts[k + 1]], prim, p) {
+    for k in 1..poly.len() - 1 {
+        if let Some(rec) = record([verts[0], verts[k], verts[k + 1]], prim, p, eyes) {
             out.push(rec);
         }
     }
-    clipped
+}
+
+/// Projects the clip-space point `c` (the left eye's) for both eyes and snaps it into `v`;
+/// false when it lands past the coordinate limit.
+#[inline(always)]
+fn snap(v: &mut Snapped, c: &[f64; 3], p: &Projection) -> bool {
+    snap_eye(v, c, p, 0) && snap_eye(v, c, p, 1)
+}
+
+/// [`snap`] for one eye.
+#[inline(always)]
+fn snap_eye(v: &mut Snapped, c: &[f64; 3], p: &Projection, eye: usize) -> bool {
+    let (hw, hh) = (f64::from(p.hw), f64::from(p.hh));
+    let o = if eye == 0 { [0.0; 3] } else { p.right_offset };
+    let q = 1.0 / (c[2] + o[2]);
+    let (x, y) = ((c[0] + o[0]) * q * hw + hw, -(c[1] + o[1]) * q * hh + hh);
+    if !(x.abs() <= HARD_LIMIT_PX && y.abs() <= HARD_LIMIT_PX) {
+        return false;
+    }
+    v.x[eye] = (x * ONE as f64).round() as i64;
+    v.y[eye] = (y * ONE as f64).round() as i64;
+    v.q[eye] = q;
+    true
 }
 
 /// Sutherland–Hodgman: clips the convex polygon `poly[..n]` to `inside(c) > 0` in place and
@@ -396,9 +471,10 @@ fn clip_polygon(poly: &mut [[f64; 3]; MAX_POLYGON], n: usize, inside: impl Fn(&[
     m
 }
 
-/// The record of one snapped triangle, or `None` when it covers no pixel centre in either
-/// eye (zero snapped area, or a bounding box between centres or off screen).
-fn record(v: [Snapped; 3], prim: u32, p: &Projection) -> Option<FixedRecord> {
+/// The record of one snapped triangle for `eyes` (the other eye's part empty), or `None`
+/// when it covers no pixel centre in them (zero snapped area, or a bounding box between
+/// centres or off screen).
+fn record(v: [Snapped; 3], prim: u32, p: &Projection, eyes: [bool; 2]) -> Option<FixedRecord> {
     // Pixel centres `i + 1/2` inside [lo, hi] (fixed point), clamped to the frame.
     let centres = |lo: i64, hi: i64, size: i32| -> (i32, i32) {
         let first = (lo - ONE / 2).div_euclid(ONE) + i64::from((lo - ONE / 2).rem_euclid(ONE) != 0);
@@ -409,7 +485,7 @@ fn record(v: [Snapped; 3], prim: u32, p: &Projection) -> Option<FixedRecord> {
     let mut rows = [(1, 0); 2];
     let mut cols = [(1, 0); 2];
     let mut order = [[0usize, 1, 2]; 2];
-    for eye in 0..2 {
+    for eye in (0..2).filter(|&e| eyes[e]) {
         let (x, y) = (v.map(|s| s.x[eye]), v.map(|s| s.y[eye]));
         let area2 = (x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0]);
         if area2 == 0 {
@@ -457,6 +533,7 @@ fn record(v: [Snapped; 3], prim: u32, p: &Projection) -> Option<FixedRecord> {
             e.e0[k] = ex * (py - y[k]) - ey * (px - x[k]) - i64::from(!owns);
             e.dx[k] = step_x * ONE;
             e.dy[k] = step_y * ONE;
+            e.inv_dx[k] = if e.dx[k] == 0 { 0.0 } else { 1.0 / e.dx[k] as f64 };
         }
         // q is linear in screen space: the plane through the three snapped vertices,
         // relative to the first pixel centre.
@@ -528,10 +605,156 @@ fn walk_scalar<M: AlphaTest>(rec: &FixedRecord, eye: usize, view: &EyeView<'_, M
     masked
 }
 
-/// The SIMD body: eight columns of a row at a time, each edge's eight integer values as two
-/// `i64x4` (exact, as the reference's), the same f32 depth key lane for lane. Identical
-/// buffers to [`walk_scalar`], bit for bit.
+/// The columns of row `dy` (rows from the record's first) that can be covered, as offsets from
+/// its first column, clamped to `0..width`: where each edge function crosses zero, in f64,
+/// widened by a pixel on each side, so every covered pixel is inside (the lanes then test
+/// each pixel exactly). `None` when no pixel can be.
+#[inline(always)]
+fn row_span(e: &FixedEyeEdges, dy: i64, width: usize) -> Option<(usize, usize)> {
+    let (mut lo, mut hi) = (0.0f64, (width - 1) as f64);
+    for k in 0..3 {
+        let at = (e.e0[k] + e.dy[k] * dy) as f64;
+        match e.dx[k].signum() {
+            // E grows to the right: covered from its zero on.
+            1 => lo = lo.max(-at * e.inv_dx[k] - 1.0),
+            -1 => hi = hi.min(-at * e.inv_dx[k] + 1.0),
+            // Parallel to the row: all of it or none.
+            _ if at < 0.0 => return None,
+            _ => {}
+        }
+    }
+    (lo <= hi).then(|| (lo.floor() as usize, hi.ceil().min((width - 1) as f64) as usize))
+}
+
+/// The SIMD body: per row, the columns [`row_span`] leaves, eight at a time, each edge's
+/// eight integer values as two `i64x4` (exact, as the reference's), the same f32 depth key
+/// lane for lane. Identical buffers to [`walk_scalar`], bit for bit.
 fn walk_simd<M: AlphaTest>(rec: &FixedRecord, eye: usize, view: &EyeView<'_, M>, band: &mut Band<'_>) -> u64 {
+    let e = &rec.eyes[eye];
+    if !rec.masked && e.dx.iter().all(|d| d.abs() < NARROW_STEP) {
+        walk_narrow(rec, eye, band);
+        return 0;
+    }
+    walk_wide(rec, eye, view, band)
+}
+
+/// Steps per pixel below this (edges spanning fewer than 2048 rows) let eight lanes of an
+/// edge function live in `i32`: see [`walk_narrow`].
+const NARROW_STEP: i64 = 1 << 27;
+
+/// [`walk_simd`] for an opaque record whose edges step by less than [`NARROW_STEP`] per pixel
+/// (almost all of them), with no branch per block: eight lanes of each edge function in one
+/// `i32x8`, from the block's exact `i64` value clamped to ±2³⁰. The clamp keeps every sign:
+/// a value past 2³⁰ stays past 2³⁰ − 7·2²⁷ > 0 across the block (likewise below), and values
+/// within it are exact. The depth test is a blend and a store, taken or not.
+fn walk_narrow(rec: &FixedRecord, eye: usize, band: &mut Band<'_>) {
+    let e = &rec.eyes[eye];
+    let Some(((c0, c1), (y0, y1))) = span(rec, eye, band) else { return };
+    let lane = i32x8::from([0, 1, 2, 3, 4, 5, 6, 7]);
+    let lane_dx = e.dx.map(|d| lane * i32x8::splat(d as i32));
+    let step = e.dx.map(|d| 8 * d);
+    const LIMIT: i64 = 1 << 30;
+    let (prim, qa) = (u32x8::splat(rec.prim), F32s::splat(e.qa));
+    let (c0, width) = (c0 as usize, (c1 - c0 + 1) as usize);
+    // Where each edge crosses row dy, as a linear function of dy (the f64 form of
+    // `row_span`, without its per-row products).
+    let crossing = |k: usize| (-(e.e0[k] as f64) * e.inv_dx[k], -(e.dy[k] as f64) * e.inv_dx[k]);
+    let crossings = [crossing(0), crossing(1), crossing(2)];
+    let last_column = (width - 1) as f64;
+    for y in y0..=y1 {
+        let dy = i64::from(y - rec.rows.0);
+        let (mut lo, mut hi) = (0.0f64, last_column);
+        let mut empty = false;
+        for k in 0..3 {
+            let at = crossings[k].0 + crossings[k].1 * dy as f64;
+            match e.dx[k].signum() {
+                1 => lo = lo.max(at - 1.0),
+                -1 => hi = hi.min(at + 1.0),
+                _ => empty |= e.e0[k] + e.dy[k] * dy < 0,
+            }
+        }
+        if empty || !(lo <= hi) {
+            continue;
+        }
+        let (first, last) = (lo.floor() as usize, hi.ceil().min(last_column) as usize);
+        let q_row = F32s::splat(e.qc + e.qb * (y - rec.rows.0) as f32);
+        let row = (y as usize - band.rows.start) * band.width;
+        // Blocks of eight image columns from a multiple of eight: every record's loads and
+        // stores of a pixel block then fall on the same 32 bytes (an unaligned load overlapping
+        // an earlier unaligned store cannot be forwarded and waits for it).
+        let (lo, hi) = (c0 + first, c0 + last);
+        let mut bx = lo;
+        let mut edge: [i64; 3] = core::array::from_fn(|k| e.e0[k] + e.dy[k] * dy + e.dx[k] * (bx as i64 - c0 as i64));
+        while bx <= hi {
+            let q = q_row + (F32s::splat((bx as i64 - c0 as i64) as f32) + lane_offsets()) * qa;
+            if bx + LANES > band.width {
+                // The image's right border: one lane at a time.
+                let (from, to) = (lo.max(bx) - bx, hi - bx + 1);
+                scalar_lanes(rec, e, &edge, q, from..to, &mut band.q[row + bx..], &mut band.prim[row + bx..]);
+                break;
+            }
+            let outside = (0..3)
+                .fold(i32x8::splat(0), |acc, k| acc | (i32x8::splat(edge[k].clamp(-LIMIT, LIMIT) as i32) + lane_dx[k]));
+            let xs = lane + i32x8::splat(bx as i32);
+            let valid = xs.simd_ge(i32x8::splat(lo as i32)) & xs.simd_le(i32x8::splat(hi as i32));
+            let covered: u32x8 = bytemuck::cast(valid & outside.simd_ge(i32x8::splat(0)));
+            let at = row + bx;
+            let stored_q = hidden(F32s::from(<[f32; LANES]>::try_from(&band.q[at..at + LANES]).expect("8 lanes")));
+            let stored_p = hidden(u32x8::from(<[u32; LANES]>::try_from(&band.prim[at..at + LANES]).expect("8 lanes")));
+            let nearer: u32x8 = bytemuck::cast(q.simd_gt(stored_q));
+            let tie = bytemuck::cast::<F32s, u32x8>(q.simd_eq(stored_q)) & prim.simd_lt(stored_p);
+            let wins = covered & (nearer | tie);
+            band.q[at..at + LANES].copy_from_slice(&bytemuck::cast::<u32x8, F32s>(wins).select(q, stored_q).to_array());
+            band.prim[at..at + LANES].copy_from_slice(&wins.select(prim, stored_p).to_array());
+            for k in 0..3 {
+                edge[k] += step[k];
+            }
+            bx += LANES;
+        }
+    }
+}
+
+/// `v`, hidden from the optimiser (no instruction). The blocks store `select(wins, new,
+/// loaded)` back where `loaded` came from, which LLVM turns into a masked store: one
+/// instruction, but on Zen 2 a microcoded one that cost a quarter of the fragment walk.
+/// Behind this, the blend and a plain store stay.
+#[inline(always)]
+fn hidden<T: Copy>(v: T) -> T {
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx"))]
+    if size_of::<T>() == 32 {
+        // SAFETY: `T` is a 32-byte vector type (f32x8 or u32x8), moved through a ymm register.
+        unsafe {
+            let mut r: core::arch::x86_64::__m256 = core::mem::transmute_copy(&v);
+            core::arch::asm!("/* {0} */", inout(ymm_reg) r, options(pure, nomem, nostack, preserves_flags));
+            return core::mem::transmute_copy(&r);
+        }
+    }
+    v
+}
+
+/// The depth test of up to eight lanes of a block one at a time (the image's right border),
+/// with the block's exact edge values.
+fn scalar_lanes(
+    rec: &FixedRecord,
+    e: &FixedEyeEdges,
+    edge: &[i64; 3],
+    q: F32s,
+    lanes: core::ops::Range<usize>,
+    qs: &mut [f32],
+    prims: &mut [u32],
+) {
+    let q = q.to_array();
+    for i in lanes {
+        if (0..3).all(|k| edge[k] + e.dx[k] * i as i64 >= 0) && wins(q[i], rec.prim, qs[i], prims[i]) {
+            qs[i] = q[i];
+            prims[i] = rec.prim;
+        }
+    }
+}
+
+/// [`walk_simd`] for masked records and records with steep edges: two `i64x4` per edge, the
+/// covered lanes depth-tested (and alpha-tested) one at a time.
+fn walk_wide<M: AlphaTest>(rec: &FixedRecord, eye: usize, view: &EyeView<'_, M>, band: &mut Band<'_>) -> u64 {
     let e = &rec.eyes[eye];
     let Some(((c0, c1), (y0, y1))) = span(rec, eye, band) else { return 0 };
     // Per edge, the lane offsets 0..7 steps to the right, and the step of a block of eight.
@@ -544,10 +767,12 @@ fn walk_simd<M: AlphaTest>(rec: &FixedRecord, eye: usize, view: &EyeView<'_, M>,
     let mut masked = 0;
     for y in y0..=y1 {
         let dy = i64::from(y - rec.rows.0);
+        let Some((first, last)) = row_span(e, dy, width) else { continue };
         let q_row = e.qc + e.qb * (y - rec.rows.0) as f32;
         let row = (y as usize - band.rows.start) * band.width;
-        let mut edge: [i64; 3] = core::array::from_fn(|k| e.e0[k] + e.dy[k] * dy);
-        let mut block = 0;
+        let mut edge: [i64; 3] = core::array::from_fn(|k| e.e0[k] + e.dy[k] * dy + e.dx[k] * first as i64);
+        let width = last + 1;
+        let mut block = first;
         while block < width {
             // Lane i is column c0 + block + i; its edge values, OR-ed: the sign bit is set
             // where any edge function is negative (not covered).
@@ -568,7 +793,9 @@ fn walk_simd<M: AlphaTest>(rec: &FixedRecord, eye: usize, view: &EyeView<'_, M>,
                 let xf = F32s::splat(block as f32) + lane_offsets();
                 let q = F32s::splat(q_row) + xf * F32s::splat(e.qa);
                 let at = row + c0 as usize + block;
-                if lanes == LANES && !rec.masked {
+                // Eight lanes' worth of buffer to the image's right border: one vector test
+                // (lanes past the span are out of `covered`).
+                if c0 as usize + block + LANES <= band.width && !rec.masked {
                     let stored_q = F32s::from(<[f32; LANES]>::try_from(&band.q[at..at + LANES]).expect("8 lanes"));
                     let stored_p = u32x8::from(<[u32; LANES]>::try_from(&band.prim[at..at + LANES]).expect("8 lanes"));
                     let nearer: u32x8 = bytemuck::cast(q.simd_gt(stored_q));
