@@ -187,7 +187,12 @@ fn ema_and_blend(c: &mut Criterion) {
                 group.bench_function(BenchmarkId::new(name, threads), |b| {
                     b.iter(|| {
                         pool.install(|| {
-                            let input = EmaInput { new: f.left.colour.view(), reason: reason.view(), has_new: None };
+                            let input = EmaInput {
+                                new: f.left.colour.view(),
+                                reason: reason.view(),
+                                has_new: None,
+                                confidence: None,
+                            };
                             let state = EmaState { accum: acc.view_mut(), history_len: ramp.then(|| len.view_mut()) };
                             let r = if simd {
                                 accumulate::ema(&input, state, &params)

@@ -291,3 +291,27 @@ fn invalid_configurations_are_refused() {
     let err = Pipeline::new(&r, cfg, StereoRig::default(), extent()).err().unwrap();
     assert!(err.to_string().contains("alpha"), "{err}");
 }
+
+/// A pipeline over this crate's renderer resized in place (its rasterised pass's buffers too)
+/// renders what a new pipeline of the new size renders; the history is forgotten.
+#[test]
+fn a_resized_pipeline_renders_what_a_new_one_of_that_size_renders() {
+    let r = renderer("living-room");
+    let small = Extent::new(33, 19).unwrap();
+    let mut p = Pipeline::new(&r, config(&r, Mode::Spatiotemporal, 1), StereoRig::default(), extent()).unwrap();
+    run(&mut p, &r, 0..3);
+    p.resize(small).unwrap();
+    assert_eq!(p.extent(), small);
+    assert_eq!(p.frames_since_reset(), 0);
+    run(&mut p, &r, 3..5);
+    let mut fresh = Pipeline::new(&r, config(&r, Mode::Spatiotemporal, 1), StereoRig::default(), small).unwrap();
+    run(&mut fresh, &r, 3..5);
+    for eye in Eye::BOTH {
+        assert_eq!(p.output(eye), fresh.output(eye), "{eye:?}");
+        assert_eq!(p.gbuffer(eye).depth, fresh.gbuffer(eye).depth, "{eye:?}");
+    }
+    // Back to the first size, as one more resize.
+    p.resize(extent()).unwrap();
+    run(&mut p, &r, 5..6);
+    assert_eq!(p.output(Eye::Left).extent(), extent());
+}

@@ -413,6 +413,9 @@ typedef struct StPipelineConfig {
   // for the scene's own tolerances (scene pipelines) or the room-scale defaults of
   // `stereotrace_reproject_params_default` (callback pipelines).
   const struct StReprojectParams *reprojection;
+  // 1: each G-buffer given to `fill_gbuffers` has a `history_confidence` plane for the
+  // engine to fill (see [`StGBufferMut::history_confidence`]); 0: none (the plain EMA).
+  uint32_t history_confidence;
 } StPipelineConfig;
 
 // A writable plane of `uint32_t`.
@@ -448,6 +451,13 @@ typedef struct StGBufferMut {
   // In: the camera this G-buffer is for, as given to `stereotrace_pipeline_render_frame_at`
   // (left: `cameras[0]`, right: `cameras[1]`). A copy: writing it changes nothing.
   struct StCamera camera;
+  // Out, only with `config.history_confidence` (else `data` is null): how far each pixel's
+  // history can be trusted, in [0, 1] (1 when the engine writes nothing: it holds the value
+  // of the frame before last otherwise, so write every pixel or none). The EMA weighs the
+  // history by it: 1 is the plain EMA, 0 restarts the pixel from this frame's sample (a
+  // light that moved, a disocclusion the engine knows of). A value outside [0, 1] or NaN
+  // refuses the frame.
+  struct StPlaneMutF32 history_confidence;
 } StGBufferMut;
 
 // An engine's renderer as the pipeline's frame source.
@@ -580,9 +590,14 @@ struct StEmaParams stereotrace_ema_params_default(void);
 //   with the first such pixel named.
 // - `history_len` (in/out; optional unless `ramp`): samples accumulated per pixel, finite
 //   and >= 0 (a negative, NaN or infinite length is refused). Per pixel it becomes
-//   `n + 1` where the history was kept and a sample added, `1` where the history was reset
+//   `c·n + 1` where the history was kept and a sample added, `1` where the history was reset
 //   to a new sample, `n` where no usable new sample came (the history kept as it is) and
 //   `0` for a hole (no history and no sample).
+// - `confidence` (in; optional, null: 1 everywhere): how far each pixel's history can be
+//   trusted, in [0, 1] (NaN or outside is refused). Where the history is valid and a sample
+//   arrives it counts as `c·n` samples with weight `1 − α' = c·(1 − α)`: 1 is the plain EMA,
+//   bit for bit, 0 restarts from the new sample. For what reprojection cannot see (a light
+//   that moved, an object whose motion the G-buffer lacks).
 // - A new sample with a non-finite channel never enters the history (counted in
 //   `stats.non_finite`); the results are clamped to ±FLT_MAX.
 //
@@ -592,6 +607,7 @@ enum StStatus stereotrace_ema(const struct StContext *context,
                               const struct StRgb *new_samples,
                               const struct StPlaneU8 *reason,
                               const struct StPlaneU8 *has_new,
+                              const struct StPlaneF32 *confidence,
                               const struct StRgbMut *accum,
                               const struct StPlaneMutF32 *history_len,
                               const struct StEmaParams *params,
@@ -687,6 +703,39 @@ enum StStatus stereotrace_pipeline_render_frame_at(struct StPipeline *pipeline,
                                                    uint32_t frame,
                                                    const struct StCamera *cameras,
                                                    struct StFrameStats *stats);
+
+// Forgets the history: the next frame starts as the first did (no temporal reprojection,
+// every pixel reset to its new sample), as after a camera cut. The output of the last frame
+// stays readable.
+//
+// # Safety
+// `pipeline` null or a live pipeline.
+enum StStatus stereotrace_pipeline_reset(struct StPipeline *pipeline);
+
+// Resizes the pipeline to frames of `width`×`height` (the limits of
+// [`StPipelineConfig::width`]) without recreating it: its buffers are allocated anew
+// (`ST_STATUS_OUT_OF_MEMORY` if that fails, and then the pipeline is as it was), the history
+// is forgotten, and the output is unavailable until the next frame. Frames after it take
+// cameras of the new size.
+//
+// # Safety
+// `pipeline` null or a live pipeline.
+enum StStatus stereotrace_pipeline_resize(struct StPipeline *pipeline,
+                                          uint32_t width,
+                                          uint32_t height);
+
+// Copies eye `eye`'s (0 left, 1 right) per-pixel record of the last successful frame into
+// the caller's byte plane `out` (the pipeline's size, any stride): `what` 0 is the stereo
+// reprojection's `StReason` codes (all `ST_REASON_INVALID` in modes without stereo
+// reprojection into that eye), 1 the temporal reprojection's, and 2 the traced mask (1 where
+// the pixel was path traced this frame, 0 elsewhere).
+//
+// # Safety
+// `pipeline` null or a live pipeline; `out` null or valid, its plane writable.
+enum StStatus stereotrace_pipeline_pixels(const struct StPipeline *pipeline,
+                                          uint32_t eye,
+                                          uint32_t what,
+                                          const struct StPlaneMutU8 *out);
 
 // Copies the image eye `eye` (0 left, 1 right) shows after the last successful frame into
 // the caller's planes `out` (the pipeline's size, any stride). Refused before the first

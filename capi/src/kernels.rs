@@ -376,9 +376,14 @@ pub extern "C" fn stereotrace_ema_params_default() -> StEmaParams {
 ///   with the first such pixel named.
 /// - `history_len` (in/out; optional unless `ramp`): samples accumulated per pixel, finite
 ///   and >= 0 (a negative, NaN or infinite length is refused). Per pixel it becomes
-///   `n + 1` where the history was kept and a sample added, `1` where the history was reset
+///   `c·n + 1` where the history was kept and a sample added, `1` where the history was reset
 ///   to a new sample, `n` where no usable new sample came (the history kept as it is) and
 ///   `0` for a hole (no history and no sample).
+/// - `confidence` (in; optional, null: 1 everywhere): how far each pixel's history can be
+///   trusted, in [0, 1] (NaN or outside is refused). Where the history is valid and a sample
+///   arrives it counts as `c·n` samples with weight `1 − α' = c·(1 − α)`: 1 is the plain EMA,
+///   bit for bit, 0 restarts from the new sample. For what reprojection cannot see (a light
+///   that moved, an object whose motion the G-buffer lacks).
 /// - A new sample with a non-finite channel never enters the history (counted in
 ///   `stats.non_finite`); the results are clamped to ±FLT_MAX.
 ///
@@ -391,6 +396,7 @@ pub unsafe extern "C" fn stereotrace_ema(
     new_samples: *const StRgb,
     reason: *const StPlaneU8,
     has_new: *const StPlaneU8,
+    confidence: *const StPlaneF32,
     accum: *const StRgbMut,
     history_len: *const StPlaneMutF32,
     params: *const StEmaParams,
@@ -412,6 +418,7 @@ pub unsafe extern "C" fn stereotrace_ema(
                 .view(["new_samples.r", "new_samples.g", "new_samples.b"], &mut b)?,
             reason: required(reason, "reason")?.view("reason", &mut b)?,
             has_new: has_new.as_ref().map(|p| p.view("has_new", &mut b)).transpose()?,
+            confidence: confidence.as_ref().map(|p| p.view("confidence", &mut b)).transpose()?,
         };
         let state = EmaState {
             accum: required(accum, "accum")?.view(["accum.r", "accum.g", "accum.b"], &mut b)?,

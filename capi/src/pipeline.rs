@@ -21,7 +21,7 @@ use stereotrace_runtime::source::{FrameSource, RendererSource};
 use crate::StStatus;
 use crate::boundary::{Context, Exclusive, Failure, guard};
 use crate::kernels::{StCamera, StLayout, StReprojectParams};
-use crate::views::{Borrows, StPlaneMutF32, StPlaneU8, StRgbMut, required};
+use crate::views::{Borrows, StPlaneMutF32, StPlaneMutU8, StPlaneU8, StRgbMut, required};
 
 /// The pipeline's modes (the paper's Section IV): the values of [`StPipelineConfig::mode`].
 /// Each names which eye the trace callback is asked for: "both" means every pixel of each eye
@@ -89,6 +89,9 @@ pub struct StPipelineConfig {
     /// for the scene's own tolerances (scene pipelines) or the room-scale defaults of
     /// `stereotrace_reproject_params_default` (callback pipelines).
     pub reprojection: *const StReprojectParams,
+    /// 1: each G-buffer given to `fill_gbuffers` has a `history_confidence` plane for the
+    /// engine to fill (see [`StGBufferMut::history_confidence`]); 0: none (the plain EMA).
+    pub history_confidence: u32,
 }
 
 /// Spatiotemporal mode in the paper's order, compact G-buffers, 1 spp, 1280×720, one
@@ -106,6 +109,7 @@ pub extern "C" fn stereotrace_pipeline_config_default() -> StPipelineConfig {
         budget_ms: 0.0,
         seed: 1,
         reprojection: std::ptr::null(),
+        history_confidence: 0,
     }
 }
 
@@ -146,6 +150,11 @@ impl StPipelineConfig {
             other => return Err(Failure::invalid(format!("config.layout {other} is not a StLayout (0 or 1)"))),
         };
         c.seed = self.seed;
+        c.history_confidence = match self.history_confidence {
+            0 => false,
+            1 => true,
+            other => return Err(Failure::invalid(format!("config.history_confidence must be 0 or 1, got {other}"))),
+        };
         // SAFETY: the caller's contract.
         if let Some(r) = unsafe { self.reprojection.as_ref() } {
             let r = r.kernel()?;
@@ -208,6 +217,13 @@ pub struct StGBufferMut {
     /// In: the camera this G-buffer is for, as given to `stereotrace_pipeline_render_frame_at`
     /// (left: `cameras[0]`, right: `cameras[1]`). A copy: writing it changes nothing.
     pub camera: StCamera,
+    /// Out, only with `config.history_confidence` (else `data` is null): how far each pixel's
+    /// history can be trusted, in [0, 1] (1 when the engine writes nothing: it holds the value
+    /// of the frame before last otherwise, so write every pixel or none). The EMA weighs the
+    /// history by it: 1 is the plain EMA, 0 restarts the pixel from this frame's sample (a
+    /// light that moved, a disocclusion the engine knows of). A value outside [0, 1] or NaN
+    /// refuses the frame.
+    pub history_confidence: StPlaneMutF32,
 }
 
 /// An engine's renderer as the pipeline's frame source.
@@ -309,6 +325,10 @@ impl FrameSource for CallbackSource {
             normal_octahedral: u32_plane(&mut g.normal_oct),
             material: u32_plane(&mut g.material),
             camera,
+            history_confidence: g
+                .history_confidence
+                .as_mut()
+                .map_or(StPlaneMutF32 { data: std::ptr::null_mut(), width: 0, height: 0, stride: 0 }, f32_plane),
         };
         let (l, r) = (view(left, self.cameras[0]), view(right, self.cameras[1]));
         // SAFETY: the views cover the pipeline's own buffers, alive and unaliased for the
@@ -613,6 +633,99 @@ pub unsafe extern "C" fn stereotrace_pipeline_render_frame_at(
         }
         Ok(())
     })
+}
+
+/// Forgets the history: the next frame starts as the first did (no temporal reprojection,
+/// every pixel reset to its new sample), as after a camera cut. The output of the last frame
+/// stays readable.
+///
+/// # Safety
+/// `pipeline` null or a live pipeline.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn stereotrace_pipeline_reset(pipeline: *mut StPipeline) -> StStatus {
+    guard(|| unsafe {
+        let p = pipeline.as_ref().ok_or_else(|| Failure::null("pipeline"))?;
+        let mut state = p.state.enter("stereotrace_pipeline_reset")?;
+        match &mut state.inner {
+            Inner::Scene(inner) => inner.reset(),
+            Inner::Callbacks(inner) => inner.reset(),
+        }
+        Ok(())
+    })
+}
+
+/// Resizes the pipeline to frames of `width`×`height` (the limits of
+/// [`StPipelineConfig::width`]) without recreating it: its buffers are allocated anew
+/// (`ST_STATUS_OUT_OF_MEMORY` if that fails, and then the pipeline is as it was), the history
+/// is forgotten, and the output is unavailable until the next frame. Frames after it take
+/// cameras of the new size.
+///
+/// # Safety
+/// `pipeline` null or a live pipeline.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn stereotrace_pipeline_resize(pipeline: *mut StPipeline, width: u32, height: u32) -> StStatus {
+    guard(|| unsafe {
+        let p = pipeline.as_ref().ok_or_else(|| Failure::null("pipeline"))?;
+        let mut state = p.state.enter("stereotrace_pipeline_resize")?;
+        let extent = Extent::new(width as usize, height as usize).about("size")?;
+        match &mut state.inner {
+            Inner::Scene(inner) => inner.resize(extent),
+            Inner::Callbacks(inner) => inner.resize(extent),
+        }
+        .map_err(pipeline_error)?;
+        state.frames_rendered = 0;
+        Ok(())
+    })
+}
+
+/// Copies eye `eye`'s (0 left, 1 right) per-pixel record of the last successful frame into
+/// the caller's byte plane `out` (the pipeline's size, any stride): `what` 0 is the stereo
+/// reprojection's `StReason` codes (all `ST_REASON_INVALID` in modes without stereo
+/// reprojection into that eye), 1 the temporal reprojection's, and 2 the traced mask (1 where
+/// the pixel was path traced this frame, 0 elsewhere).
+///
+/// # Safety
+/// `pipeline` null or a live pipeline; `out` null or valid, its plane writable.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn stereotrace_pipeline_pixels(
+    pipeline: *const StPipeline,
+    eye: u32,
+    what: u32,
+    out: *const StPlaneMutU8,
+) -> StStatus {
+    guard(|| unsafe {
+        let p = pipeline.as_ref().ok_or_else(|| Failure::null("pipeline"))?;
+        let state = p.state.enter("stereotrace_pipeline_pixels")?;
+        if state.frames_rendered == 0 {
+            return Err(Failure::invalid("no frame has been rendered yet (since the pipeline was made or resized)"));
+        }
+        let eye = match eye {
+            0 => Eye::Left,
+            1 => Eye::Right,
+            other => return Err(Failure::invalid(format!("eye {other} is not 0 (left) or 1 (right)"))),
+        };
+        let plane = match &state.inner {
+            Inner::Scene(inner) => pixel_record(inner, eye, what),
+            Inner::Callbacks(inner) => pixel_record(inner, eye, what),
+        }?;
+        let mut b = Borrows::new();
+        let mut out = required(out, "out")?.view("out", &mut b)?;
+        same_extent("out", plane.extent(), out.extent()).about("out")?;
+        for y in 0..plane.extent().height() {
+            out.row_mut(y).copy_from_slice(plane.view().row(y));
+        }
+        Ok(())
+    })
+}
+
+/// The plane [`stereotrace_pipeline_pixels`] reads for `what`.
+fn pixel_record<S: FrameSource>(pipeline: &Pipeline<S>, eye: Eye, what: u32) -> Result<&PlaneBuf<u8>, Failure> {
+    match what {
+        0 => Ok(pipeline.stereo_reasons(eye)),
+        1 => Ok(pipeline.temporal_reasons(eye)),
+        2 => Ok(pipeline.traced_mask(eye)),
+        other => Err(Failure::invalid(format!("what {other} is not 0 (stereo reasons), 1 (temporal) or 2 (traced)"))),
+    }
 }
 
 /// Copies the image eye `eye` (0 left, 1 right) shows after the last successful frame into

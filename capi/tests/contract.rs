@@ -9,7 +9,7 @@
 
 mod common;
 
-use common::{RoomEngine, camera, expect, outputs, room_pipeline};
+use common::{RoomEngine, camera, expect, outputs, room_pipeline, room_pipeline_with};
 use stereotrace_capi::*;
 
 fn context() -> *mut StContext {
@@ -99,6 +99,7 @@ fn every_kernel_that_reads_reasons_refuses_every_undefined_code() {
                 &new_c,
                 &reason,
                 std::ptr::null(),
+                std::ptr::null(),
                 &accum_c,
                 std::ptr::null(),
                 std::ptr::null(),
@@ -138,6 +139,7 @@ fn the_ema_refuses_history_lengths_that_are_not_counts() {
                 &new.view(),
                 &reason,
                 std::ptr::null(),
+                std::ptr::null(),
                 &accum_c,
                 &len_c,
                 &params,
@@ -155,7 +157,17 @@ fn the_ema_refuses_history_lengths_that_are_not_counts() {
     let mut accum = Image::new(w, h, |_| 0.5);
     let accum_c = accum.view_mut();
     let status = unsafe {
-        stereotrace_ema(ctx, &new.view(), &reason, std::ptr::null(), &accum_c, &len_c, &params, std::ptr::null_mut())
+        stereotrace_ema(
+            ctx,
+            &new.view(),
+            &reason,
+            std::ptr::null(),
+            std::ptr::null(),
+            &accum_c,
+            &len_c,
+            &params,
+            std::ptr::null_mut(),
+        )
     };
     expect(status, StStatus::Ok);
     unsafe { stereotrace_context_destroy(ctx) };
@@ -248,4 +260,133 @@ fn eye_placement_is_the_callers_swapped_far_apart_or_coincident() {
     let (same, same_images) = run([camera(0.03, W, H), camera(0.03, W, H)]);
     assert_eq!(same, [0, all]);
     assert_eq!(same_images[0], same_images[1]);
+}
+
+/// Renders frames `0..frames` of the room with the camera moving 3 cm a frame; returns each
+/// frame's outputs.
+fn frames(p: *mut StPipeline, range: std::ops::Range<u32>) -> Vec<[Vec<u32>; 2]> {
+    range
+        .map(|f| {
+            let x = 0.03 * f as f64;
+            let cameras = [camera(x - 0.03, W, H), camera(x + 0.03, W, H)];
+            let status = unsafe { stereotrace_pipeline_render_frame_at(p, f, cameras.as_ptr(), std::ptr::null_mut()) };
+            expect(status, StStatus::Ok);
+            outputs(p, W, H)
+        })
+        .collect()
+}
+
+/// The engine's per-pixel history confidence: 1 is the plain EMA bit for bit, 0 makes every
+/// frame its own samples (what path tracing alone shows), and a value outside [0, 1] refuses
+/// the frame without touching the output.
+#[test]
+fn an_engines_history_confidence_weighs_the_history() {
+    let run = |mode: StMode, confidence: Option<f32>| {
+        let mut engine = RoomEngine::new();
+        engine.confidence = confidence.unwrap_or(1.0);
+        let p = room_pipeline_with(&mut engine, mode, W, H, |c| c.history_confidence = u32::from(confidence.is_some()));
+        let out = frames(p, 0..4);
+        expect(unsafe { stereotrace_pipeline_destroy(p) }, StStatus::Ok);
+        out
+    };
+    let plain = run(StMode::Temporal, None);
+    assert_eq!(run(StMode::Temporal, Some(1.0)), plain, "confidence 1 is the plain EMA");
+    let traced = run(StMode::PathTraced, None);
+    assert_eq!(run(StMode::Temporal, Some(0.0)), traced, "confidence 0 shows each frame's own samples");
+    assert_ne!(plain, traced);
+    let half = run(StMode::Temporal, Some(0.5));
+    assert!(half != plain && half != traced);
+
+    let mut engine = RoomEngine::new();
+    let p = room_pipeline_with(&mut engine, StMode::Temporal, W, H, |c| c.history_confidence = 1);
+    let before = frames(p, 0..2).pop().unwrap();
+    engine.confidence = 1.5;
+    let cameras = [camera(0.03, W, H), camera(0.09, W, H)];
+    let status = unsafe { stereotrace_pipeline_render_frame_at(p, 2, cameras.as_ptr(), std::ptr::null_mut()) };
+    let message = expect(status, StStatus::InvalidArgument);
+    assert!(message.contains("history confidence plane holds 1.5"), "{message}");
+    assert_eq!(outputs(p, W, H), before, "a refused frame left the output as it was");
+    expect(unsafe { stereotrace_pipeline_destroy(p) }, StStatus::Ok);
+}
+
+/// `stereotrace_pipeline_reset` forgets the history: the next frame is what a new pipeline's
+/// first frame would be.
+#[test]
+fn a_reset_pipeline_starts_over() {
+    let mut engine = RoomEngine::new();
+    let p = room_pipeline(&mut engine, StMode::Spatiotemporal, W, H);
+    let accumulated = frames(p, 0..3).pop().unwrap();
+    expect(unsafe { stereotrace_pipeline_reset(p) }, StStatus::Ok);
+    assert_eq!(outputs(p, W, H), accumulated, "the last output stays readable");
+    let after_reset = frames(p, 3..4).pop().unwrap();
+    let mut fresh_engine = RoomEngine::new();
+    let fresh = room_pipeline(&mut fresh_engine, StMode::Spatiotemporal, W, H);
+    assert_eq!(frames(fresh, 3..4).pop().unwrap(), after_reset);
+    expect(unsafe { stereotrace_pipeline_destroy(fresh) }, StStatus::Ok);
+    expect(unsafe { stereotrace_pipeline_destroy(p) }, StStatus::Ok);
+    expect(unsafe { stereotrace_pipeline_reset(std::ptr::null_mut()) }, StStatus::NullPointer);
+}
+
+/// The per-pixel record of a frame: the traced mask counts what the statistics count, and in
+/// stereo mode the left eye is traced exactly where its stereo reprojection was discarded.
+#[test]
+fn per_pixel_reasons_and_the_traced_mask_can_be_read() {
+    let mut engine = RoomEngine::new();
+    let p = room_pipeline(&mut engine, StMode::Stereo, W, H);
+    let mut plane = vec![0xAAu8; (W * H) as usize];
+    let out = StPlaneMutU8 { data: plane.as_mut_ptr(), width: W, height: H, stride: W };
+    let message = expect(unsafe { stereotrace_pipeline_pixels(p, 0, 2, &out) }, StStatus::InvalidArgument);
+    assert!(message.contains("no frame has been rendered yet"), "{message}");
+    let cameras = [camera(-0.03, W, H), camera(0.03, W, H)];
+    let mut stats = StFrameStats::default();
+    expect(unsafe { stereotrace_pipeline_render_frame_at(p, 0, cameras.as_ptr(), &mut stats) }, StStatus::Ok);
+    let read = |eye: u32, what: u32| {
+        expect(unsafe { stereotrace_pipeline_pixels(p, eye, what, &out) }, StStatus::Ok);
+        plane.clone()
+    };
+    let (left_traced, right_traced) = (read(0, 2), read(1, 2));
+    let count = |m: &[u8]| m.iter().filter(|&&v| v == 1).count() as u64;
+    assert_eq!([count(&left_traced), count(&right_traced)], stats.traced_pixels);
+    assert!(left_traced.iter().chain(&right_traced).all(|&v| v <= 1));
+    let left_stereo = read(0, 0);
+    for (i, (&t, &r)) in left_traced.iter().zip(&left_stereo).enumerate() {
+        assert_eq!(t == 1, r != StReason::Reprojected as u8, "pixel {i}: traced {t}, stereo reason {r}");
+    }
+    assert!(read(0, 1).iter().all(|&r| r == StReason::Invalid as u8), "stereo mode reprojects no history");
+    let message = expect(unsafe { stereotrace_pipeline_pixels(p, 0, 3, &out) }, StStatus::InvalidArgument);
+    assert!(message.contains("what 3"), "{message}");
+    expect(unsafe { stereotrace_pipeline_destroy(p) }, StStatus::Ok);
+}
+
+/// `stereotrace_pipeline_resize`: frames of the new size follow, equal to a new pipeline's of
+/// that size; cameras of the old size are refused, and the output waits for a frame.
+#[test]
+fn a_pipeline_resizes_without_being_rebuilt() {
+    let (w2, h2) = (33u32, 17u32);
+    let mut engine = RoomEngine::new();
+    let p = room_pipeline(&mut engine, StMode::Spatiotemporal, W, H);
+    frames(p, 0..2);
+    expect(unsafe { stereotrace_pipeline_resize(p, w2, h2) }, StStatus::Ok);
+    let mut image = vec![vec![0.0f32; (w2 * h2) as usize]; 3];
+    let [r, g, b] = [0, 1, 2].map(|c| StPlaneMutF32 { data: image[c].as_mut_ptr(), width: w2, height: h2, stride: w2 });
+    let out = StRgbMut { r, g, b };
+    expect(unsafe { stereotrace_pipeline_output(p, 0, &out) }, StStatus::InvalidArgument);
+    let old = [camera(0.0, W, H), camera(0.06, W, H)];
+    expect(
+        unsafe { stereotrace_pipeline_render_frame_at(p, 2, old.as_ptr(), std::ptr::null_mut()) },
+        StStatus::InvalidArgument,
+    );
+    let new = [camera(0.0, w2, h2), camera(0.06, w2, h2)];
+    expect(unsafe { stereotrace_pipeline_render_frame_at(p, 2, new.as_ptr(), std::ptr::null_mut()) }, StStatus::Ok);
+    let resized = outputs(p, w2, h2);
+
+    let mut fresh_engine = RoomEngine::new();
+    let fresh = room_pipeline(&mut fresh_engine, StMode::Spatiotemporal, w2, h2);
+    expect(unsafe { stereotrace_pipeline_render_frame_at(fresh, 2, new.as_ptr(), std::ptr::null_mut()) }, StStatus::Ok);
+    assert_eq!(outputs(fresh, w2, h2), resized);
+    for (w, h) in [(0, 5), (STEREOTRACE_MAX_DIMENSION + 1, 5)] {
+        expect(unsafe { stereotrace_pipeline_resize(p, w, h) }, StStatus::InvalidArgument);
+    }
+    expect(unsafe { stereotrace_pipeline_destroy(fresh) }, StStatus::Ok);
+    expect(unsafe { stereotrace_pipeline_destroy(p) }, StStatus::Ok);
 }

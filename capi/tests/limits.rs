@@ -97,6 +97,7 @@ fn strides_up_to_the_stride_limit() {
                 &new_c,
                 &reason,
                 std::ptr::null(),
+                std::ptr::null(),
                 &accum_c,
                 std::ptr::null(),
                 std::ptr::null(),

@@ -52,11 +52,15 @@ fn child_under_the_limit() {
     expect(status, StStatus::OutOfMemory);
     assert!(p.is_null());
 
-    // The process lives on: a small pipeline renders.
+    // The process lives on: a small pipeline renders; resized to 16K it refuses, and renders
+    // on at its own size.
     let mut engine = RoomEngine::new();
     let p = room_pipeline(&mut engine, StMode::Spatiotemporal, 64, 36);
     let cameras = [camera(-0.03, 64, 36), camera(0.03, 64, 36)];
     let status = unsafe { stereotrace_pipeline_render_frame_at(p, 0, cameras.as_ptr(), std::ptr::null_mut()) };
+    expect(status, StStatus::Ok);
+    expect(unsafe { stereotrace_pipeline_resize(p, SIDE, SIDE) }, StStatus::OutOfMemory);
+    let status = unsafe { stereotrace_pipeline_render_frame_at(p, 1, cameras.as_ptr(), std::ptr::null_mut()) };
     expect(status, StStatus::Ok);
     expect(unsafe { stereotrace_pipeline_destroy(p) }, StStatus::Ok);
     println!("lives on after OUT_OF_MEMORY");

@@ -175,7 +175,7 @@ int main(void) {
     StPlaneU8 reason_view = {reason, W, H, STRIDE};
     StRgbMut accum = rgb_mut_of(out);
     StAccumulateStats ema_stats;
-    expect(stereotrace_ema(ctx, &fresh, &reason_view, NULL, &accum, NULL, NULL, &ema_stats), ST_STATUS_OK, "ema");
+    expect(stereotrace_ema(ctx, &fresh, &reason_view, NULL, NULL, &accum, NULL, NULL, &ema_stats), ST_STATUS_OK, "ema");
     CHECK(ema_stats.resets == full.pixels[ST_REASON_OUT_OF_FRAME], "EMA reset %llu pixels, expected %llu",
           (unsigned long long)ema_stats.resets, (unsigned long long)full.pixels[ST_REASON_OUT_OF_FRAME]);
     double worst = 0;
@@ -244,11 +244,11 @@ int main(void) {
     expect(stereotrace_reproject(ctx, &t, &s, &in, &o, &p, NULL), ST_STATUS_INVALID_ARGUMENT, "NaN tolerance");
     StEmaParams ep = stereotrace_ema_params_default();
     ep.alpha = 0;
-    expect(stereotrace_ema(ctx, &fresh, &reason_view, NULL, &accum, NULL, &ep, NULL), ST_STATUS_INVALID_ARGUMENT,
+    expect(stereotrace_ema(ctx, &fresh, &reason_view, NULL, NULL, &accum, NULL, &ep, NULL), ST_STATUS_INVALID_ARGUMENT,
            "EMA alpha 0");
     ep = stereotrace_ema_params_default();
     ep.ramp = 1;
-    expect(stereotrace_ema(ctx, &fresh, &reason_view, NULL, &accum, NULL, &ep, NULL), ST_STATUS_INVALID_ARGUMENT,
+    expect(stereotrace_ema(ctx, &fresh, &reason_view, NULL, NULL, &accum, NULL, &ep, NULL), ST_STATUS_INVALID_ARGUMENT,
            "EMA ramp without a history length");
     expect(stereotrace_ssim(ctx, &fresh, &fresh, 9, &ssim), ST_STATUS_INVALID_ARGUMENT, "unknown SSIM variant");
     expect(stereotrace_ssim(ctx, &fresh, &fresh, ST_SSIM_VARIANT_VOLUME, NULL), ST_STATUS_NULL_POINTER,

@@ -422,8 +422,10 @@ pub fn accumulate(data: &[u8]) {
     let mut history = RgbBuf::new(e, 2.0);
     let mut len = PlaneBuf::new(e, 3.0f32);
     let mut reason = PlaneBuf::new(e, Reason::Reprojected as u8);
+    // A history confidence plane in two inputs of three, edited like the others.
+    let mut confidence = (bytes.u8() % 3 != 0).then(|| PlaneBuf::new(e, bytes.unit(0.0, 1.0)));
     while !bytes.is_empty() {
-        let which = bytes.u8() % 8;
+        let which = bytes.u8() % 9;
         let index = usize::from(u16::from_le_bytes([bytes.u8(), bytes.u8()])) % e.pixels();
         let value = bytes.f32();
         match which {
@@ -434,6 +436,12 @@ pub fn accumulate(data: &[u8]) {
             4 => history.g_mut()[index] = value,
             5 => history.b_mut()[index] = value,
             6 => len.as_mut_slice()[index] = value,
+            7 => {
+                if let Some(c) = &mut confidence {
+                    // Mostly within [0, 1], sometimes anything.
+                    c.as_mut_slice()[index] = if value.to_bits() % 16 == 0 { value } else { value.abs().fract() };
+                }
+            }
             _ => {
                 let code = value.to_bits() as u8;
                 reason.as_mut_slice()[index] = if code < 250 { code % 6 } else { code };
@@ -441,10 +449,16 @@ pub fn accumulate(data: &[u8]) {
         }
     }
     let codes_defined = reason.as_slice().iter().all(|&c| usize::from(c) < crate::reproject::REASON_COUNT);
-    let lengths_are_counts = len.as_slice().iter().all(|&v| (0.0..=f32::MAX).contains(&v));
+    let lengths_are_counts = len.as_slice().iter().all(|&v| (0.0..=f32::MAX).contains(&v))
+        && confidence.as_ref().is_none_or(|c| c.as_slice().iter().all(|v| (0.0..=1.0).contains(v)));
     let history_finite = history.planes().into_iter().all(all_finite);
     let params = EmaParams { alpha, ramp, band_rows: 2 };
-    let input = EmaInput { new: new.view(), reason: reason.view(), has_new: None };
+    let input = EmaInput {
+        new: new.view(),
+        reason: reason.view(),
+        has_new: None,
+        confidence: confidence.as_ref().map(|c| c.view()),
+    };
     let run = |simd: bool| {
         let (mut acc, mut n) = (history.clone(), len.clone());
         let state = EmaState { accum: acc.view_mut(), history_len: Some(n.view_mut()) };

@@ -304,6 +304,11 @@ pub struct GBufferBuf {
     pub normal_oct: PlaneBuf<u32>,
     /// The producer's material id (`u32::MAX`: no surface).
     pub material: PlaneBuf<u32>,
+    /// Optional: how far each pixel's temporal history can be trusted, in [0, 1], from the
+    /// producer (for what reprojection cannot see: a moved light, a disocclusion the producer
+    /// knows of). Present only where its consumer asks for it (a pipeline configured with
+    /// `history_confidence`); a producer that does not know it leaves it at 1.
+    pub history_confidence: Option<PlaneBuf>,
 }
 
 impl GBufferBuf {
@@ -317,6 +322,7 @@ impl GBufferBuf {
             normal: [0; 3].map(|_| PlaneBuf::new(e, f32::NAN)),
             normal_oct: PlaneBuf::new(e, NO_NORMAL),
             material: PlaneBuf::new(e, u32::MAX),
+            history_confidence: None,
         }
     }
 
@@ -332,6 +338,7 @@ impl GBufferBuf {
             normal: [nan()?, nan()?, nan()?],
             normal_oct: PlaneBuf::try_new(e, NO_NORMAL)?,
             material: PlaneBuf::try_new(e, u32::MAX)?,
+            history_confidence: None,
         })
     }
 
@@ -353,6 +360,10 @@ impl GBufferBuf {
         }
         self.normal_oct.as_mut_slice().copy_from_slice(other.normal_oct.as_slice());
         self.material.as_mut_slice().copy_from_slice(other.material.as_slice());
+        // The confidence where both have one (a consumer that asked for it keeps its plane).
+        if let (Some(to), Some(from)) = (&mut self.history_confidence, &other.history_confidence) {
+            to.as_mut_slice().copy_from_slice(from.as_slice());
+        }
         Ok(())
     }
 

@@ -70,7 +70,7 @@ fn second_frame_allocates_nothing() {
             weight: None,
         };
         reproject::reproject(&input, out, &params).unwrap();
-        let ema_in = EmaInput { new: left.colour.view(), reason: reason.view(), has_new: None };
+        let ema_in = EmaInput { new: left.colour.view(), reason: reason.view(), has_new: None, confidence: None };
         let state = EmaState { accum: history.view_mut(), history_len: Some(len_out.view_mut()) };
         accumulate::ema(&ema_in, state, &EmaParams { ramp: true, ..EmaParams::default() }).unwrap();
         // Scalar references share the schedule, so they must not allocate either.

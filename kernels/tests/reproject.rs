@@ -719,10 +719,18 @@ fn ema_simd_equals_scalar_on_edge_values() {
         let len = PlaneBuf::from_vec((0..e.pixels()).map(|_| rng.below(40) as f32).collect(), e).unwrap();
         let reason = random_reasons(e, &mut rng);
         let has_new = PlaneBuf::from_vec((0..e.pixels()).map(|_| (rng.next_f32() < 0.8) as u8).collect(), e).unwrap();
+        // A history confidence in half the cases: 0, 1, and values between.
+        let confidence =
+            PlaneBuf::from_vec((0..e.pixels()).map(|_| [0.0, 1.0, rng.next_f32(), 1e-30][rng.below(4)]).collect(), e)
+                .unwrap();
         let params =
             EmaParams { alpha: [0.2, 1.0, 0.05, 1e-6][case % 4], ramp: case % 2 == 0, band_rows: 1 + rng.below(3) };
-        let input =
-            EmaInput { new: new.view(), reason: reason.view(), has_new: (case % 3 != 0).then(|| has_new.view()) };
+        let input = EmaInput {
+            new: new.view(),
+            reason: reason.view(),
+            has_new: (case % 3 != 0).then(|| has_new.view()),
+            confidence: (case % 4 < 2).then(|| confidence.view()),
+        };
         let run = |simd: bool| {
             let (mut acc, mut n) = (history.clone(), len.clone());
             let state = EmaState { accum: acc.view_mut(), history_len: Some(n.view_mut()) };
@@ -749,8 +757,56 @@ fn ema_simd_equals_scalar_on_edge_values() {
     }
 }
 
+/// The history confidence against its closed form, and at its ends: 1 is the plain EMA bit
+/// for bit, 0 the new sample; values outside [0, 1] are refused.
+#[test]
+fn history_confidence_scales_the_historys_weight() {
+    let e = extent(19, 2);
+    let reason = PlaneBuf::new(e, Reason::Reprojected as u8);
+    let new = RgbBuf::new(e, 0.0);
+    let run = |c: f32, ramp: bool| {
+        let mut acc = RgbBuf::new(e, 1.0);
+        let mut len = PlaneBuf::new(e, 4.0);
+        let conf = PlaneBuf::new(e, c);
+        let input = EmaInput { new: new.view(), reason: reason.view(), has_new: None, confidence: Some(conf.view()) };
+        let params = EmaParams { alpha: 0.2, ramp, band_rows: 4 };
+        accumulate::ema(&input, EmaState { accum: acc.view_mut(), history_len: Some(len.view_mut()) }, &params)
+            .unwrap();
+        (acc.get(18, 1)[0], len.as_slice()[37])
+    };
+    // α' = 0.2 + 0.8·(1 − 0.5) = 0.6: 1 + 0.6·(0 − 1) = 0.4; the length 4·0.5 + 1.
+    assert!((run(0.5, false).0 - 0.4).abs() < 1e-6 && run(0.5, false).1 == 3.0);
+    assert_eq!(run(0.0, false), (0.0, 1.0));
+    // The ramp counts the history as c·n samples: n = 4·0.25 = 1, α = max(0.2, 1/2) = 0.5,
+    // α' = 0.5 + 0.5·0.75 = 0.875.
+    assert!((run(0.25, true).0 - 0.125).abs() < 1e-6);
+    let plain = {
+        let mut acc = RgbBuf::new(e, 1.0);
+        let mut len = PlaneBuf::new(e, 4.0);
+        let input = EmaInput { new: new.view(), reason: reason.view(), has_new: None, confidence: None };
+        let params = EmaParams { alpha: 0.2, ramp: true, band_rows: 4 };
+        accumulate::ema(&input, EmaState { accum: acc.view_mut(), history_len: Some(len.view_mut()) }, &params)
+            .unwrap();
+        (acc.get(18, 1)[0], len.as_slice()[37])
+    };
+    assert_eq!(run(1.0, true).0.to_bits(), plain.0.to_bits());
+    assert_eq!(run(1.0, true).1, plain.1);
+    for bad in [-0.01, 1.01, f32::NAN] {
+        let mut acc = RgbBuf::new(e, 1.0);
+        let conf = PlaneBuf::from_vec((0..e.pixels()).map(|i| if i == 25 { bad } else { 0.5 }).collect(), e).unwrap();
+        let input = EmaInput { new: new.view(), reason: reason.view(), has_new: None, confidence: Some(conf.view()) };
+        let err = accumulate::ema(&input, EmaState { accum: acc.view_mut(), history_len: None }, &EmaParams::default())
+            .unwrap_err();
+        assert!(
+            err.to_string().contains("history confidence plane holds") && err.to_string().contains("(6, 1)"),
+            "{err}"
+        );
+        assert!(acc.r().as_slice().iter().all(|&v| v == 1.0), "a refused call wrote");
+    }
+}
+
 fn ema_step(acc: &mut RgbBuf, new: &RgbBuf, reason: &PlaneBuf<u8>, params: &EmaParams) -> AccumulateStats {
-    let input = EmaInput { new: new.view(), reason: reason.view(), has_new: None };
+    let input = EmaInput { new: new.view(), reason: reason.view(), has_new: None, confidence: None };
     accumulate::ema(&input, EmaState { accum: acc.view_mut(), history_len: None }, params).unwrap()
 }
 
@@ -803,7 +859,7 @@ fn non_finite_samples_fall_back_to_history_or_become_holes() {
     reason.as_mut_slice()[2] = Reason::OutOfFrame as u8;
     let mut acc = RgbBuf::new(e, 5.0);
     let mut len = PlaneBuf::new(e, 3.0f32);
-    let input = EmaInput { new: new.view(), reason: reason.view(), has_new: None };
+    let input = EmaInput { new: new.view(), reason: reason.view(), has_new: None, confidence: None };
     let stats = accumulate::ema(
         &input,
         EmaState { accum: acc.view_mut(), history_len: Some(len.view_mut()) },

@@ -53,6 +53,14 @@ pub trait FrameSource {
         rows: Range<usize>,
         out: &mut RgbBuf,
     ) -> Result<TraceStats, PipelineError>;
+
+    /// Frames will be of `extent` from now on ([`crate::pipeline::Pipeline::resize`]): resize
+    /// whatever the source keeps per pixel, or fail and keep it as it was. Nothing to do by
+    /// default.
+    fn resize(&mut self, extent: Extent) -> Result<(), PipelineError> {
+        let _ = extent;
+        Ok(())
+    }
 }
 
 /// This crate's renderer as a [`FrameSource`]: the per-frame light table, the rasterised or
@@ -102,6 +110,15 @@ impl<R: Borrow<Renderer>> RendererSource<R> {
 impl<R: Borrow<Renderer>> FrameSource for RendererSource<R> {
     fn begin_frame(&mut self, frame: u32) {
         self.lights.update(self.renderer.borrow().scene(), frame);
+    }
+
+    fn resize(&mut self, extent: Extent) -> Result<(), PipelineError> {
+        if let Some(raster) = &mut self.raster {
+            let mut resized = RasterGBuffers::try_new(extent)?;
+            (resized.planes, resized.visibility_by, resized.body) = (raster.planes, raster.visibility_by, raster.body);
+            *raster = resized;
+        }
+        Ok(())
     }
 
     fn fill_gbuffers(

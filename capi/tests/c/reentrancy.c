@@ -2,7 +2,8 @@
  * One call at a time per pipeline and per context, tested from C as an engine would meet it.
  *
  * 1. From inside each callback (fill_gbuffers, and every trace call) of a frame, every
- *    exported function on the same pipeline (render_frame, render_frame_at, output, destroy)
+ *    exported function on the same pipeline (render_frame, render_frame_at, output, pixels,
+ *    reset, resize, destroy)
  *    returns ST_STATUS_BUSY with a message naming the call in progress, while a call on
  *    another pipeline and a kernel call on an idle context succeed.
  * 2. From a second thread, while a frame waits inside its callback, the same: every call on
@@ -97,7 +98,7 @@ static StStatus kernel_call(StContext *context, int kind) {
     StPlaneU8 reason = {reasons, W, H, W};
     switch (kind) {
     case 0:
-        return stereotrace_ema(context, &in, &reason, NULL, &a, NULL, NULL, NULL);
+        return stereotrace_ema(context, &in, &reason, NULL, NULL, &a, NULL, NULL, NULL);
     case 1:
         return stereotrace_blend(context, &in, &a, &reason, 0.5f, 8, NULL);
     case 2: {
@@ -145,12 +146,17 @@ static void intrude(Engine *e, const char *in_progress, const char *from) {
     struct {
         StStatus status;
         const char *what;
-    } calls[4];
+    } calls[7];
+    static _Thread_local uint8_t mask[W * H];
+    StPlaneMutU8 mask_view = {mask, W, H, W};
     calls[0].status = stereotrace_pipeline_render_frame(self, 0, &stats), calls[0].what = "render_frame";
     calls[1].status = stereotrace_pipeline_render_frame_at(self, 9, cameras, &stats), calls[1].what = "render_frame_at";
     calls[2].status = stereotrace_pipeline_output(self, 0, &view), calls[2].what = "output";
-    calls[3].status = stereotrace_pipeline_destroy(self), calls[3].what = "destroy";
-    for (int i = 0; i < 4; i++) {
+    calls[3].status = stereotrace_pipeline_pixels(self, 0, 2, &mask_view), calls[3].what = "pixels";
+    calls[4].status = stereotrace_pipeline_reset(self), calls[4].what = "reset";
+    calls[5].status = stereotrace_pipeline_resize(self, W + 1, H), calls[5].what = "resize";
+    calls[6].status = stereotrace_pipeline_destroy(self), calls[6].what = "destroy";
+    for (int i = 0; i < 7; i++) {
         CHECK(calls[i].status == ST_STATUS_BUSY, "%s: %s on the busy pipeline returned %d", from, calls[i].what,
               calls[i].status);
     }

@@ -42,11 +42,19 @@ pub struct RoomEngine {
     /// Calls of each callback.
     pub gbuffer_calls: u64,
     pub trace_calls: u64,
+    /// The history confidence written where the pipeline gives a plane for it.
+    pub confidence: f32,
 }
 
 impl RoomEngine {
     pub fn new() -> Box<Self> {
-        Box::new(Self { scene: AnalyticScene::room(6.0), traced: [0; 2], gbuffer_calls: 0, trace_calls: 0 })
+        Box::new(Self {
+            scene: AnalyticScene::room(6.0),
+            traced: [0; 2],
+            gbuffer_calls: 0,
+            trace_calls: 0,
+            confidence: 1.0,
+        })
     }
 
     pub fn callbacks(self: &mut Box<Self>) -> StFrameSourceCallbacks {
@@ -88,6 +96,10 @@ unsafe extern "C" fn fill_gbuffers(
                     }
                     *g.normal_octahedral.data.add(i) = s.normal_oct.as_slice()[j];
                     *g.material.data.add(i) = 0;
+                    if !g.history_confidence.data.is_null() {
+                        *g.history_confidence.data.add(y * g.history_confidence.stride as usize + x) =
+                            engine.confidence;
+                    }
                 }
             }
         }
@@ -136,9 +148,21 @@ unsafe extern "C" fn trace(
 /// A callback pipeline over `engine` in `mode` for frames of `width`×`height`, with
 /// tolerances for this coarse view of the room.
 pub fn room_pipeline(engine: &mut Box<RoomEngine>, mode: StMode, width: u32, height: u32) -> *mut StPipeline {
+    room_pipeline_with(engine, mode, width, height, |_| ())
+}
+
+/// [`room_pipeline`] with `edit` applied to the configuration.
+pub fn room_pipeline_with(
+    engine: &mut Box<RoomEngine>,
+    mode: StMode,
+    width: u32,
+    height: u32,
+    edit: impl Fn(&mut StPipelineConfig),
+) -> *mut StPipeline {
     let callbacks = engine.callbacks();
     let mut config = stereotrace_pipeline_config_default();
     (config.mode, config.width, config.height, config.threads) = (mode as u32, width, height, 1);
+    edit(&mut config);
     let mut tolerances = stereotrace_reproject_params_default();
     tolerances.position_tolerance = 0.5;
     config.reprojection = &tolerances;

@@ -34,7 +34,7 @@ use crate::bands::{SharedRows, for_each_band};
 use crate::frame::{FrameError, Plane, PlaneMut, RgbPlanes, RgbPlanesMut, same_extent};
 use crate::reproject::check_reason_plane;
 use crate::simd::F32s;
-pub use scalar::{blend_pixel, ema_pixel, lerp};
+pub use scalar::{blend_pixel, ema_pixel, ema_pixel_trusting, lerp};
 use scalar::{blend_scalar_at, ema_scalar_at};
 pub use simd::lerp_simd;
 
@@ -68,6 +68,12 @@ pub struct EmaInput<'a> {
     pub reason: Plane<'a, u8>,
     /// Optional: non-zero where a new sample exists this frame (absent: everywhere).
     pub has_new: Option<Plane<'a, u8>>,
+    /// Optional: how far each pixel's history can be trusted, in [0, 1] (absent: 1
+    /// everywhere), for what reprojection cannot see (a light that moved, an engine's own
+    /// disocclusion test). Where the history is valid and a new sample arrives, it counts as
+    /// `c·n` samples and `α' = α + (1 − α)·(1 − c)`: `c = 1` is the plain EMA, bit for bit,
+    /// `c = 0` restarts from the new sample. NaN or values outside [0, 1] are refused.
+    pub confidence: Option<Plane<'a, f32>>,
 }
 
 /// The accumulation buffers, updated in place.
@@ -114,11 +120,34 @@ fn check_ema(input: &EmaInput<'_>, state: &EmaState<'_>, params: &EmaParams) -> 
     if let Some(h) = &input.has_new {
         same_extent("new-sample mask", e, h.extent())?;
     }
+    if let Some(c) = &input.confidence {
+        same_extent("history confidence plane", e, c.extent())?;
+        check_unit_interval(c)?;
+    }
     if let Some(n) = &state.history_len {
         same_extent("history length plane", e, n.extent())?;
         check_history_len(&n.as_plane())?;
     }
     check_reason_plane("reason plane", &input.reason)
+}
+
+/// Refuses a confidence outside [0, 1] (or NaN), naming the first such pixel.
+fn check_unit_interval(plane: &Plane<'_>) -> Result<(), FrameError> {
+    for y in 0..plane.height() {
+        let row = plane.row(y);
+        let unit = |v: f32| (0.0..=1.0).contains(&v);
+        if !row.iter().fold(true, |ok, &v| ok & unit(v)) {
+            let x = row.iter().position(|&v| !unit(v)).expect("a bad confidence is in the row");
+            return Err(FrameError::ValueOutOfRange {
+                what: "history confidence plane",
+                x,
+                y,
+                value: f64::from(row[x]),
+                allowed: "in [0, 1]",
+            });
+        }
+    }
+    Ok(())
 }
 
 /// Refuses a history length that is not a count: negative, NaN or infinite (the ramp's
@@ -168,7 +197,7 @@ pub fn ema_scalar(
 /// let mut history = RgbBuf::new(extent, 1.0); // the reprojected history
 /// let samples = RgbBuf::new(extent, 0.0); // this frame's samples
 /// let valid = PlaneBuf::new(extent, Reason::Reprojected as u8);
-/// let input = EmaInput { new: samples.view(), reason: valid.view(), has_new: None };
+/// let input = EmaInput { new: samples.view(), reason: valid.view(), has_new: None, confidence: None };
 /// let state = EmaState { accum: history.view_mut(), history_len: None };
 /// accumulate::ema(&input, state, &EmaParams::default())?; // alpha 0.2
 /// assert_eq!(history.get(3, 2), [0.8; 3]);

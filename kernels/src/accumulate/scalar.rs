@@ -31,8 +31,8 @@ pub(super) fn finish(v: f32) -> f32 {
     if v.abs() < f32::MIN_POSITIVE { 0.0 } else { v }
 }
 
-/// One pixel of the EMA (scalar reference). Returns the new accumulation and history length
-/// and updates `stats`.
+/// One pixel of the EMA (scalar reference) with a history confidence of 1. Returns the new
+/// accumulation and history length and updates `stats`.
 #[inline]
 pub fn ema_pixel(
     history: [f32; 3],
@@ -43,14 +43,34 @@ pub fn ema_pixel(
     params: &EmaParams,
     stats: &mut AccumulateStats,
 ) -> ([f32; 3], f32) {
+    ema_pixel_trusting(history, history_len, new, history_valid, has_new, 1.0, params, stats)
+}
+
+/// [`ema_pixel`] with the history's `confidence` in [0, 1] (see the module notes): the
+/// history counts as `c·n` samples, and its weight `1 − α` is scaled by `c`, computed as
+/// `α' = α + (1 − α)·(1 − c)` (exactly `α` at `c = 1`; `c = 0` takes the new sample).
+#[inline]
+#[allow(clippy::too_many_arguments)]
+pub fn ema_pixel_trusting(
+    history: [f32; 3],
+    history_len: f32,
+    new: [f32; 3],
+    history_valid: bool,
+    has_new: bool,
+    confidence: f32,
+    params: &EmaParams,
+    stats: &mut AccumulateStats,
+) -> ([f32; 3], f32) {
     let finite = new.iter().all(|v| v.is_finite());
     if has_new && !finite {
         stats.non_finite += 1;
     }
     match (has_new && finite, history_valid) {
         (true, true) => {
-            let alpha = if params.ramp { params.alpha.max(1.0 / (history_len + 1.0)) } else { params.alpha };
-            ([0, 1, 2].map(|c| lerp(history[c], new[c], alpha)), history_len + 1.0)
+            let n = history_len * confidence;
+            let base = if params.ramp { params.alpha.max(1.0 / (n + 1.0)) } else { params.alpha };
+            let alpha = if confidence <= 0.0 { 1.0 } else { base + (1.0 - base) * (1.0 - confidence) };
+            ([0, 1, 2].map(|c| lerp(history[c], new[c], alpha)), n + 1.0)
         }
         (true, false) => {
             stats.resets += 1;
@@ -79,7 +99,8 @@ pub(super) fn ema_scalar_at(
     let valid = input.reason.row(y)[x] == Reason::Reprojected as u8;
     let has_new = input.has_new.as_ref().is_none_or(|m| m.row(y)[x] != 0);
     let new = input.new.get(x, y);
-    let (out, n_out) = ema_pixel(history, n, new, valid, has_new, params, stats);
+    let confidence = input.confidence.as_ref().map_or(1.0, |c| c.row(y)[x]);
+    let (out, n_out) = ema_pixel_trusting(history, n, new, valid, has_new, confidence, params, stats);
     for c in 0..3 {
         acc[c][x] = out[c];
     }

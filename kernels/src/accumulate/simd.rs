@@ -51,6 +51,7 @@ pub(super) fn ema_row<'r>(
     let width = acc[0].len();
     let reason = input.reason.row(y);
     let has_new = input.has_new.as_ref().map(|m| m.row(y));
+    let confidence = input.confidence.as_ref().map(|c| c.row(y));
     let new = input.new.channels().map(|p| p.row(y));
     // Every row has the extent's width; stated once so that the loop's loads and stores
     // need no bounds checks.
@@ -58,6 +59,7 @@ pub(super) fn ema_row<'r>(
         reason.len() == width
             && (0..3).all(|c| acc[c].len() == width && new[c].len() == width)
             && has_new.is_none_or(|m| m.len() == width)
+            && confidence.is_none_or(|c| c.len() == width)
             && len.as_deref().is_none_or(|l| l.len() == width)
     );
     let mut x = 0;
@@ -66,12 +68,16 @@ pub(super) fn ema_row<'r>(
         let sampled = has_new.map_or(F32s::splat(f32::from_bits(u32::MAX)), |m| !byte_mask_eq(&m[x..x + LANES], 0));
         let new_v = [load(new[0], x), load(new[1], x), load(new[2], x)];
         let hist = [load(acc[0], x), load(acc[1], x), load(acc[2], x)];
-        let n = len.as_deref().map_or(F32s::ZERO, |l| load(l, x));
-        let alpha = if params.ramp {
+        let c = confidence.map_or(F32s::ONE, |c| load(c, x));
+        // The history's weight scaled by its confidence (the reference's operations; at c = 1
+        // every one of them is exact, so the plain EMA's bits).
+        let n = len.as_deref().map_or(F32s::ZERO, |l| load(l, x)) * c;
+        let base = if params.ramp {
             F32s::splat(params.alpha).max(F32s::ONE / (n + F32s::ONE))
         } else {
             F32s::splat(params.alpha)
         };
+        let alpha = c.simd_le(F32s::ZERO).select(F32s::ONE, base + (F32s::ONE - base) * (F32s::ONE - c));
         // The common case: every lane has a valid history and a finite new sample, and
         // `new − history` is finite (so neither is infinite). Then `lerp` is
         // `a + t·(b − a)` (or `b` where t = 1) and there is nothing to count: the same
@@ -106,7 +112,9 @@ pub(super) fn ema_row<'r>(
             store(acc[c], x, out);
         }
         if let Some(l) = len.as_deref_mut() {
-            let n_out = blend.select(n + F32s::ONE, reset.select(F32s::ONE, hole.select(F32s::ZERO, n)));
+            // Kept without a new sample: the stored length, not the confidence-weighted one.
+            let kept = load(l, x);
+            let n_out = blend.select(n + F32s::ONE, reset.select(F32s::ONE, hole.select(F32s::ZERO, kept)));
             store(l, x, n_out);
         }
         stats.non_finite += u64::from((sampled & !finite).to_bitmask().count_ones());

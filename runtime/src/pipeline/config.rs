@@ -191,6 +191,9 @@ pub struct PipelineConfig {
     pub general_integrator: bool,
     /// How the G-buffers are made.
     pub gbuffer: GBufferPass,
+    /// Give each G-buffer a history-confidence plane for the source to fill, which the EMA
+    /// reads (see `kernels::accumulate::EmaInput::confidence`); off, the plain EMA.
+    pub history_confidence: bool,
 }
 
 impl PipelineConfig {
@@ -211,6 +214,7 @@ impl PipelineConfig {
             tile_rows: 8,
             general_integrator: false,
             gbuffer: GBufferPass::Raster,
+            history_confidence: false,
         }
     }
 

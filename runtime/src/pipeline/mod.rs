@@ -91,20 +91,27 @@ struct FrameBuffers {
     len: PlaneBuf,
     stereo_reason: PlaneBuf<u8>,
     temporal_reason: PlaneBuf<u8>,
+    /// 1 where this frame path traced the pixel.
+    traced_mask: PlaneBuf<u8>,
 }
 
 impl FrameBuffers {
-    fn try_new(camera: CameraModel) -> Result<Self, FrameError> {
+    fn try_new(camera: CameraModel, history_confidence: bool) -> Result<Self, FrameError> {
         let e = camera.extent;
         let rgb = || RgbBuf::try_new(e, 0.0);
+        let mut gbuffer = GBufferBuf::try_new(camera)?;
+        if history_confidence {
+            gbuffer.history_confidence = Some(PlaneBuf::try_new(e, 1.0)?);
+        }
         Ok(Self {
-            gbuffer: GBufferBuf::try_new(camera)?,
+            gbuffer,
             traced: rgb()?,
             work: rgb()?,
             history: rgb()?,
             len: PlaneBuf::try_new(e, 0.0)?,
             stereo_reason: PlaneBuf::try_new(e, Reason::Invalid as u8)?,
             temporal_reason: PlaneBuf::try_new(e, Reason::Invalid as u8)?,
+            traced_mask: PlaneBuf::try_new(e, 0)?,
         })
     }
 }
@@ -137,13 +144,13 @@ struct EyeState {
 impl EyeState {
     /// Every buffer of one eye, or [`FrameError::OutOfMemory`] (nothing kept) if the
     /// allocator refuses one.
-    fn try_new(camera: CameraModel) -> Result<Self, FrameError> {
+    fn try_new(camera: CameraModel, history_confidence: bool) -> Result<Self, FrameError> {
         let e = camera.extent;
         Ok(Self {
             camera,
             prev_camera: None,
-            cur: FrameBuffers::try_new(camera)?,
-            prev: FrameBuffers::try_new(camera)?,
+            cur: FrameBuffers::try_new(camera, history_confidence)?,
+            prev: FrameBuffers::try_new(camera, history_confidence)?,
             ema_reason: PlaneBuf::try_new(e, Reason::Invalid as u8)?,
             wanted: PlaneBuf::try_new(e, 0)?,
             has_new: PlaneBuf::try_new(e, 0)?,
@@ -239,7 +246,10 @@ impl<S: FrameSource> Pipeline<S> {
             config,
             rig: None,
             extent,
-            eyes: [EyeState::try_new(left)?, EyeState::try_new(right)?],
+            eyes: [
+                EyeState::try_new(left, config.history_confidence)?,
+                EyeState::try_new(right, config.history_confidence)?,
+            ],
             frames_done: 0,
             planner: BudgetPlanner::default(),
         })
@@ -263,6 +273,25 @@ impl<S: FrameSource> Pipeline<S> {
     /// The frame size of both eyes.
     pub fn extent(&self) -> Extent {
         self.extent
+    }
+
+    /// Resizes the pipeline to frames of `extent` without rebuilding it: every buffer is
+    /// allocated anew (fallibly: on an error nothing changes), the source resizes its own
+    /// ([`FrameSource::resize`]), and the history is forgotten ([`Pipeline::reset`]). Frames
+    /// after it take cameras of the new extent; the output of the last frame is gone.
+    pub fn resize(&mut self, extent: Extent) -> Result<(), PipelineError> {
+        let camera = |c: &CameraModel| {
+            let view_proj = glam::Mat4::from_cols_array_2d(&c.rows).transpose();
+            CameraModel::new(view_proj, extent)
+        };
+        let eyes = [
+            EyeState::try_new(camera(&self.eyes[0].camera)?, self.config.history_confidence)?,
+            EyeState::try_new(camera(&self.eyes[1].camera)?, self.config.history_confidence)?,
+        ];
+        self.source.resize(extent)?;
+        (self.eyes, self.extent) = (eyes, extent);
+        self.reset();
+        Ok(())
     }
 
     /// Forgets the history (the next frame starts fresh, as the first one did).
@@ -302,6 +331,12 @@ impl<S: FrameSource> Pipeline<S> {
     /// reprojection failed; its other pixels read `Invalid` (see the module notes).
     pub fn temporal_reasons(&self, eye: Eye) -> &PlaneBuf<u8> {
         &self.eyes[eye as usize].cur.temporal_reason
+    }
+
+    /// 1 where `eye`'s pixel was path traced in the last frame, 0 elsewhere (reprojected,
+    /// accumulated, or left for a later frame under a budget).
+    pub fn traced_mask(&self, eye: Eye) -> &PlaneBuf<u8> {
+        &self.eyes[eye as usize].cur.traced_mask
     }
 
     /// The temporal history of `eye` after the last frame: what the next frame reprojects
@@ -731,6 +766,8 @@ impl<S: FrameSource> Pipeline<S> {
                 self.planner.loop_done(start.elapsed());
             }
         }
+        // What was traced, before a stereo fill adds its reprojected pixels to `has_new`.
+        s.cur.traced_mask.as_mut_slice().copy_from_slice(s.has_new.as_slice());
         stats.times.tracing += t.elapsed();
         Ok(())
     }
@@ -746,7 +783,8 @@ impl<S: FrameSource> Pipeline<S> {
             Source::Work => (s.cur.work.view(), s.cur.temporal_reason.view()),
             Source::WorkCombined => (s.cur.work.view(), s.ema_reason.view()),
         };
-        let input = EmaInput { new, reason, has_new: Some(s.has_new.view()) };
+        let confidence = s.cur.gbuffer.history_confidence.as_ref().map(|c| c.view());
+        let input = EmaInput { new, reason, has_new: Some(s.has_new.view()), confidence };
         let state = EmaState { accum: s.cur.history.view_mut(), history_len: ramp.then(|| s.cur.len.view_mut()) };
         let acc = accumulate::ema(&input, state, &params)?;
         let total = &mut stats.accumulation[eye as usize];
