@@ -84,6 +84,7 @@ fn run_reprojection<L: SurfaceLayout>(
         colour: source_frame.colour.view(),
         extra: None,
         pixel_mask: None,
+        motion: None,
     };
     let o = ReprojectOutput { colour: out.colour.view_mut(), extra: None, reason: out.reason.view_mut(), weight: None };
     let counts =

@@ -164,6 +164,10 @@ enum Command {
         /// How the pipelines make their G-buffers (default: raster).
         #[arg(long, value_enum)]
         gbuffer: Option<stereotrace::pipeline::GBufferPass>,
+        /// Give the pipelines the surfaces' motion (moving area lights' own), which temporal
+        /// reprojection follows; without it every surface is taken as still.
+        #[arg(long)]
+        motion_vectors: bool,
         /// List the run's work units and their estimated CPU time (writes OUT/plan.tsv);
         /// compute nothing.
         #[arg(long, conflicts_with_all = ["shard", "merge"])]
@@ -336,6 +340,7 @@ fn main() -> ExitCode {
             no_figures,
             max_units,
             gbuffer,
+            motion_vectors,
             plan,
             shard,
             merge,
@@ -364,6 +369,7 @@ fn main() -> ExitCode {
                 no_figures,
                 max_units,
                 gbuffer,
+                motion_vectors,
                 scope,
             };
             stereotrace::commands::eval::run(&opts).map(|report| println!("{report}"))

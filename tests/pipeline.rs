@@ -88,6 +88,7 @@ fn stereo_mode_reprojects_where_valid_and_traces_only_the_rest() {
         colour: right.view(),
         extra: None,
         pixel_mask: None,
+        motion: None,
     };
     let out = ReprojectOutput { colour: expected.view_mut(), extra: None, reason: reason.view_mut(), weight: None };
     let params = ReprojectParams { tolerances: r.scene().tolerances.at_height(H), ..ReprojectParams::default() };
@@ -136,6 +137,7 @@ fn the_paper_order_left_eye_reprojects_its_history_only_where_stereo_failed() {
         colour: prev_image.view(),
         extra: None,
         pixel_mask: None,
+        motion: None,
     };
     let out = ReprojectOutput { colour: history.view_mut(), extra: None, reason: reason.view_mut(), weight: None };
     let params = ReprojectParams { tolerances: r.scene().tolerances.at_height(H), ..ReprojectParams::default() };
@@ -314,4 +316,61 @@ fn a_resized_pipeline_renders_what_a_new_one_of_that_size_renders() {
     p.resize(extent()).unwrap();
     run(&mut p, &r, 5..6);
     assert_eq!(p.output(Eye::Left).extent(), extent());
+}
+
+/// Motion vectors (`PipelineConfig::motion_vectors`) on the moving sphere of atrium, seen by a
+/// still camera: the G-buffer's motion is the sphere's own translation between the frames
+/// (checked against the light's path, by the inverse transform rather than the renderer's
+/// barycentric way), zero on everything else; and temporal reprojection keeps the sphere's
+/// history with the vectors and loses it without (the sphere moves ~0.17 m a frame, more
+/// than the position tolerance).
+#[test]
+fn motion_vectors_follow_a_moving_light_and_keep_its_history() {
+    use stereotrace::render::MOVING_LIGHT_MATERIAL;
+    let r = renderer("atrium-moving-light");
+    let e = Extent::new(320, 180).unwrap();
+    let head = r.scene().camera.pose_at(0.0);
+    let moving = &r.scene().lights.moving;
+    assert_eq!(moving.len(), 1);
+    let mut kept = [0usize; 2];
+    let mut light_pixels = 0;
+    for motion_vectors in [false, true] {
+        let mut cfg = PipelineConfig::paper(Mode::Temporal, 1, r.scene().tolerances.at_height(e.height()));
+        cfg.motion_vectors = motion_vectors;
+        let mut p = Pipeline::new(&r, cfg, StereoRig::default(), e).unwrap();
+        for frame in 10..13 {
+            p.render_frame(frame, &head).unwrap();
+        }
+        let (now, then) = (moving[0].path.transform(12.0), moving[0].path.transform(11.0));
+        for eye in Eye::BOTH {
+            let g = p.gbuffer(eye);
+            assert_eq!(g.motion.is_some(), motion_vectors);
+            let reasons = p.temporal_reasons(eye).as_slice();
+            for (i, &material) in g.material.as_slice().iter().enumerate() {
+                let (x, y) = (i % e.width(), i / e.width());
+                let on_light = material == MOVING_LIGHT_MATERIAL;
+                if on_light {
+                    light_pixels += usize::from(motion_vectors);
+                    kept[usize::from(motion_vectors)] += usize::from(reasons[i] == Reason::Reprojected as u8);
+                }
+                let Some(motion) = &g.motion else { continue };
+                let m = glam::Vec3::from(std::array::from_fn(|c| motion[c].as_slice()[i]));
+                if !on_light {
+                    assert_eq!(m, glam::Vec3::ZERO, "{eye} ({x}, {y}): still geometry");
+                    continue;
+                }
+                let point = glam::Vec3::from(g.camera.unproject_pixel(x, y, g.depth.as_slice()[i]));
+                let expected = point - then.transform_point3(now.inverse().transform_point3(point));
+                assert!(
+                    (m - expected).length() < 1e-3 * expected.length().max(1e-2),
+                    "{eye} ({x}, {y}): {m} vs {expected}"
+                );
+            }
+        }
+    }
+    let [without, with] = kept;
+    eprintln!("sphere pixels {light_pixels}: history kept on {without} without vectors, {with} with");
+    assert!(light_pixels > 50, "the sphere covers {light_pixels} pixels");
+    assert!(with * 10 >= light_pixels * 8, "with vectors {with} of {light_pixels}");
+    assert!(without * 5 <= light_pixels, "without vectors {without} of {light_pixels}");
 }

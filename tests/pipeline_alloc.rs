@@ -1,6 +1,6 @@
 //! A frame through a warmed-up pipeline, driven as every frame loop drives it (a `Session`),
-//! allocates nothing, in every mode, with either G-buffer pass, and for the mono baseline
-//! (one test per file: the counting allocator sees the whole process).
+//! allocates nothing, in every mode, with either G-buffer pass, with motion vectors, and for
+//! the mono baseline (one test per file: the counting allocator sees the whole process).
 
 use stereotrace::camera::StereoRig;
 use stereotrace::kernels::Extent;
@@ -38,6 +38,12 @@ fn frames_after_the_first_allocate_nothing() {
             );
         }
     }
+    // Motion vectors, written where a moving area light is seen (atrium's sphere).
+    let atrium = Renderer::new(resolve("atrium-moving-light").unwrap()).unwrap();
+    let mut cfg = PipelineConfig::paper(Mode::Spatiotemporal, 1, atrium.scene().tolerances.at_height(36));
+    cfg.motion_vectors = true;
+    let pipeline = Pipeline::new(&atrium, cfg, StereoRig::default(), e).unwrap();
+    assert_eq!(warm_then_count(&pool, Session::new(pipeline, CameraWalk::Path)), 0, "motion vectors allocate");
     let cfg = PipelineConfig::paper(Mode::PathTraced, 1, renderer.scene().tolerances.at_height(36));
     let pipeline = Pipeline::new(&renderer, cfg, StereoRig::default(), e).unwrap();
     let mono = Session::new(pipeline, CameraWalk::BackAndForth).with_view(View::Mono);

@@ -290,6 +290,12 @@ typedef struct StReprojectInput {
   // Optional target-extent mask: only pixels where it is non-zero are reprojected; the
   // others read `ST_REASON_INVALID` and keep their outputs. Null: every pixel.
   const struct StPlaneU8 *pixel_mask;
+  // Optional: null, or an array of three target-extent planes x, y, z, the world-space
+  // motion of each target pixel's surface since the source frame (scene units). The
+  // surface was at `position − motion` when the source was rendered, and is looked for
+  // there: moving objects keep their history. 0 is a still surface (the same result as
+  // null, bit for bit); a non-finite vector makes the pixel `ST_REASON_INVALID`.
+  const struct StPlaneF32 *motion;
 } StReprojectInput;
 
 // A writable plane of `float`.
@@ -416,6 +422,11 @@ typedef struct StPipelineConfig {
   // 1: each G-buffer given to `fill_gbuffers` has a `history_confidence` plane for the
   // engine to fill (see [`StGBufferMut::history_confidence`]); 0: none (the plain EMA).
   uint32_t history_confidence;
+  // 1: each G-buffer has motion planes, which temporal reprojection follows (moving
+  // objects keep their history): a callback pipeline hands them to `fill_gbuffers` (see
+  // [`StGBufferMut::motion`]), a scene pipeline fills them from the scene's moving area
+  // lights; 0: none (every surface is taken as still).
+  uint32_t motion_vectors;
 } StPipelineConfig;
 
 // A writable plane of `uint32_t`.
@@ -458,6 +469,13 @@ typedef struct StGBufferMut {
   // light that moved, a disocclusion the engine knows of). A value outside [0, 1] or NaN
   // refuses the frame.
   struct StPlaneMutF32 history_confidence;
+  // Out, only with `config.motion_vectors` (else every `data` is null): the world-space
+  // motion x, y, z of each pixel's surface since the previous frame, in scene units (0 when
+  // the engine writes nothing: like `history_confidence`, the planes hold the frame before
+  // last's values otherwise, so write every pixel or none). The surface at a pixel was at
+  // `position − motion` then; temporal reprojection looks for it there. 0 is a still
+  // surface; a non-finite vector discards the pixel's history (`ST_REASON_INVALID`).
+  struct StPlaneMutF32 motion[3];
 } StGBufferMut;
 
 // An engine's renderer as the pipeline's frame source.

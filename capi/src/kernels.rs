@@ -149,6 +149,12 @@ pub struct StReprojectInput {
     /// Optional target-extent mask: only pixels where it is non-zero are reprojected; the
     /// others read `ST_REASON_INVALID` and keep their outputs. Null: every pixel.
     pub pixel_mask: *const StPlaneU8,
+    /// Optional: null, or an array of three target-extent planes x, y, z, the world-space
+    /// motion of each target pixel's surface since the source frame (scene units). The
+    /// surface was at `position − motion` when the source was rendered, and is looked for
+    /// there: moving objects keep their history. 0 is a still surface (the same result as
+    /// null, bit for bit); a non-finite vector makes the pixel `ST_REASON_INVALID`.
+    pub motion: *const StPlaneF32,
 }
 
 /// Where a reprojection writes (all of the target G-buffer's extent).
@@ -316,6 +322,18 @@ unsafe fn reproject_views<L: SurfaceLayout>(
             colour: input.colour.view(["input.colour.r", "input.colour.g", "input.colour.b"], b)?,
             extra: input.extra.as_ref().map(|p| p.view("input.extra", b)).transpose()?,
             pixel_mask: input.pixel_mask.as_ref().map(|p| p.view("input.pixel_mask", b)).transpose()?,
+            motion: match input.motion.is_null() {
+                true => None,
+                // SAFETY: the caller's contract: null or three planes.
+                false => {
+                    let m = std::slice::from_raw_parts(input.motion, 3);
+                    Some([
+                        m[0].view("input.motion[0]", b)?,
+                        m[1].view("input.motion[1]", b)?,
+                        m[2].view("input.motion[2]", b)?,
+                    ])
+                }
+            },
         };
         let kernel_output = ReprojectOutput {
             colour: output.colour.view(["output.colour.r", "output.colour.g", "output.colour.b"], b)?,

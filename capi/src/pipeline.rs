@@ -92,6 +92,11 @@ pub struct StPipelineConfig {
     /// 1: each G-buffer given to `fill_gbuffers` has a `history_confidence` plane for the
     /// engine to fill (see [`StGBufferMut::history_confidence`]); 0: none (the plain EMA).
     pub history_confidence: u32,
+    /// 1: each G-buffer has motion planes, which temporal reprojection follows (moving
+    /// objects keep their history): a callback pipeline hands them to `fill_gbuffers` (see
+    /// [`StGBufferMut::motion`]), a scene pipeline fills them from the scene's moving area
+    /// lights; 0: none (every surface is taken as still).
+    pub motion_vectors: u32,
 }
 
 /// Spatiotemporal mode in the paper's order, compact G-buffers, 1 spp, 1280×720, one
@@ -110,6 +115,7 @@ pub extern "C" fn stereotrace_pipeline_config_default() -> StPipelineConfig {
         seed: 1,
         reprojection: std::ptr::null(),
         history_confidence: 0,
+        motion_vectors: 0,
     }
 }
 
@@ -154,6 +160,11 @@ impl StPipelineConfig {
             0 => false,
             1 => true,
             other => return Err(Failure::invalid(format!("config.history_confidence must be 0 or 1, got {other}"))),
+        };
+        c.motion_vectors = match self.motion_vectors {
+            0 => false,
+            1 => true,
+            other => return Err(Failure::invalid(format!("config.motion_vectors must be 0 or 1, got {other}"))),
         };
         // SAFETY: the caller's contract.
         if let Some(r) = unsafe { self.reprojection.as_ref() } {
@@ -224,6 +235,13 @@ pub struct StGBufferMut {
     /// light that moved, a disocclusion the engine knows of). A value outside [0, 1] or NaN
     /// refuses the frame.
     pub history_confidence: StPlaneMutF32,
+    /// Out, only with `config.motion_vectors` (else every `data` is null): the world-space
+    /// motion x, y, z of each pixel's surface since the previous frame, in scene units (0 when
+    /// the engine writes nothing: like `history_confidence`, the planes hold the frame before
+    /// last's values otherwise, so write every pixel or none). The surface at a pixel was at
+    /// `position − motion` then; temporal reprojection looks for it there. 0 is a still
+    /// surface; a non-finite vector discards the pixel's history (`ST_REASON_INVALID`).
+    pub motion: [StPlaneMutF32; 3],
 }
 
 /// An engine's renderer as the pipeline's frame source.
@@ -297,6 +315,9 @@ fn packed<T: Copy + Send + Sync>(buf: &mut PlaneBuf<T>) -> (*mut T, u32, u32) {
     (buf.as_mut_slice().as_mut_ptr(), e.width() as u32, e.height() as u32)
 }
 
+/// A plane the pipeline does not have (null `data`).
+const NO_PLANE: StPlaneMutF32 = StPlaneMutF32 { data: std::ptr::null_mut(), width: 0, height: 0, stride: 0 };
+
 fn f32_plane(buf: &mut PlaneBuf) -> StPlaneMutF32 {
     let (data, width, height) = packed(buf);
     StPlaneMutF32 { data, width, height, stride: width }
@@ -325,10 +346,8 @@ impl FrameSource for CallbackSource {
             normal_octahedral: u32_plane(&mut g.normal_oct),
             material: u32_plane(&mut g.material),
             camera,
-            history_confidence: g
-                .history_confidence
-                .as_mut()
-                .map_or(StPlaneMutF32 { data: std::ptr::null_mut(), width: 0, height: 0, stride: 0 }, f32_plane),
+            history_confidence: g.history_confidence.as_mut().map_or(NO_PLANE, f32_plane),
+            motion: g.motion.as_mut().map_or([NO_PLANE; 3], |m| m.each_mut().map(f32_plane)),
         };
         let (l, r) = (view(left, self.cameras[0]), view(right, self.cameras[1]));
         // SAFETY: the views cover the pipeline's own buffers, alive and unaliased for the

@@ -95,6 +95,15 @@ fn fresh() -> Written {
     }
 }
 
+/// Small motion vectors, a different one per pixel, with one NaN (that pixel reads invalid).
+fn motion() -> [PlaneBuf; 3] {
+    std::array::from_fn(|c| {
+        let v =
+            (0..W * H).map(|i| if i == 5 && c == 1 { f32::NAN } else { 0.002 * ((i * 7 + c * 3) % 11) as f32 - 0.01 });
+        PlaneBuf::from_vec(v.collect(), extent()).unwrap()
+    })
+}
+
 /// A pixel mask that skips every third pixel, and an extra channel to carry.
 fn mask_and_extra() -> (PlaneBuf<u8>, PlaneBuf) {
     let mask = PlaneBuf::from_vec((0..W * H).map(|i| u8::from(i % 3 != 0)).collect(), extent()).unwrap();
@@ -110,7 +119,14 @@ fn through_c(target: &Eye, source: &Eye, layout: StLayout) -> Written {
         plane(&extra),
         StPlaneU8 { data: mask.as_slice().as_ptr(), width: W as u32, height: H as u32, stride: W as u32 },
     );
-    let input = StReprojectInput { colour: rgb(&source.frame.colour), extra: &extra_in, pixel_mask: &mask_in };
+    let motion = motion();
+    let motion_in = [plane(&motion[0]), plane(&motion[1]), plane(&motion[2])];
+    let input = StReprojectInput {
+        colour: rgb(&source.frame.colour),
+        extra: &extra_in,
+        pixel_mask: &mask_in,
+        motion: motion_in.as_ptr(),
+    };
     let (extra_out, weight_out) = (plane_mut(&mut w.extra), plane_mut(&mut w.weight));
     let output = StReprojectOutput {
         colour: rgb_mut(&mut w.colour),
@@ -134,6 +150,7 @@ fn through_c(target: &Eye, source: &Eye, layout: StLayout) -> Written {
 
 fn direct<L: stereotrace_kernels::SurfaceLayout>(target: &L, source: &L, source_eye: &Eye) -> Written {
     let (mask, extra) = mask_and_extra();
+    let motion = motion();
     let mut w = fresh();
     let input = ReprojectInput {
         target,
@@ -142,6 +159,7 @@ fn direct<L: stereotrace_kernels::SurfaceLayout>(target: &L, source: &L, source_
         colour: source_eye.frame.colour.view(),
         extra: Some(extra.view()),
         pixel_mask: Some(mask.view()),
+        motion: Some(motion.each_ref().map(|p| p.view())),
     };
     let output = ReprojectOutput {
         colour: w.colour.view_mut(),
@@ -164,6 +182,8 @@ fn reprojection_through_the_c_abi_is_the_kernel_bit_for_bit() {
     // third of them (skipped pixels are not counted).
     assert!(full.counts[0] > 0 && full.counts[1] > 0, "{:?}", full.counts);
     assert_eq!(full.counts.iter().sum::<u64>(), (W * H - (W * H).div_ceil(3)) as u64);
+    // The NaN motion vector made its pixel invalid.
+    assert_eq!(full.reason.as_slice()[5], stereotrace_kernels::reproject::Reason::Invalid as u8);
 }
 
 #[test]
@@ -224,8 +244,12 @@ fn refused_calls_write_nothing_and_say_why() {
         let status = stereotrace_reproject(ctx, t, &s, input, output, std::ptr::null(), std::ptr::null_mut());
         (status, std::ffi::CStr::from_ptr(stereotrace_last_error()).to_string_lossy().into_owned())
     };
-    let input =
-        StReprojectInput { colour: rgb(&right.frame.colour), extra: std::ptr::null(), pixel_mask: std::ptr::null() };
+    let input = StReprojectInput {
+        colour: rgb(&right.frame.colour),
+        extra: std::ptr::null(),
+        pixel_mask: std::ptr::null(),
+        motion: std::ptr::null(),
+    };
     let output =
         StReprojectOutput { colour: colour_out, extra: std::ptr::null(), reason: reason_out, weight: std::ptr::null() };
 

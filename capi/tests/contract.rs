@@ -309,6 +309,37 @@ fn an_engines_history_confidence_weighs_the_history() {
     expect(unsafe { stereotrace_pipeline_destroy(p) }, StStatus::Ok);
 }
 
+/// An engine's motion vectors: zero is the pipeline without them, bit for bit; a non-finite
+/// vector discards every pixel's history (each frame shows its own samples); a flag that is
+/// not 0 or 1 is refused.
+#[test]
+fn an_engines_motion_vectors_reach_temporal_reprojection() {
+    let run = |mode: StMode, motion: Option<[f32; 3]>| {
+        let mut engine = RoomEngine::new();
+        engine.motion = motion.unwrap_or([0.0; 3]);
+        let p = room_pipeline_with(&mut engine, mode, W, H, |c| c.motion_vectors = u32::from(motion.is_some()));
+        let out = frames(p, 0..4);
+        expect(unsafe { stereotrace_pipeline_destroy(p) }, StStatus::Ok);
+        out
+    };
+    let still = run(StMode::Temporal, None);
+    assert_eq!(run(StMode::Temporal, Some([0.0; 3])), still, "zero motion is no motion");
+    let traced = run(StMode::PathTraced, None);
+    assert_eq!(run(StMode::Temporal, Some([0.0, f32::NAN, 0.0])), traced, "no pixel keeps a history");
+    assert_ne!(run(StMode::Temporal, Some([0.3, 0.0, 0.0])), still, "a moved surface is looked for elsewhere");
+
+    let mut engine = RoomEngine::new();
+    let callbacks = engine.callbacks();
+    let mut config = stereotrace_pipeline_config_default();
+    (config.width, config.height, config.motion_vectors) = (W, H, 2);
+    let cameras = [camera(-0.03, W, H), camera(0.03, W, H)];
+    let mut p = std::ptr::null_mut();
+    let status = unsafe { stereotrace_pipeline_create_callbacks(&callbacks, &config, cameras.as_ptr(), &mut p) };
+    let message = expect(status, StStatus::InvalidArgument);
+    assert!(message.contains("config.motion_vectors must be 0 or 1"), "{message}");
+    assert!(p.is_null());
+}
+
 /// `stereotrace_pipeline_reset` forgets the history: the next frame is what a new pipeline's
 /// first frame would be.
 #[test]

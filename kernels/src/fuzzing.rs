@@ -176,6 +176,7 @@ pub fn reproject(data: &[u8]) {
             (0..extent.pixels()).map(|i| u8::from((i as u32).wrapping_mul(0x9E37_79B9) >> 30 < u32::from(mask_share)));
         PlaneBuf::from_vec(on.collect(), extent).expect("extent matches")
     });
+    let motion = motion_from(&mut bytes, extent);
     let mut target = scene.render(&target_camera, [0.0; 3]);
     let mut source = scene.render(&source_camera, [0.0; 3]);
     let edit_source = bytes.u8() % 2 == 0;
@@ -186,9 +187,49 @@ pub fn reproject(data: &[u8]) {
         .expect("extent matches");
     let (target, source) = (Strided::new(&target, pad), Strided::new(&source, pad));
     let (tf, sf) = (target.gbuffer(), source.gbuffer());
-    check_reprojection(&tf, &sf, &source, None, mask.as_ref(), &params, source_finite);
+    let with = Extras { extra: None, mask: mask.as_ref(), motion: motion.as_ref() };
+    check_reprojection(&tf, &sf, &source, with, &params, source_finite);
     let (tc, sc) = (target.compact(), source.compact());
-    check_reprojection(&tc, &sc, &source, Some(&extra), mask.as_ref(), &params, source_finite);
+    let with = Extras { extra: Some(&extra), ..with };
+    check_reprojection(&tc, &sc, &source, with, &params, source_finite);
+}
+
+/// Motion planes for the target, or none: one vector for every pixel (any bits, NaN and
+/// infinities included), or small per-pixel vectors with a few non-finite ones.
+fn motion_from(bytes: &mut Bytes, extent: Extent) -> Option<[PlaneBuf; 3]> {
+    let planes = |value: &mut dyn FnMut(usize, usize) -> f32| {
+        [0, 1, 2].map(|c| {
+            let v = (0..extent.pixels()).map(|i| value(i, c)).collect();
+            PlaneBuf::from_vec(v, extent).expect("extent matches")
+        })
+    };
+    match bytes.u8() % 4 {
+        0 | 1 => None,
+        2 => {
+            let m = [bytes.f32(), bytes.f32(), bytes.f32()];
+            Some(planes(&mut |_, c| m[c]))
+        }
+        _ => {
+            let scale = bytes.unit(0.0, 1.0);
+            let odd = usize::from(bytes.u8());
+            Some(planes(&mut |i, c| {
+                let h = ((i * 3 + c) as u32).wrapping_mul(0x9E37_79B9);
+                if odd != 0 && (i * 3 + c) % (odd + 7) == 0 {
+                    [f32::NAN, f32::INFINITY, f32::NEG_INFINITY][(h >> 30) as usize % 3]
+                } else {
+                    scale * ((h >> 8) as f32 / (1u32 << 24) as f32 - 0.5)
+                }
+            }))
+        }
+    }
+}
+
+/// The optional inputs of one reprojection call.
+#[derive(Clone, Copy)]
+struct Extras<'a> {
+    extra: Option<&'a PlaneBuf>,
+    mask: Option<&'a PlaneBuf<u8>>,
+    motion: Option<&'a [PlaneBuf; 3]>,
 }
 
 /// A copy of a frame's planes with `pad` extra elements per row (filled with NaN or an
@@ -259,11 +300,11 @@ fn check_reprojection<L: SurfaceLayout>(
     target: &L,
     source: &L,
     source_frame: &Strided,
-    extra: Option<&PlaneBuf>,
-    mask: Option<&PlaneBuf<u8>>,
+    with: Extras<'_>,
     params: &ReprojectParams,
     source_finite: bool,
 ) {
+    let Extras { extra, mask, motion } = with;
     let input = ReprojectInput {
         target,
         source,
@@ -271,6 +312,7 @@ fn check_reprojection<L: SurfaceLayout>(
         colour: source_frame.colour(),
         extra: extra.map(|p| p.view()),
         pixel_mask: mask.map(|m| m.view()),
+        motion: motion.map(|m| m.each_ref().map(|p| p.view())),
     };
     let e = target.extent();
     if let Err(refusal) = params.tolerances.validate() {
@@ -325,6 +367,10 @@ fn check_reprojection<L: SurfaceLayout>(
                 for p in colour.planes() {
                     assert!(p.as_slice()[i].is_finite(), "non-finite output from finite source samples");
                 }
+            }
+            let moved_by_nonsense = motion.is_some_and(|m| m.iter().any(|p| !p.as_slice()[i].is_finite()));
+            if moved_by_nonsense && target.surfel(i % e.width(), i / e.width()).depth != f32::INFINITY {
+                assert_eq!(reason.as_slice()[i], Reason::Invalid as u8, "a non-finite motion vector is invalid");
             }
         } else {
             assert_eq!(reason.as_slice()[i], Reason::Invalid as u8, "a skipped pixel reads invalid");

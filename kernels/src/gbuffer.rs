@@ -309,6 +309,11 @@ pub struct GBufferBuf {
     /// knows of). Present only where its consumer asks for it (a pipeline configured with
     /// `history_confidence`); a producer that does not know it leaves it at 1.
     pub history_confidence: Option<PlaneBuf>,
+    /// Optional: the world-space motion x, y, z of each pixel's surface since the previous
+    /// frame (see `reproject::ReprojectInput::motion`). Present only where its consumer asks
+    /// for it (a pipeline configured with `motion_vectors`); a producer that does not know it
+    /// leaves it at zero (still).
+    pub motion: Option<[PlaneBuf; 3]>,
 }
 
 impl GBufferBuf {
@@ -323,6 +328,7 @@ impl GBufferBuf {
             normal_oct: PlaneBuf::new(e, NO_NORMAL),
             material: PlaneBuf::new(e, u32::MAX),
             history_confidence: None,
+            motion: None,
         }
     }
 
@@ -339,6 +345,7 @@ impl GBufferBuf {
             normal_oct: PlaneBuf::try_new(e, NO_NORMAL)?,
             material: PlaneBuf::try_new(e, u32::MAX)?,
             history_confidence: None,
+            motion: None,
         })
     }
 
@@ -360,9 +367,14 @@ impl GBufferBuf {
         }
         self.normal_oct.as_mut_slice().copy_from_slice(other.normal_oct.as_slice());
         self.material.as_mut_slice().copy_from_slice(other.material.as_slice());
-        // The confidence where both have one (a consumer that asked for it keeps its plane).
+        // The confidence and motion where both have them (a consumer that asked for it keeps its plane).
         if let (Some(to), Some(from)) = (&mut self.history_confidence, &other.history_confidence) {
             to.as_mut_slice().copy_from_slice(from.as_slice());
+        }
+        if let (Some(to), Some(from)) = (&mut self.motion, &other.motion) {
+            for (to, from) in to.iter_mut().zip(from) {
+                to.as_mut_slice().copy_from_slice(from.as_slice());
+            }
         }
         Ok(())
     }

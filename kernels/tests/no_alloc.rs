@@ -43,6 +43,7 @@ fn second_frame_allocates_nothing() {
             colour: right.colour.view(),
             extra: None,
             pixel_mask: None,
+            motion: None,
         };
         let out = ReprojectOutput {
             colour: reprojected.view_mut(),
@@ -62,6 +63,7 @@ fn second_frame_allocates_nothing() {
             colour: left_prev.colour.view(),
             extra: Some(history_len.view()),
             pixel_mask: None,
+            motion: None,
         };
         let out = ReprojectOutput {
             colour: history.view_mut(),
@@ -82,6 +84,7 @@ fn second_frame_allocates_nothing() {
             colour: right.colour.view(),
             extra: None,
             pixel_mask: None,
+            motion: None,
         };
         let out =
             ReprojectOutput { colour: reprojected.view_mut(), extra: None, reason: reason.view_mut(), weight: None };

@@ -87,6 +87,7 @@ fn input_for<'a, L: SurfaceLayout>(
         colour: source_frame.colour.view(),
         extra,
         pixel_mask: None,
+        motion: None,
     }
 }
 
@@ -512,6 +513,7 @@ fn bad_inputs_are_refused_with_named_errors() {
         colour: right.colour.view(),
         extra: None,
         pixel_mask: None,
+        motion: None,
     };
     let err = run_reprojection(&input, &params(TapPolicy::Strict), true).unwrap_err();
     assert!(err.to_string().contains("source colour"), "{err}");
@@ -911,4 +913,156 @@ fn rgb_views_of_different_planes_are_checked() {
     let a = PlaneBuf::new(e, 0.0f32);
     let b = PlaneBuf::new(extent(4, 3), 0.0f32);
     assert!(RgbPlanes::new(a.view(), b.view(), a.view()).is_err());
+}
+
+/// Motion planes (x, y, z) from one closure over target pixels.
+fn motion_planes(e: Extent, mut m: impl FnMut(usize, usize) -> [f32; 3]) -> [PlaneBuf; 3] {
+    let mut planes = [0; 3].map(|_| PlaneBuf::new(e, 0.0));
+    for y in 0..e.height() {
+        for x in 0..e.width() {
+            let v = m(x, y);
+            for c in 0..3 {
+                planes[c].as_mut_slice()[y * e.width() + x] = v[c];
+            }
+        }
+    }
+    planes
+}
+
+#[test]
+fn zero_motion_is_static_geometry_bit_for_bit() {
+    for &(w, h) in &[(1, 1), (9, 4), (33, 7)] {
+        let e = extent(w, h);
+        let (left, right) = stereo_room(e, 0.4);
+        let zero = motion_planes(e, |_, _| [0.0; 3]);
+        for simd in [true, false] {
+            let (tc, sc) = (left.compact(), right.compact());
+            let still = input_for(&tc, &sc, &right, None);
+            let moving =
+                ReprojectInput { motion: Some(zero.each_ref().map(|p| p.view())), ..input_for(&tc, &sc, &right, None) };
+            let p = params(TapPolicy::Renormalize);
+            assert_same(&run_reprojection(&still, &p, simd).unwrap(), &run_reprojection(&moving, &p, simd).unwrap());
+        }
+    }
+}
+
+/// A strip in front of a wall moves sideways by a whole number of pixels between two frames of
+/// a still camera. Without motion vectors the strip's pixels that overlap its old place pass
+/// every geometric test (same depth, same normal, within the position tolerance) and fetch the
+/// wrong texel: the ghost trail of a moving object. With the true motion every pixel inside the
+/// strip reprojects to its own texel (the texture moves with the strip), and the wall it
+/// uncovered is discarded either way.
+#[test]
+fn motion_vectors_make_a_moving_strip_reproject_its_own_texels() {
+    let e = extent(200, 60);
+    let vfov = 60.0;
+    let f = focal_pixels(e, vfov);
+    let (z_back, z_front, shift) = (8.0f32, 2.0f32, 6.0f64);
+    let d = (shift * f64::from(z_front) / f) as f32;
+    let strip_at = |cx: f32| {
+        let mut scene = wall(z_back, Texture::pattern([0.5, 0.5, 0.5], 0.2, 3.0));
+        scene.rects.push(Rect {
+            centre: Vec3::new(cx, 0.0, -z_front),
+            axis_u: Vec3::X,
+            axis_v: Vec3::Y,
+            half: (0.3, 10.0),
+            texture: Texture::pattern([0.6, 0.3, 0.2], 0.3, 9.0),
+        });
+        scene.render(&camera_at(Vec3::ZERO, e, vfov), [0.0; 3])
+    };
+    let (previous, current) = (strip_at(0.0), strip_at(d));
+    let on_strip =
+        |frame: &SynthFrame, x: usize, y: usize| frame.surfaces.depth.view().get(x, y) < 0.5 * (z_front + z_back);
+    let motion = motion_planes(e, |x, y| if on_strip(&current, x, y) { [d, 0.0, 0.0] } else { [0.0; 3] });
+    let (tc, sc) = (current.compact(), previous.compact());
+    let p = params(TapPolicy::Strict);
+    let without = run_reprojection(&input_for(&tc, &sc, &previous, None), &p, true).unwrap();
+    let with_input =
+        ReprojectInput { motion: Some(motion.each_ref().map(|p| p.view())), ..input_for(&tc, &sc, &previous, None) };
+    let with = run_reprojection(&with_input, &p, true).unwrap();
+    assert_same(&with, &run_reprojection(&with_input, &p, false).unwrap());
+
+    let y = e.height() / 2;
+    let strip_pixels: Vec<usize> = (0..e.width()).filter(|&x| on_strip(&current, x, y)).collect();
+    assert!(strip_pixels.len() > 12, "the strip spans {} pixels", strip_pixels.len());
+    let (first, last) = (strip_pixels[0], *strip_pixels.last().unwrap());
+    let (mut ghost_error, mut ghost_pixels) = (0.0f32, 0);
+    for x in first + 1..last {
+        let i = y * e.width() + x;
+        let own = current.colour.get(x, y);
+        assert_eq!(with.reason.as_slice()[i], Reason::Reprojected as u8, "x = {x} with motion");
+        let got = with.colour.view().get(x, y);
+        for c in 0..3 {
+            assert!((got[c] - own[c]).abs() < 2e-3, "x = {x}: {got:?} against its own texel {own:?}");
+        }
+        // Without motion: the strip's old place gives a wrong texel, the wall a depth failure.
+        let code = Reason::from_code(without.reason.as_slice()[i]).unwrap();
+        if on_strip(&previous, x, y) && on_strip(&previous, x - 1, y) && on_strip(&previous, x + 1, y) {
+            assert_eq!(code, Reason::Reprojected, "x = {x} without motion: a ghost, not a failure");
+            let ghost = without.colour.view().get(x, y);
+            ghost_error += (0..3).map(|c| (ghost[c] - own[c]).abs()).sum::<f32>();
+            ghost_pixels += 1;
+        } else if !on_strip(&previous, x, y) && !on_strip(&previous, x - 1, y) && !on_strip(&previous, x + 1, y) {
+            assert_eq!(code, Reason::DepthOrPosition, "x = {x} without motion: the wall behind");
+        }
+    }
+    assert!(
+        ghost_pixels > 4 && ghost_error / ghost_pixels as f32 > 0.05,
+        "ghost error {ghost_error} over {ghost_pixels}"
+    );
+    // The wall the strip uncovered has no history with or without vectors (the wall is still).
+    for x in 0..e.width() {
+        if !on_strip(&current, x, y) && on_strip(&previous, x, y) && x > 0 && on_strip(&previous, x - 1, y) {
+            let i = y * e.width() + x;
+            assert_eq!(with.reason.as_slice()[i], Reason::DepthOrPosition as u8, "x = {x}: uncovered wall");
+            assert_eq!(with.reason.as_slice()[i], without.reason.as_slice()[i]);
+        }
+    }
+}
+
+#[test]
+fn motion_with_edge_values_matches_the_scalar_reference_and_is_invalid_where_not_finite() {
+    let mut rng = Rng::new(0x6d6f_7665);
+    for case in 0..40 {
+        let e = extent(1 + rng.below(40), 1 + rng.below(12));
+        let scene = AnalyticScene::room(3.0 + rng.range(0.0, 8.0));
+        let target = scene.render(&camera_at(Vec3::new(rng.range(-0.3, 0.3), 0.0, 0.0), e, 60.0), [0.0; 3]);
+        let source = scene.render(&camera_at(Vec3::new(rng.range(-0.3, 0.3), 0.0, 0.0), e, 60.0), [0.0; 3]);
+        let share = if case % 2 == 0 { 0.0 } else { 0.2 };
+        let motion = motion_planes(e, |_, _| {
+            [0; 3].map(|_| {
+                if rng.next_f32() < share { EDGE_VALUES[rng.below(EDGE_VALUES.len())] } else { rng.range(-0.2, 0.2) }
+            })
+        });
+        let p = ReprojectParams { band_rows: 1 + rng.below(5), ..params(TapPolicy::Renormalize) };
+        let (tc, sc) = (target.compact(), source.compact());
+        let input =
+            ReprojectInput { motion: Some(motion.each_ref().map(|p| p.view())), ..input_for(&tc, &sc, &source, None) };
+        let simd = run_reprojection(&input, &p, true).unwrap();
+        assert_same(&simd, &run_reprojection(&input, &p, false).unwrap());
+        for i in 0..e.pixels() {
+            let finite = (0..3).all(|c| motion[c].as_slice()[i].is_finite());
+            let background = target.surfaces.depth.as_slice()[i] == f32::INFINITY;
+            if !finite && !background {
+                assert_eq!(simd.reason.as_slice()[i], Reason::Invalid as u8, "pixel {i} of case {case}");
+            }
+        }
+        assert!(
+            [simd.colour.r(), simd.colour.g(), simd.colour.b()]
+                .iter()
+                .all(|p| p.as_slice().iter().all(|v| v.is_finite()))
+        );
+    }
+}
+
+#[test]
+fn motion_planes_of_another_extent_are_refused() {
+    let (left, right) = stereo_room(extent(16, 8), 0.065);
+    let (tc, sc) = (left.compact(), right.compact());
+    let mut motion = [0; 3].map(|_| PlaneBuf::new(extent(16, 8), 0.0));
+    motion[1] = PlaneBuf::new(extent(16, 7), 0.0);
+    let input =
+        ReprojectInput { motion: Some(motion.each_ref().map(|p| p.view())), ..input_for(&tc, &sc, &right, None) };
+    let err = run_reprojection(&input, &params(TapPolicy::Strict), true).unwrap_err();
+    assert!(err.to_string().contains("motion y"), "{err}");
 }

@@ -127,15 +127,19 @@ impl<R: Borrow<Renderer>> FrameSource for RendererSource<R> {
         _layout: Layout,
     ) -> Result<Option<RasterPassStats>, PipelineError> {
         // The layout was fixed at construction (the raster pass's planes).
-        match &mut self.raster {
-            Some(raster) => Ok(Some(self.renderer.borrow().render_gbuffers_raster(&self.lights, gbuffers, raster)?)),
+        let renderer = self.renderer.borrow();
+        let [left, right] = gbuffers;
+        let stats = match &mut self.raster {
+            Some(raster) => Some(renderer.render_gbuffers_raster(&self.lights, [&mut *left, &mut *right], raster)?),
             None => {
-                for g in gbuffers {
-                    self.renderer.borrow().render_gbuffer(&self.lights, g);
-                }
-                Ok(None)
+                renderer.render_gbuffer(&self.lights, left);
+                renderer.render_gbuffer(&self.lights, right);
+                None
             }
-        }
+        };
+        renderer.write_motion(&self.lights, left);
+        renderer.write_motion(&self.lights, right);
+        Ok(stats)
     }
 
     fn trace(

@@ -176,6 +176,7 @@ fn path_traced_and_stereo_frames_are_the_kernels_on_the_same_buffers() {
         colour: right_samples.view(),
         extra: None,
         pixel_mask: None,
+        motion: None,
     };
     let out = ReprojectOutput { colour: expected.view_mut(), extra: None, reason: reason.view_mut(), weight: None };
     reproject::reproject(&input, out, &params(p.config())).unwrap();
@@ -214,6 +215,7 @@ fn temporal_frames_are_reprojection_then_ema_on_the_same_buffers() {
             colour: prev_history.view(),
             extra: None,
             pixel_mask: None,
+            motion: None,
         };
         let out = ReprojectOutput { colour: history.view_mut(), extra: None, reason: reason.view_mut(), weight: None };
         let counts = reproject::reproject(&input, out, &params(p.config())).unwrap();

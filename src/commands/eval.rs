@@ -41,6 +41,8 @@ pub struct EvalOptions {
     pub no_figures: bool,
     pub max_units: Option<usize>,
     pub gbuffer: Option<crate::pipeline::GBufferPass>,
+    /// Motion vectors on (the preset's setting otherwise).
+    pub motion_vectors: bool,
     pub scope: Scope,
 }
 
@@ -78,6 +80,7 @@ impl EvalOptions {
             no_figures: false,
             max_units: None,
             gbuffer: None,
+            motion_vectors: false,
             scope: Scope::Whole,
         }
     }
@@ -137,6 +140,7 @@ pub fn build_spec(opts: &EvalOptions) -> Result<EvalSpec, String> {
     if let Some(g) = opts.gbuffer {
         spec.gbuffer = g;
     }
+    spec.motion_vectors |= opts.motion_vectors;
     // Figure options name scenes as the run will know them (a manifest's `name`, not its path).
     let names = spec
         .scenes

@@ -198,6 +198,9 @@ pub struct EvalSpec {
     pub eye_separation: f32,
     /// How the pipelines make their G-buffers.
     pub gbuffer: crate::pipeline::GBufferPass,
+    /// Whether the pipelines get the surfaces' motion vectors (older specs: off).
+    #[serde(default)]
+    pub motion_vectors: bool,
     pub figures: FigureSpec,
 }
 
@@ -268,6 +271,7 @@ impl Preset {
             checkpoint_spp: 256,
             eye_separation: crate::camera::DEFAULT_EYE_SEPARATION,
             gbuffer: crate::pipeline::GBufferPass::Raster,
+            motion_vectors: false,
             figures,
         };
         match self {

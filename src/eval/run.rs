@@ -1145,6 +1145,7 @@ pub fn pipeline_config(
     cfg.order = variant.order;
     cfg.seed = spec.seeds.pipeline;
     cfg.gbuffer = spec.gbuffer;
+    cfg.motion_vectors = spec.motion_vectors;
     cfg
 }
 

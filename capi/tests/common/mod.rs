@@ -44,6 +44,8 @@ pub struct RoomEngine {
     pub trace_calls: u64,
     /// The history confidence written where the pipeline gives a plane for it.
     pub confidence: f32,
+    /// The motion vector written to every pixel where the pipeline gives motion planes.
+    pub motion: [f32; 3],
 }
 
 impl RoomEngine {
@@ -54,6 +56,7 @@ impl RoomEngine {
             gbuffer_calls: 0,
             trace_calls: 0,
             confidence: 1.0,
+            motion: [0.0; 3],
         })
     }
 
@@ -99,6 +102,11 @@ unsafe extern "C" fn fill_gbuffers(
                     if !g.history_confidence.data.is_null() {
                         *g.history_confidence.data.add(y * g.history_confidence.stride as usize + x) =
                             engine.confidence;
+                    }
+                    for (plane, value) in g.motion.iter().zip(engine.motion) {
+                        if !plane.data.is_null() {
+                            *plane.data.add(y * plane.stride as usize + x) = value;
+                        }
                     }
                 }
             }

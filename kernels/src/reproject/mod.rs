@@ -240,6 +240,15 @@ pub struct ReprojectInput<'a, L: SurfaceLayout> {
     /// few scattered pixels (the paper-order left eye's history, needed only where its
     /// stereo reprojection failed) then pays for those pixels, not for the frame.
     pub pixel_mask: Option<Plane<'a, u8>>,
+    /// Optional per-pixel motion of the target's surfaces since the source frame, in world
+    /// units (x, y, z planes of the target extent): the surface seen at a target pixel was at
+    /// `X − m` when the source frame was rendered, so that point is projected into the source
+    /// and tested against its taps (position and depth), where `X` would be for static
+    /// geometry. Zero is static geometry, bit for bit; a non-finite vector makes the pixel
+    /// [`Reason::Invalid`], like any non-finite target data. Normals are compared as they are:
+    /// a turning object fails the normal test once it has turned by more than its threshold.
+    /// For temporal reprojection of moving objects; a stereo pair has none (one instant).
+    pub motion: Option<[Plane<'a>; 3]>,
 }
 
 /// Where a reprojection writes.
@@ -274,6 +283,7 @@ struct Prepared<'a, L: SurfaceLayout> {
     channels: [Plane<'a>; MAX_CHANNELS],
     channel_count: usize,
     pixel_mask: Option<Plane<'a, u8>>,
+    motion: Option<[Plane<'a>; 3]>,
     source_extent: Extent,
     half_width: f32,
     half_height: f32,
@@ -315,6 +325,11 @@ fn prepare<'a, L: SurfaceLayout>(
     if let Some(mask) = &input.pixel_mask {
         same_extent("pixel mask", input.target.extent(), mask.extent())?;
     }
+    if let Some(motion) = &input.motion {
+        for (plane, what) in motion.iter().zip(["motion x", "motion y", "motion z"]) {
+            same_extent(what, input.target.extent(), plane.extent())?;
+        }
+    }
     let c = input.colour;
     let tol = params.tolerances;
     Ok(Prepared {
@@ -324,6 +339,7 @@ fn prepare<'a, L: SurfaceLayout>(
         channels: [c.r(), c.g(), c.b(), input.extra.unwrap_or(c.r())],
         channel_count: if input.extra.is_some() { 4 } else { 3 },
         pixel_mask: input.pixel_mask,
+        motion: input.motion,
         source_extent: source,
         half_width: input.source_camera.half_extent().0,
         half_height: input.source_camera.half_extent().1,
@@ -449,6 +465,7 @@ pub fn reproject_scalar<L: SurfaceLayout>(
 ///     colour: right.colour.view(),
 ///     extra: None,
 ///     pixel_mask: None,
+///     motion: None,
 /// };
 /// let mut colour = RgbBuf::new(extent, 0.0);
 /// let mut reason = PlaneBuf::new(extent, 0u8);

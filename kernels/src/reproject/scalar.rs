@@ -35,7 +35,13 @@ pub(super) fn reproject_pixel_prepared<L: SurfaceLayout>(
     y: usize,
 ) -> (Reason, [f32; MAX_CHANNELS], f32) {
     const NONE: [f32; MAX_CHANNELS] = [0.0; MAX_CHANNELS];
-    let t = p.target.surfel(x, y);
+    let mut t = p.target.surfel(x, y);
+    if let Some(motion) = &p.motion {
+        // Where the surface was when the source frame was rendered.
+        for i in 0..3 {
+            t.position[i] -= motion[i].get(x, y);
+        }
+    }
     if t.depth == f32::INFINITY {
         return (Reason::Background, NONE, 0.0);
     }

@@ -261,7 +261,13 @@ fn reproject_lanes<L: SurfaceLayout, const C: usize>(
 
 #[inline(always)]
 fn target_lanes<L: SurfaceLayout>(p: &Prepared<'_, L>, x: usize, y: usize) -> TargetLanes {
-    let surface = p.target.surfels_row(x, y);
+    let mut surface = p.target.surfels_row(x, y);
+    if let Some(motion) = &p.motion {
+        // Where the surfaces were when the source frame was rendered (as the reference).
+        for i in 0..3 {
+            surface.position[i] -= F32s::from(motion[i].lanes::<LANES>(x, y));
+        }
+    }
     let inf = F32s::splat(f32::INFINITY);
     let background = surface.depth.simd_eq(inf);
     let normal_len2 = len2_simd(surface.normal);

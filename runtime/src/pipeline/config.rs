@@ -194,6 +194,10 @@ pub struct PipelineConfig {
     /// Give each G-buffer a history-confidence plane for the source to fill, which the EMA
     /// reads (see `kernels::accumulate::EmaInput::confidence`); off, the plain EMA.
     pub history_confidence: bool,
+    /// Give each G-buffer motion planes (world-space motion of each pixel's surface since the
+    /// last frame) for the source to fill, which temporal reprojection follows (see
+    /// `kernels::reproject::ReprojectInput::motion`); off, every surface is taken as still.
+    pub motion_vectors: bool,
 }
 
 impl PipelineConfig {
@@ -215,6 +219,7 @@ impl PipelineConfig {
             general_integrator: false,
             gbuffer: GBufferPass::Raster,
             history_confidence: false,
+            motion_vectors: false,
         }
     }
 

@@ -96,12 +96,16 @@ struct FrameBuffers {
 }
 
 impl FrameBuffers {
-    fn try_new(camera: CameraModel, history_confidence: bool) -> Result<Self, FrameError> {
+    fn try_new(camera: CameraModel, config: &PipelineConfig) -> Result<Self, FrameError> {
         let e = camera.extent;
         let rgb = || RgbBuf::try_new(e, 0.0);
         let mut gbuffer = GBufferBuf::try_new(camera)?;
-        if history_confidence {
+        if config.history_confidence {
             gbuffer.history_confidence = Some(PlaneBuf::try_new(e, 1.0)?);
+        }
+        if config.motion_vectors {
+            let still = || PlaneBuf::try_new(e, 0.0);
+            gbuffer.motion = Some([still()?, still()?, still()?]);
         }
         Ok(Self {
             gbuffer,
@@ -144,13 +148,13 @@ struct EyeState {
 impl EyeState {
     /// Every buffer of one eye, or [`FrameError::OutOfMemory`] (nothing kept) if the
     /// allocator refuses one.
-    fn try_new(camera: CameraModel, history_confidence: bool) -> Result<Self, FrameError> {
+    fn try_new(camera: CameraModel, config: &PipelineConfig) -> Result<Self, FrameError> {
         let e = camera.extent;
         Ok(Self {
             camera,
             prev_camera: None,
-            cur: FrameBuffers::try_new(camera, history_confidence)?,
-            prev: FrameBuffers::try_new(camera, history_confidence)?,
+            cur: FrameBuffers::try_new(camera, config)?,
+            prev: FrameBuffers::try_new(camera, config)?,
             ema_reason: PlaneBuf::try_new(e, Reason::Invalid as u8)?,
             wanted: PlaneBuf::try_new(e, 0)?,
             has_new: PlaneBuf::try_new(e, 0)?,
@@ -246,10 +250,7 @@ impl<S: FrameSource> Pipeline<S> {
             config,
             rig: None,
             extent,
-            eyes: [
-                EyeState::try_new(left, config.history_confidence)?,
-                EyeState::try_new(right, config.history_confidence)?,
-            ],
+            eyes: [EyeState::try_new(left, &config)?, EyeState::try_new(right, &config)?],
             frames_done: 0,
             planner: BudgetPlanner::default(),
         })
@@ -285,8 +286,8 @@ impl<S: FrameSource> Pipeline<S> {
             CameraModel::new(view_proj, extent)
         };
         let eyes = [
-            EyeState::try_new(camera(&self.eyes[0].camera)?, self.config.history_confidence)?,
-            EyeState::try_new(camera(&self.eyes[1].camera)?, self.config.history_confidence)?,
+            EyeState::try_new(camera(&self.eyes[0].camera)?, &self.config)?,
+            EyeState::try_new(camera(&self.eyes[1].camera)?, &self.config)?,
         ];
         self.source.resize(extent)?;
         (self.eyes, self.extent) = (eyes, extent);
@@ -554,12 +555,21 @@ impl<S: FrameSource> Pipeline<S> {
         let colour = s.prev.history.view();
         let extra = ramp.then(|| s.prev.len.view());
         let g = &s.cur.gbuffer;
+        // The surfaces' own motion since the last frame, where the source gives it.
+        let motion = g.motion.as_ref().map(|m| m.each_ref().map(|p| p.view()));
         let counts = match layout {
             Layout::Compact => {
                 let t = CompactGBuffer::new(target_depth, g.normal_oct.view(), g.camera)?;
                 let src = s.prev.gbuffer.compact();
-                let input =
-                    ReprojectInput { target: &t, source: &src, source_camera: &prev_camera, colour, extra, pixel_mask };
+                let input = ReprojectInput {
+                    target: &t,
+                    source: &src,
+                    source_camera: &prev_camera,
+                    colour,
+                    extra,
+                    pixel_mask,
+                    motion,
+                };
                 reproject::reproject(&input, out, &params)?
             }
             Layout::Full => {
@@ -569,8 +579,15 @@ impl<S: FrameSource> Pipeline<S> {
                     g.normal.each_ref().map(|p| p.view()),
                 )?;
                 let src = s.prev.gbuffer.view();
-                let input =
-                    ReprojectInput { target: &t, source: &src, source_camera: &prev_camera, colour, extra, pixel_mask };
+                let input = ReprojectInput {
+                    target: &t,
+                    source: &src,
+                    source_camera: &prev_camera,
+                    colour,
+                    extra,
+                    pixel_mask,
+                    motion,
+                };
                 reproject::reproject(&input, out, &params)?
             }
         };
@@ -611,6 +628,7 @@ impl<S: FrameSource> Pipeline<S> {
                     colour,
                     extra: None,
                     pixel_mask: None,
+                    motion: None,
                 };
                 reproject::reproject(&input, out, &params)?
             }
@@ -623,6 +641,7 @@ impl<S: FrameSource> Pipeline<S> {
                     colour,
                     extra: None,
                     pixel_mask: None,
+                    motion: None,
                 };
                 reproject::reproject(&input, out, &params)?
             }

@@ -84,6 +84,9 @@ pub enum ShadowTarget {
 pub struct MovingTriangle {
     /// The vertices at this frame.
     pub v: [Vec3; 3],
+    /// The vertices at the table's previous frame (the same as `v` on the first): where a
+    /// point of the triangle was, for motion vectors.
+    pub previous: [Vec3; 3],
     /// Emitted radiance.
     pub radiance: Vec3,
 }
@@ -98,6 +101,9 @@ pub struct FrameLights {
     moving_triangles: Vec<MovingTriangle>,
     /// Bounding sphere (centre, radius²) of all moving triangles, for a cheap reject.
     moving_bound: (Vec3, f32),
+    /// The frame of the last [`FrameLights::update`], from which moving lights' motion is
+    /// measured.
+    last_frame: Option<u32>,
 }
 
 impl FrameLights {
@@ -108,7 +114,8 @@ impl FrameLights {
         lights
     }
 
-    /// Rebuilds the table for `frame`, reusing the vectors' capacity.
+    /// Rebuilds the table for `frame`, reusing the vectors' capacity. Moving lights' motion
+    /// ([`MovingTriangle::previous`]) is measured from the frame of the previous call.
     pub fn update(&mut self, scene: &Scene, frame: u32) {
         self.records.clear();
         self.moving_triangles.clear();
@@ -120,8 +127,11 @@ impl FrameLights {
         for p in &scene.lights.points {
             self.records.push(LightRecord::Point { position: p.position, intensity: p.intensity });
         }
+        let previous_frame = self.last_frame.unwrap_or(frame);
+        self.last_frame = Some(frame);
         for m in &scene.lights.moving {
             let transform = m.path.transform(frame as f32);
+            let previous = m.path.transform(previous_frame as f32);
             match &m.shape {
                 MovingShape::Point { intensity } => self
                     .records
@@ -130,7 +140,8 @@ impl FrameLights {
                     for t in triangles {
                         let v = t.map(|p| transform.transform_point3(p));
                         self.push_triangle(v, *radiance);
-                        self.moving_triangles.push(MovingTriangle { v, radiance: *radiance });
+                        let previous = t.map(|p| previous.transform_point3(p));
+                        self.moving_triangles.push(MovingTriangle { v, previous, radiance: *radiance });
                     }
                 }
             }

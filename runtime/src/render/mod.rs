@@ -259,6 +259,46 @@ impl Renderer {
         crate::dispatch_effects!(self.bits, call)
     }
 
+    /// Fills `out.motion`, if it has motion planes, with each pixel's world-space motion since
+    /// the light table's previous frame: zero on the mesh (it never moves) and background, and
+    /// the moving area light's own motion where one is seen (the pixel ray's hit on the
+    /// light's triangle now, less the same barycentric point of it then). Nothing is written
+    /// for a scene without moving area lights: its planes stay as allocated, zero.
+    pub fn write_motion(&self, lights: &FrameLights, out: &mut GBufferBuf) {
+        let Some(motion) = &mut out.motion else { return };
+        let triangles = lights.moving_triangles();
+        if triangles.is_empty() {
+            return;
+        }
+        for plane in motion.iter_mut() {
+            plane.as_mut_slice().fill(0.0);
+        }
+        let camera = &out.camera;
+        let width = out.material.extent().width();
+        for (i, _) in out.material.as_slice().iter().enumerate().filter(|(_, m)| **m == MOVING_LIGHT_MATERIAL) {
+            let (x, y) = (i % width, i / width);
+            let dir = Vec3::from(camera.ray(x as f32 + 0.5, y as f32 + 0.5));
+            let Some(ray) = PreparedRay::new(&Ray::new(Vec3::from(camera.centre), dir)) else { continue };
+            let mut nearest = None;
+            let mut limit = f32::INFINITY;
+            for tri in triangles {
+                let v = tri.v;
+                let verts = [v[0].x, v[0].y, v[0].z, v[1].x, v[1].y, v[1].z, v[2].x, v[2].y, v[2].z];
+                if let Some(hit) = intersect_triangle(&ray, &verts, limit) {
+                    limit = hit.t;
+                    nearest = Some((tri, hit.uv()));
+                }
+            }
+            if let Some((tri, (u, v))) = nearest {
+                let moved = |k: usize| tri.v[k] - tri.previous[k];
+                let m = (1.0 - u - v) * moved(0) + u * moved(1) + v * moved(2);
+                for c in 0..3 {
+                    motion[c].as_mut_slice()[i] = m[c];
+                }
+            }
+        }
+    }
+
     /// Path traces `request.spp` samples into `out` for the pixels `selection` names, with the
     /// integrator specialised for the scene's effects (`general = false`) or the general one.
     pub fn trace(
