@@ -76,6 +76,7 @@ fn run_reprojection<L: SurfaceLayout>(
     params: &ReprojectParams,
     out: &mut Outputs,
     simd: bool,
+    motion: Option<&[PlaneBuf; 3]>,
 ) {
     let input = ReprojectInput {
         target,
@@ -84,7 +85,7 @@ fn run_reprojection<L: SurfaceLayout>(
         colour: source_frame.colour.view(),
         extra: None,
         pixel_mask: None,
-        motion: None,
+        motion: motion.map(|m| m.each_ref().map(|p| p.view())),
     };
     let o = ReprojectOutput { colour: out.colour.view_mut(), extra: None, reason: out.reason.view_mut(), weight: None };
     let counts =
@@ -106,12 +107,22 @@ fn reprojection(c: &mut Criterion) {
                 let body = if simd { "simd" } else { "scalar" };
                 group.bench_function(BenchmarkId::new(format!("{body}/compact"), threads), |b| {
                     let (t, s) = (target.compact(), source.compact());
-                    b.iter(|| pool.install(|| run_reprojection(&t, &s, source, &f.params, &mut out, simd)))
+                    b.iter(|| pool.install(|| run_reprojection(&t, &s, source, &f.params, &mut out, simd, None)))
                 });
                 group.bench_function(BenchmarkId::new(format!("{body}/full"), threads), |b| {
                     let (t, s) = (target.gbuffer(), source.gbuffer());
-                    b.iter(|| pool.install(|| run_reprojection(&t, &s, source, &f.params, &mut out, simd)))
+                    b.iter(|| pool.install(|| run_reprojection(&t, &s, source, &f.params, &mut out, simd, None)))
                 });
+                if group_name == "reproject_temporal" {
+                    // Zero motion vectors: the same result, so this prices reading them.
+                    let still = [0; 3].map(|_| PlaneBuf::new(f.extent(), 0.0f32));
+                    group.bench_function(BenchmarkId::new(format!("{body}/compact+motion"), threads), |b| {
+                        let (t, s) = (target.compact(), source.compact());
+                        b.iter(|| {
+                            pool.install(|| run_reprojection(&t, &s, source, &f.params, &mut out, simd, Some(&still)))
+                        })
+                    });
+                }
             }
         }
         group.finish();
@@ -129,7 +140,7 @@ fn band_rows(c: &mut Criterion) {
         let params = ReprojectParams { band_rows: rows, ..f.params };
         group.bench_function(BenchmarkId::from_parameter(rows), |b| {
             let (t, s) = (f.left.compact(), f.right.compact());
-            b.iter(|| pool.install(|| run_reprojection(&t, &s, &f.right, &params, &mut out, true)))
+            b.iter(|| pool.install(|| run_reprojection(&t, &s, &f.right, &params, &mut out, true, None)))
         });
     }
     group.finish();
