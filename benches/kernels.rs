@@ -86,6 +86,7 @@ fn run_reprojection<L: SurfaceLayout>(
         extra: None,
         pixel_mask: None,
         motion: motion.map(|m| m.each_ref().map(|p| p.view())),
+        jitter: None,
     };
     let o = ReprojectOutput { colour: out.colour.view_mut(), extra: None, reason: out.reason.view_mut(), weight: None };
     let counts =

@@ -89,6 +89,7 @@ fn stereo_mode_reprojects_where_valid_and_traces_only_the_rest() {
         extra: None,
         pixel_mask: None,
         motion: None,
+        jitter: None,
     };
     let out = ReprojectOutput { colour: expected.view_mut(), extra: None, reason: reason.view_mut(), weight: None };
     let params = ReprojectParams { tolerances: r.scene().tolerances.at_height(H), ..ReprojectParams::default() };
@@ -138,6 +139,7 @@ fn the_paper_order_left_eye_reprojects_its_history_only_where_stereo_failed() {
         extra: None,
         pixel_mask: None,
         motion: None,
+        jitter: None,
     };
     let out = ReprojectOutput { colour: history.view_mut(), extra: None, reason: reason.view_mut(), weight: None };
     let params = ReprojectParams { tolerances: r.scene().tolerances.at_height(H), ..ReprojectParams::default() };
@@ -373,4 +375,33 @@ fn motion_vectors_follow_a_moving_light_and_keep_its_history() {
     assert!(light_pixels > 50, "the sphere covers {light_pixels} pixels");
     assert!(with * 10 >= light_pixels * 8, "with vectors {with} of {light_pixels}");
     assert!(without * 5 <= light_pixels, "without vectors {without} of {light_pixels}");
+}
+
+/// A scene pipeline renders its G-buffers with the stated jitter (the rasterised pass takes the
+/// jittered pair as a parallel rig), keeps the traced images on the unjittered grid, and with
+/// a still head reprojects its history on nearly every pixel whatever the jitter.
+#[test]
+fn a_jittered_scene_pipeline_keeps_its_history() {
+    let r = renderer("cornell");
+    let head = r.scene().camera.pose_at(0.0);
+    let e = Extent::new(160, 90).unwrap();
+    let cfg = PipelineConfig::paper(Mode::Temporal, 1, r.scene().tolerances.at_height(e.height()));
+    let mut p = Pipeline::new(&r, cfg, StereoRig::default(), e).unwrap();
+    for (frame, jitter) in [[0.0f32, 0.0], [0.25, -0.25], [-0.375, 0.125], [0.125, 0.375]].into_iter().enumerate() {
+        p.set_jitter(jitter).unwrap();
+        p.render_frame(frame as u32, &head).unwrap();
+        for eye in Eye::BOTH {
+            let g = p.gbuffer(eye);
+            assert_eq!(g.jitter, jitter);
+            let unjittered = StereoRig::default().eye_camera(&head, eye, e).unwrap();
+            assert_eq!(g.camera, unjittered.jittered(jitter).unwrap());
+            if frame > 0 {
+                let surfaces = g.depth.as_slice().iter().filter(|d| d.is_finite()).count();
+                let kept =
+                    p.temporal_reasons(eye).as_slice().iter().filter(|&&c| c == Reason::Reprojected as u8).count();
+                assert!(kept * 100 >= surfaces * 95, "{eye} frame {frame}: {kept} of {surfaces} kept");
+            }
+        }
+    }
+    assert!(p.set_jitter([0.0, -1.5]).is_err());
 }

@@ -296,6 +296,12 @@ typedef struct StReprojectInput {
   // there: moving objects keep their history. 0 is a still surface (the same result as
   // null, bit for bit); a non-finite vector makes the pixel `ST_REASON_INVALID`.
   const struct StPlaneF32 *motion;
+  // Optional: null, or four floats: the target G-buffer's sub-pixel jitter x, y, then the
+  // source's, in pixels (each within [−1, 1]). The G-buffers were rendered with jittered
+  // cameras (pixel (x, y) shows what the unjittered camera sees at (x + 0.5 + j.x,
+  // y + 0.5 + j.y)), `source_camera` is the source's jittered one, and the colour is on the
+  // unjittered grid: it is read where each target pixel's unjittered centre lands.
+  const float *jitter;
 } StReprojectInput;
 
 // A writable plane of `float`.
@@ -462,6 +468,11 @@ typedef struct StGBufferMut {
   // In: the camera this G-buffer is for, as given to `stereotrace_pipeline_render_frame_at`
   // (left: `cameras[0]`, right: `cameras[1]`). A copy: writing it changes nothing.
   struct StCamera camera;
+  // In: the sub-pixel jitter to render this G-buffer with, in pixels (x right, y down), as
+  // set by `stereotrace_pipeline_set_jitter` (0, 0 without): pixel (x, y) must show the
+  // surface `camera` sees at (x + 0.5 + jitter[0], y + 0.5 + jitter[1]) (a TAA projection
+  // offset). The traced images stay on the unjittered grid.
+  float jitter[2];
   // Out, only with `config.history_confidence` (else `data` is null): how far each pixel's
   // history can be trusted, in [0, 1] (1 when the engine writes nothing: it holds the value
   // of the frame before last otherwise, so write every pixel or none). The EMA weighs the
@@ -721,6 +732,19 @@ enum StStatus stereotrace_pipeline_render_frame_at(struct StPipeline *pipeline,
                                                    uint32_t frame,
                                                    const struct StCamera *cameras,
                                                    struct StFrameStats *stats);
+
+// Renders the next frames' G-buffers with a sub-pixel camera jitter of (`x`, `y`) pixels
+// (x right, y down; each within [−1, 1]), as TAA does, for example a Halton sequence changed
+// every frame: a callback pipeline's `fill_gbuffers` gets it in `StGBufferMut.jitter`, a
+// scene pipeline jitters its own G-buffer cameras. The traced images and the output stay on
+// the unjittered pixel grid, and reprojection reads the colour where each pixel's
+// unjittered centre lands, so the history converges to the unjittered image. Both eyes
+// share it; (0, 0), the default, is no jitter. A non-finite or larger offset is
+// `ST_STATUS_INVALID_ARGUMENT` and changes nothing.
+//
+// # Safety
+// `pipeline` null or a live pipeline.
+enum StStatus stereotrace_pipeline_set_jitter(struct StPipeline *pipeline, float x, float y);
 
 // Forgets the history: the next frame starts as the first did (no temporal reprojection,
 // every pixel reset to its new sample), as after a camera cut. The output of the last frame

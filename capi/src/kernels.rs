@@ -155,6 +155,12 @@ pub struct StReprojectInput {
     /// there: moving objects keep their history. 0 is a still surface (the same result as
     /// null, bit for bit); a non-finite vector makes the pixel `ST_REASON_INVALID`.
     pub motion: *const StPlaneF32,
+    /// Optional: null, or four floats: the target G-buffer's sub-pixel jitter x, y, then the
+    /// source's, in pixels (each within [−1, 1]). The G-buffers were rendered with jittered
+    /// cameras (pixel (x, y) shows what the unjittered camera sees at (x + 0.5 + j.x,
+    /// y + 0.5 + j.y)), `source_camera` is the source's jittered one, and the colour is on the
+    /// unjittered grid: it is read where each target pixel's unjittered centre lands.
+    pub jitter: *const f32,
 }
 
 /// Where a reprojection writes (all of the target G-buffer's extent).
@@ -332,6 +338,14 @@ unsafe fn reproject_views<L: SurfaceLayout>(
                         m[1].view("input.motion[1]", b)?,
                         m[2].view("input.motion[2]", b)?,
                     ])
+                }
+            },
+            // SAFETY: the caller's contract: null or four floats.
+            jitter: match input.jitter.is_null() {
+                true => None,
+                false => {
+                    let j = std::slice::from_raw_parts(input.jitter, 4);
+                    Some(reproject::Jitter { target: [j[0], j[1]], source: [j[2], j[3]] })
                 }
             },
         };

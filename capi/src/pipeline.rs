@@ -228,6 +228,11 @@ pub struct StGBufferMut {
     /// In: the camera this G-buffer is for, as given to `stereotrace_pipeline_render_frame_at`
     /// (left: `cameras[0]`, right: `cameras[1]`). A copy: writing it changes nothing.
     pub camera: StCamera,
+    /// In: the sub-pixel jitter to render this G-buffer with, in pixels (x right, y down), as
+    /// set by `stereotrace_pipeline_set_jitter` (0, 0 without): pixel (x, y) must show the
+    /// surface `camera` sees at (x + 0.5 + jitter[0], y + 0.5 + jitter[1]) (a TAA projection
+    /// offset). The traced images stay on the unjittered grid.
+    pub jitter: [f32; 2],
     /// Out, only with `config.history_confidence` (else `data` is null): how far each pixel's
     /// history can be trusted, in [0, 1] (1 when the engine writes nothing: it holds the value
     /// of the frame before last otherwise, so write every pixel or none). The EMA weighs the
@@ -346,6 +351,7 @@ impl FrameSource for CallbackSource {
             normal_octahedral: u32_plane(&mut g.normal_oct),
             material: u32_plane(&mut g.material),
             camera,
+            jitter: g.jitter,
             history_confidence: g.history_confidence.as_mut().map_or(NO_PLANE, f32_plane),
             motion: g.motion.as_mut().map_or([NO_PLANE; 3], |m| m.each_mut().map(f32_plane)),
         };
@@ -651,6 +657,30 @@ pub unsafe extern "C" fn stereotrace_pipeline_render_frame_at(
             *out = (&s).into();
         }
         Ok(())
+    })
+}
+
+/// Renders the next frames' G-buffers with a sub-pixel camera jitter of (`x`, `y`) pixels
+/// (x right, y down; each within [−1, 1]), as TAA does, for example a Halton sequence changed
+/// every frame: a callback pipeline's `fill_gbuffers` gets it in `StGBufferMut.jitter`, a
+/// scene pipeline jitters its own G-buffer cameras. The traced images and the output stay on
+/// the unjittered pixel grid, and reprojection reads the colour where each pixel's
+/// unjittered centre lands, so the history converges to the unjittered image. Both eyes
+/// share it; (0, 0), the default, is no jitter. A non-finite or larger offset is
+/// `ST_STATUS_INVALID_ARGUMENT` and changes nothing.
+///
+/// # Safety
+/// `pipeline` null or a live pipeline.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn stereotrace_pipeline_set_jitter(pipeline: *mut StPipeline, x: f32, y: f32) -> StStatus {
+    guard(|| unsafe {
+        let p = pipeline.as_ref().ok_or_else(|| Failure::null("pipeline"))?;
+        let mut state = p.state.enter("stereotrace_pipeline_set_jitter")?;
+        match &mut state.inner {
+            Inner::Scene(inner) => inner.set_jitter([x, y]),
+            Inner::Callbacks(inner) => inner.set_jitter([x, y]),
+        }
+        .map_err(pipeline_error)
     })
 }
 

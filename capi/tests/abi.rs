@@ -95,6 +95,9 @@ fn fresh() -> Written {
     }
 }
 
+/// Sub-pixel jitter of the target and source G-buffers (x, y each).
+const JITTER: [f32; 4] = [0.25, -0.125, -0.375, 0.5];
+
 /// Small motion vectors, a different one per pixel, with one NaN (that pixel reads invalid).
 fn motion() -> [PlaneBuf; 3] {
     std::array::from_fn(|c| {
@@ -126,6 +129,7 @@ fn through_c(target: &Eye, source: &Eye, layout: StLayout) -> Written {
         extra: &extra_in,
         pixel_mask: &mask_in,
         motion: motion_in.as_ptr(),
+        jitter: JITTER.as_ptr(),
     };
     let (extra_out, weight_out) = (plane_mut(&mut w.extra), plane_mut(&mut w.weight));
     let output = StReprojectOutput {
@@ -160,6 +164,7 @@ fn direct<L: stereotrace_kernels::SurfaceLayout>(target: &L, source: &L, source_
         extra: Some(extra.view()),
         pixel_mask: Some(mask.view()),
         motion: Some(motion.each_ref().map(|p| p.view())),
+        jitter: Some(reproject::Jitter { target: [JITTER[0], JITTER[1]], source: [JITTER[2], JITTER[3]] }),
     };
     let output = ReprojectOutput {
         colour: w.colour.view_mut(),
@@ -249,6 +254,7 @@ fn refused_calls_write_nothing_and_say_why() {
         extra: std::ptr::null(),
         pixel_mask: std::ptr::null(),
         motion: std::ptr::null(),
+        jitter: std::ptr::null(),
     };
     let output =
         StReprojectOutput { colour: colour_out, extra: std::ptr::null(), reason: reason_out, weight: std::ptr::null() };

@@ -9,7 +9,7 @@
 
 mod common;
 
-use common::{RoomEngine, camera, expect, outputs, room_pipeline, room_pipeline_with};
+use common::{RoomEngine, camera, expect, model, outputs, room_pipeline, room_pipeline_with};
 use stereotrace_capi::*;
 
 fn context() -> *mut StContext {
@@ -338,6 +338,102 @@ fn an_engines_motion_vectors_reach_temporal_reprojection() {
     let message = expect(status, StStatus::InvalidArgument);
     assert!(message.contains("config.motion_vectors must be 0 or 1"), "{message}");
     assert!(p.is_null());
+}
+
+/// Jitter: a camera moving sideways whose G-buffers are jittered along a Halton sequence, the
+/// samples exact and on the unjittered grid. With the jitter stated
+/// (`stereotrace_pipeline_set_jitter`) the temporal output is as close to the unjittered image
+/// (the path-traced mode's) as without any jitter, the history's only error being its
+/// bilinear resampling; the same jitter hidden from the pipeline leaves it off by up to the
+/// jitter. Offsets past a pixel are refused.
+#[test]
+fn stated_jitter_keeps_the_history_on_the_unjittered_grid() {
+    let halton = |mut i: u32, base: u32| {
+        let (mut f, mut r) = (1.0f32, 0.0f32);
+        while i > 0 {
+            f /= base as f32;
+            r += f * (i % base) as f32;
+            i /= base;
+        }
+        r
+    };
+    const FRAMES: u32 = 8;
+    let cameras_at = |f: u32| {
+        let x = 0.01 * f as f64;
+        [camera(x - 0.03, W, H), camera(x + 0.03, W, H)]
+    };
+    #[derive(Clone, Copy, PartialEq)]
+    enum Jitter {
+        None,
+        Stated,
+        Hidden,
+    }
+    let run = |mode: StMode, jitter_use: Jitter| {
+        let mut engine = RoomEngine::new();
+        engine.noisy = false;
+        // World positions from the engine (the full layout) are where jitter shows most.
+        let p = room_pipeline_with(&mut engine, mode, W, H, |c| c.layout = StLayout::Full as u32);
+        for f in 0..FRAMES {
+            let jitter = [halton(f + 1, 2) - 0.5, halton(f + 1, 3) - 0.5];
+            match jitter_use {
+                Jitter::None => {}
+                Jitter::Stated => {
+                    expect(unsafe { stereotrace_pipeline_set_jitter(p, jitter[0], jitter[1]) }, StStatus::Ok);
+                }
+                Jitter::Hidden => engine.hidden_jitter = jitter,
+            }
+            let cameras = cameras_at(f);
+            let status = unsafe { stereotrace_pipeline_render_frame_at(p, f, cameras.as_ptr(), std::ptr::null_mut()) };
+            expect(status, StStatus::Ok);
+        }
+        let out = outputs(p, W, H);
+        expect(unsafe { stereotrace_pipeline_destroy(p) }, StStatus::Ok);
+        out
+    };
+    let reference = run(StMode::PathTraced, Jitter::None);
+    // Away from depth edges: there a sub-pixel shift changes which surface a pixel shows, and
+    // its history is discarded or blended as at any silhouette.
+    let last = cameras_at(FRAMES - 1);
+    let smooth: [Vec<bool>; 2] = [0, 1].map(|eye| {
+        let depth = RoomEngine::new().scene.render(&model(&last[eye]), [0.0; 3]).surfaces.depth;
+        let (w, h) = (W as usize, H as usize);
+        let d = |x: usize, y: usize| depth.as_slice()[y * w + x];
+        (0..w * h)
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                x > 1 && y > 1 && x + 2 < w && y + 2 < h && {
+                    let around = (y - 2..=y + 2).flat_map(|v| (x - 2..=x + 2).map(move |u| (u, v)));
+                    around.map(|(u, v)| d(u, v)).all(|n| n.is_finite() && (n - d(x, y)).abs() < 0.02 * d(x, y))
+                }
+            })
+            .collect()
+    });
+    let mean_error = |out: &[Vec<u32>; 2]| {
+        let (mut sum, mut n) = (0.0f64, 0u32);
+        for eye in 0..2 {
+            for (i, (a, b)) in out[eye].iter().zip(&reference[eye]).enumerate() {
+                if smooth[eye][i % (W * H) as usize] {
+                    sum += f64::from((f32::from_bits(*a) - f32::from_bits(*b)).abs());
+                    n += 1;
+                }
+            }
+        }
+        assert!(n > 1000, "{n} smooth samples");
+        sum / f64::from(n)
+    };
+    let none = mean_error(&run(StMode::Temporal, Jitter::None));
+    let stated = mean_error(&run(StMode::Temporal, Jitter::Stated));
+    let hidden = mean_error(&run(StMode::Temporal, Jitter::Hidden));
+    eprintln!("mean error on smooth pixels: no jitter {none:.2e}, stated {stated:.2e}, hidden {hidden:.2e}");
+    assert!(stated <= 1.25 * none + 1e-5, "stated jitter: {stated} against {none} without jitter");
+    assert!(hidden >= 2.0 * stated, "hidden jitter: {hidden} against stated {stated}");
+
+    let mut engine = RoomEngine::new();
+    let p = room_pipeline(&mut engine, StMode::Temporal, W, H);
+    let message = expect(unsafe { stereotrace_pipeline_set_jitter(p, 1.5, 0.0) }, StStatus::InvalidArgument);
+    assert!(message.contains("within one pixel"), "{message}");
+    expect(unsafe { stereotrace_pipeline_set_jitter(p, f32::NAN, 0.0) }, StStatus::InvalidArgument);
+    expect(unsafe { stereotrace_pipeline_destroy(p) }, StStatus::Ok);
 }
 
 /// `stereotrace_pipeline_reset` forgets the history: the next frame is what a new pipeline's

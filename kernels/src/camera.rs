@@ -90,6 +90,30 @@ impl CameraModel {
         })
     }
 
+    /// This camera with a sub-pixel jitter (TAA-style): pixel (x, y) of the jittered camera
+    /// sees what (x + jitter.x, y + jitter.y) of this one sees, so every point projects
+    /// `jitter` pixels up-left of where it did. A clip-space shear of the projection, in f64;
+    /// the centre is this camera's (jitter does not move the eye). `[0, 0]` is this camera,
+    /// bit for bit. Refuses ([`FrameError::InvalidParameter`]) an offset that is not finite or
+    /// exceeds one pixel.
+    pub fn jittered(&self, jitter: [f32; 2]) -> Result<Self, FrameError> {
+        if !jitter.iter().all(|j| j.abs() <= 1.0) {
+            return Err(FrameError::InvalidParameter("jitter offsets must be finite and within one pixel"));
+        }
+        if jitter == [0.0; 2] {
+            return Ok(*self);
+        }
+        let (hw, hh) = self.half_extent();
+        let m = self.view_proj().as_dmat4().transpose();
+        let (r0, r1, r3) = (m.x_axis, m.y_axis, m.w_axis);
+        // s_x = (x/w)·hw + hw moves by −j.x where x gains −(j.x/hw)·w; s_y = −(y/w)·hh + hh
+        // moves by −j.y where y gains +(j.y/hh)·w.
+        let x = r0 - r3 * (f64::from(jitter[0]) / f64::from(hw));
+        let y = r1 + r3 * (f64::from(jitter[1]) / f64::from(hh));
+        let rows = DMat4::from_cols(x, y, m.z_axis, r3).transpose();
+        Ok(Self { centre: self.centre, ..Self::from_f64(rows, self.extent)? })
+    }
+
     /// The view-projection matrix.
     pub fn view_proj(&self) -> Mat4 {
         Mat4::from_cols_array_2d(&self.rows).transpose()

@@ -177,6 +177,11 @@ pub fn reproject(data: &[u8]) {
         PlaneBuf::from_vec(on.collect(), extent).expect("extent matches")
     });
     let motion = motion_from(&mut bytes, extent);
+    // Sub-pixel jitter of the two G-buffers, within the pixel it may move.
+    let jitter = (bytes.u8() % 2 == 0).then(|| crate::reproject::Jitter {
+        target: [bytes.unit(-1.0, 1.0), bytes.unit(-1.0, 1.0)],
+        source: [bytes.unit(-1.0, 1.0), bytes.unit(-1.0, 1.0)],
+    });
     let mut target = scene.render(&target_camera, [0.0; 3]);
     let mut source = scene.render(&source_camera, [0.0; 3]);
     let edit_source = bytes.u8() % 2 == 0;
@@ -187,7 +192,7 @@ pub fn reproject(data: &[u8]) {
         .expect("extent matches");
     let (target, source) = (Strided::new(&target, pad), Strided::new(&source, pad));
     let (tf, sf) = (target.gbuffer(), source.gbuffer());
-    let with = Extras { extra: None, mask: mask.as_ref(), motion: motion.as_ref() };
+    let with = Extras { extra: None, mask: mask.as_ref(), motion: motion.as_ref(), jitter };
     check_reprojection(&tf, &sf, &source, with, &params, source_finite);
     let (tc, sc) = (target.compact(), source.compact());
     let with = Extras { extra: Some(&extra), ..with };
@@ -230,6 +235,7 @@ struct Extras<'a> {
     extra: Option<&'a PlaneBuf>,
     mask: Option<&'a PlaneBuf<u8>>,
     motion: Option<&'a [PlaneBuf; 3]>,
+    jitter: Option<crate::reproject::Jitter>,
 }
 
 /// A copy of a frame's planes with `pad` extra elements per row (filled with NaN or an
@@ -304,7 +310,7 @@ fn check_reprojection<L: SurfaceLayout>(
     params: &ReprojectParams,
     source_finite: bool,
 ) {
-    let Extras { extra, mask, motion } = with;
+    let Extras { extra, mask, motion, jitter } = with;
     let input = ReprojectInput {
         target,
         source,
@@ -313,6 +319,7 @@ fn check_reprojection<L: SurfaceLayout>(
         extra: extra.map(|p| p.view()),
         pixel_mask: mask.map(|m| m.view()),
         motion: motion.map(|m| m.each_ref().map(|p| p.view())),
+        jitter,
     };
     let e = target.extent();
     if let Err(refusal) = params.tolerances.validate() {

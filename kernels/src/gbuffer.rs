@@ -292,8 +292,11 @@ impl SurfaceLayout for CompactGBuffer<'_> {
 /// frame.
 #[derive(Clone, Debug)]
 pub struct GBufferBuf {
-    /// The camera that rendered it (its extent is the planes').
+    /// The camera that rendered it (its extent is the planes'), jittered by `jitter`.
     pub camera: CameraModel,
+    /// The sub-pixel jitter `camera` carries ([`CameraModel::jittered`]), in pixels; the
+    /// colour images that go with this G-buffer are on the unjittered grid.
+    pub jitter: [f32; 2],
     /// View-axis depth (`+inf`: no surface).
     pub depth: PlaneBuf,
     /// World position x, y, z (NaN: no surface).
@@ -322,6 +325,7 @@ impl GBufferBuf {
         let e = camera.extent;
         Self {
             camera,
+            jitter: [0.0; 2],
             depth: PlaneBuf::new(e, f32::INFINITY),
             position: [0; 3].map(|_| PlaneBuf::new(e, f32::NAN)),
             normal: [0; 3].map(|_| PlaneBuf::new(e, f32::NAN)),
@@ -339,6 +343,7 @@ impl GBufferBuf {
         let nan = || PlaneBuf::try_new(e, f32::NAN);
         Ok(Self {
             camera,
+            jitter: [0.0; 2],
             depth: PlaneBuf::try_new(e, f32::INFINITY)?,
             position: [nan()?, nan()?, nan()?],
             normal: [nan()?, nan()?, nan()?],
@@ -359,7 +364,7 @@ impl GBufferBuf {
     /// a frame to a consumer's.
     pub fn copy_from(&mut self, other: &GBufferBuf) -> Result<(), FrameError> {
         same_extent("G-buffer", self.extent(), other.extent())?;
-        self.camera = other.camera;
+        (self.camera, self.jitter) = (other.camera, other.jitter);
         self.depth.as_mut_slice().copy_from_slice(other.depth.as_slice());
         for c in 0..3 {
             self.position[c].as_mut_slice().copy_from_slice(other.position[c].as_slice());

@@ -37,6 +37,7 @@ fn reproject_both<L: SurfaceLayout>(
         extra: None,
         pixel_mask: None,
         motion: None,
+        jitter: None,
     };
     let run = |simd: bool| {
         let (mut colour, mut reason) = (RgbBuf::new(e, -7.0), stereotrace_kernels::PlaneBuf::new(e, 99u8));

@@ -44,6 +44,7 @@ fn second_frame_allocates_nothing() {
             extra: None,
             pixel_mask: None,
             motion: None,
+            jitter: None,
         };
         let out = ReprojectOutput {
             colour: reprojected.view_mut(),
@@ -64,6 +65,7 @@ fn second_frame_allocates_nothing() {
             extra: Some(history_len.view()),
             pixel_mask: None,
             motion: None,
+            jitter: None,
         };
         let out = ReprojectOutput {
             colour: history.view_mut(),
@@ -85,6 +87,7 @@ fn second_frame_allocates_nothing() {
             extra: None,
             pixel_mask: None,
             motion: None,
+            jitter: None,
         };
         let out =
             ReprojectOutput { colour: reprojected.view_mut(), extra: None, reason: reason.view_mut(), weight: None };

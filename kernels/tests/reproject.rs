@@ -88,6 +88,7 @@ fn input_for<'a, L: SurfaceLayout>(
         extra,
         pixel_mask: None,
         motion: None,
+        jitter: None,
     }
 }
 
@@ -514,6 +515,7 @@ fn bad_inputs_are_refused_with_named_errors() {
         extra: None,
         pixel_mask: None,
         motion: None,
+        jitter: None,
     };
     let err = run_reprojection(&input, &params(TapPolicy::Strict), true).unwrap_err();
     assert!(err.to_string().contains("source colour"), "{err}");
@@ -1065,4 +1067,75 @@ fn motion_planes_of_another_extent_are_refused() {
         ReprojectInput { motion: Some(motion.each_ref().map(|p| p.view())), ..input_for(&tc, &sc, &right, None) };
     let err = run_reprojection(&input, &params(TapPolicy::Strict), true).unwrap_err();
     assert!(err.to_string().contains("motion y"), "{err}");
+}
+
+#[test]
+fn a_jittered_camera_sees_what_the_camera_sees_a_sub_pixel_away() {
+    let e = extent(64, 36);
+    let camera = camera_at(Vec3::new(0.3, -0.2, 1.0), e, 55.0);
+    assert_eq!(camera.jittered([0.0, 0.0]).unwrap(), camera, "no jitter is the camera itself");
+    for jitter in [[0.5f32, 0.0], [-0.25, 0.375], [1.0, -1.0]] {
+        let moved = camera.jittered(jitter).unwrap();
+        assert_eq!(moved.centre, camera.centre);
+        for (x, y) in [(0.5f32, 0.5f32), (13.5, 20.5), (63.5, 35.5)] {
+            let (a, b) = (Vec3::from(moved.ray(x, y)), Vec3::from(camera.ray(x + jitter[0], y + jitter[1])));
+            assert!((a - b).length() < 1e-5 * b.length(), "{jitter:?} at ({x}, {y}): {a} vs {b}");
+        }
+    }
+    for bad in [[f32::NAN, 0.0], [0.0, 1.5], [f32::INFINITY, 0.0]] {
+        assert!(matches!(camera.jittered(bad), Err(FrameError::InvalidParameter(_))), "{bad:?}");
+    }
+}
+
+/// Temporal reprojection of a ramp-textured wall (bilinear interpolation is exact on it) seen
+/// by a camera that moved and whose G-buffers were rendered with different sub-pixel jitters,
+/// while the colour is on the unjittered grid: with the jitter stated the reprojected colour is
+/// the unjittered image of the target frame; without it, it is off by the ramp's slope times
+/// the jitter difference.
+#[test]
+fn stated_jitter_reprojects_onto_the_unjittered_grid() {
+    let e = extent(80, 40);
+    let vfov = 50.0;
+    let scene = wall(5.0, Texture::ramp([0.2, 0.3, 0.4], [0.1, -0.05, 0.07]));
+    let (target_camera, source_camera) =
+        (camera_at(Vec3::new(0.013, 0.0, 0.0), e, vfov), camera_at(Vec3::new(-0.021, 0.007, 0.0), e, vfov));
+    let reference = scene.render(&target_camera, [0.0; 3]);
+    let source_colour = scene.render(&source_camera, [0.0; 3]);
+    for (jt, js) in [([0.25f32, -0.25f32], [-0.375f32, 0.125f32]), ([0.5, 0.5], [0.0, 0.0])] {
+        let target = scene.render(&target_camera.jittered(jt).unwrap(), [0.0; 3]);
+        let source = scene.render(&source_camera.jittered(js).unwrap(), [0.0; 3]);
+        let (tc, sc) = (target.compact(), source.compact());
+        let p = params(TapPolicy::Renormalize);
+        let stated = ReprojectInput {
+            jitter: Some(reproject::Jitter { target: jt, source: js }),
+            ..input_for(&tc, &sc, &source, None)
+        };
+        let stated = ReprojectInput { colour: source_colour.colour.view(), ..stated };
+        let with = run_reprojection(&stated, &p, true).unwrap();
+        assert_same(&with, &run_reprojection(&stated, &p, false).unwrap());
+        let unstated = ReprojectInput { jitter: None, ..stated };
+        let without = run_reprojection(&unstated, &p, true).unwrap();
+        let (mut worst_with, mut worst_without) = (0.0f32, 0.0f32);
+        for y in 2..e.height() - 2 {
+            for x in 2..e.width() - 2 {
+                let i = y * e.width() + x;
+                assert_eq!(with.reason.as_slice()[i], Reason::Reprojected as u8, "({x}, {y})");
+                let want = reference.colour.get(x, y);
+                let err = |r: &Reprojected| {
+                    (0..3).map(|c| (r.colour.view().get(x, y)[c] - want[c]).abs()).fold(0.0, f32::max)
+                };
+                (worst_with, worst_without) = (worst_with.max(err(&with)), worst_without.max(err(&without)));
+            }
+        }
+        assert!(worst_with < 2e-5, "{jt:?} {js:?}: stated jitter leaves {worst_with}");
+        assert!(worst_without > 20.0 * worst_with.max(1e-6), "{jt:?} {js:?}: unstated {worst_without}");
+    }
+    // Refused: an offset past a pixel.
+    let frame = scene.render(&target_camera, [0.0; 3]);
+    let (tc, sc) = (frame.compact(), frame.compact());
+    let bad = ReprojectInput {
+        jitter: Some(reproject::Jitter { target: [0.0, 1.5], source: [0.0; 2] }),
+        ..input_for(&tc, &sc, &frame, None)
+    };
+    assert!(matches!(run_reprojection(&bad, &params(TapPolicy::Strict), true), Err(FrameError::InvalidParameter(_))));
 }

@@ -177,6 +177,7 @@ fn path_traced_and_stereo_frames_are_the_kernels_on_the_same_buffers() {
         extra: None,
         pixel_mask: None,
         motion: None,
+        jitter: None,
     };
     let out = ReprojectOutput { colour: expected.view_mut(), extra: None, reason: reason.view_mut(), weight: None };
     reproject::reproject(&input, out, &params(p.config())).unwrap();
@@ -216,6 +217,7 @@ fn temporal_frames_are_reprojection_then_ema_on_the_same_buffers() {
             extra: None,
             pixel_mask: None,
             motion: None,
+            jitter: None,
         };
         let out = ReprojectOutput { colour: history.view_mut(), extra: None, reason: reason.view_mut(), weight: None };
         let counts = reproject::reproject(&input, out, &params(p.config())).unwrap();

@@ -46,6 +46,11 @@ pub struct RoomEngine {
     pub confidence: f32,
     /// The motion vector written to every pixel where the pipeline gives motion planes.
     pub motion: [f32; 3],
+    /// A sub-pixel jitter the engine renders its G-buffers with without telling the
+    /// pipeline (added to the one the pipeline states).
+    pub hidden_jitter: [f32; 2],
+    /// Whether traced samples carry the per-frame noise (±20 %) or are exact.
+    pub noisy: bool,
 }
 
 impl RoomEngine {
@@ -57,6 +62,8 @@ impl RoomEngine {
             trace_calls: 0,
             confidence: 1.0,
             motion: [0.0; 3],
+            hidden_jitter: [0.0; 2],
+            noisy: true,
         })
     }
 
@@ -69,7 +76,7 @@ impl RoomEngine {
     }
 }
 
-fn model(c: &StCamera) -> CameraModel {
+pub fn model(c: &StCamera) -> CameraModel {
     let extent = Extent::new(c.width as usize, c.height as usize).unwrap();
     CameraModel::from_f64(DMat4::from_cols_array(&c.view_proj), extent).unwrap()
 }
@@ -84,7 +91,8 @@ unsafe extern "C" fn fill_gbuffers(
     engine.gbuffer_calls += 1;
     for g in [left, right] {
         let g = unsafe { &*g };
-        let frame = engine.scene.render(&model(&g.camera), [0.0; 3]);
+        let jitter = [g.jitter[0] + engine.hidden_jitter[0], g.jitter[1] + engine.hidden_jitter[1]];
+        let frame = engine.scene.render(&model(&g.camera).jittered(jitter).unwrap(), [0.0; 3]);
         let s = &frame.surfaces;
         let (w, h) = (g.depth.width as usize, g.depth.height as usize);
         for y in 0..h {
@@ -142,7 +150,7 @@ unsafe extern "C" fn trace(
             }
             let mut h = u64::from(eye) << 56 ^ u64::from(frame) << 32 ^ (y * w + x) as u64;
             h = (h ^ (h >> 33)).wrapping_mul(0xff51_afd7_ed55_8ccd);
-            let noise = 0.8 + 0.4 * ((h >> 40) as f32 / (1u64 << 24) as f32);
+            let noise = if engine.noisy { 0.8 + 0.4 * ((h >> 40) as f32 / (1u64 << 24) as f32) } else { 1.0 };
             let c = rendered.colour.get(x, y);
             for (p, v) in [out.r, out.g, out.b].iter().zip(c) {
                 unsafe { *p.data.add(y * p.stride as usize + x) = v * noise };

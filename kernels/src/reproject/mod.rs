@@ -249,6 +249,38 @@ pub struct ReprojectInput<'a, L: SurfaceLayout> {
     /// a turning object fails the normal test once it has turned by more than its threshold.
     /// For temporal reprojection of moving objects; a stereo pair has none (one instant).
     pub motion: Option<[Plane<'a>; 3]>,
+    /// Optional sub-pixel jitter of the two G-buffers (TAA-style camera jitter), whose cameras
+    /// (the target's and `source_camera`) are the jittered ones ([`CameraModel::jittered`]):
+    /// G-buffer pixel (x, y) shows the surface at (x + 0.5 + j.x, y + 0.5 + j.y) of the
+    /// unjittered camera, while the source colour and the outputs are on the unjittered pixel
+    /// grid (a path tracer's pixels, an accumulated history). The colour is read where the
+    /// target pixel's unjittered centre lands, so the footprint moves by `source − target`;
+    /// the geometric tests read the same taps (within a pixel of the exact ones, which the
+    /// tolerances absorb on a smooth surface). `None` and equal offsets are the same, bit for
+    /// bit. Each offset must be finite and at most one pixel.
+    pub jitter: Option<Jitter>,
+}
+
+/// The sub-pixel offsets of the two G-buffers of a reprojection ([`ReprojectInput::jitter`]),
+/// in pixels (x right, y down), each within [−1, 1].
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Jitter {
+    /// The target G-buffer's offset.
+    pub target: [f32; 2],
+    /// The source G-buffer's offset.
+    pub source: [f32; 2],
+}
+
+impl Jitter {
+    /// How far the colour footprint moves, or the refusal of an offset that is not finite or
+    /// exceeds a pixel.
+    fn shift(&self) -> Result<[f32; 2], FrameError> {
+        let ok = |j: [f32; 2]| j.iter().all(|v| v.abs() <= 1.0);
+        if !(ok(self.target) && ok(self.source)) {
+            return Err(FrameError::InvalidParameter("jitter offsets must be finite and within one pixel"));
+        }
+        Ok([self.source[0] - self.target[0], self.source[1] - self.target[1]])
+    }
 }
 
 /// Where a reprojection writes.
@@ -284,6 +316,8 @@ struct Prepared<'a, L: SurfaceLayout> {
     channel_count: usize,
     pixel_mask: Option<Plane<'a, u8>>,
     motion: Option<[Plane<'a>; 3]>,
+    /// How far the footprint moves for jitter (source − target), where it moves at all.
+    jitter_shift: Option<[f32; 2]>,
     source_extent: Extent,
     half_width: f32,
     half_height: f32,
@@ -340,6 +374,7 @@ fn prepare<'a, L: SurfaceLayout>(
         channel_count: if input.extra.is_some() { 4 } else { 3 },
         pixel_mask: input.pixel_mask,
         motion: input.motion,
+        jitter_shift: input.jitter.map(|j| j.shift()).transpose()?.filter(|s| *s != [0.0; 2]),
         source_extent: source,
         half_width: input.source_camera.half_extent().0,
         half_height: input.source_camera.half_extent().1,
@@ -466,6 +501,7 @@ pub fn reproject_scalar<L: SurfaceLayout>(
 ///     extra: None,
 ///     pixel_mask: None,
 ///     motion: None,
+///     jitter: None,
 /// };
 /// let mut colour = RgbBuf::new(extent, 0.0);
 /// let mut reason = PlaneBuf::new(extent, 0u8);

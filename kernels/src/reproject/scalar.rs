@@ -55,8 +55,12 @@ pub(super) fn reproject_pixel_prepared<L: SurfaceLayout>(
     }
     let (hw, hh) = (p.half_width, p.half_height);
     let inv_w = 1.0 / cw;
-    let sx = (cx * inv_w) * hw + hw;
-    let sy = (-(cy * inv_w)) * hh + hh;
+    let mut sx = (cx * inv_w) * hw + hw;
+    let mut sy = (-(cy * inv_w)) * hh + hh;
+    if let Some([dx, dy]) = p.jitter_shift {
+        // Where the target pixel's unjittered centre lands on the unjittered colour grid.
+        (sx, sy) = (sx + dx, sy + dy);
+    }
     let Some(fp) = Footprint::new(sx, sy, p.source_extent) else {
         return (Reason::OutOfFrame, NONE, 0.0);
     };

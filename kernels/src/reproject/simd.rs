@@ -284,8 +284,12 @@ fn target_lanes<L: SurfaceLayout>(p: &Prepared<'_, L>, x: usize, y: usize) -> Ta
     let (cx, cy, cw) = (clip(0), clip(1), clip(2));
     let (hw, hh) = (p.v.half_width, p.v.half_height);
     let inv_w = F32s::ONE / cw;
-    let sx = (cx * inv_w) * hw + hw;
-    let sy = (-(cy * inv_w)) * hh + hh;
+    let mut sx = (cx * inv_w) * hw + hw;
+    let mut sy = (-(cy * inv_w)) * hh + hh;
+    if let Some([dx, dy]) = p.jitter_shift {
+        // As the reference: the unjittered centre on the unjittered colour grid.
+        (sx, sy) = (sx + F32s::splat(dx), sy + F32s::splat(dy));
+    }
     let mut footprints = Footprints::new_splat(sx, sy, p.v.source_width, p.v.source_height);
     // Lanes that already have a reason take no further part.
     let active = plausible & cw.simd_gt(F32s::ZERO) & footprints.inside;

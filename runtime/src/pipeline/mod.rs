@@ -182,12 +182,20 @@ pub struct Pipeline<S: FrameSource> {
     eyes: [EyeState; 2],
     frames_done: u32,
     planner: BudgetPlanner,
+    /// The sub-pixel jitter of the next frames' G-buffers ([`Pipeline::set_jitter`]).
+    jitter: [f32; 2],
 }
 
 /// The pipeline over this crate's renderer.
 pub type RendererPipeline<'r> = Pipeline<RendererSource<&'r Renderer>>;
 
 const L: usize = Eye::Left as usize;
+
+/// The jitter of a reprojection from `source`'s G-buffer into `target`'s, if either has one.
+fn jitter_between(target: &GBufferBuf, source: &GBufferBuf) -> Option<reproject::Jitter> {
+    let jittered = target.jitter != [0.0; 2] || source.jitter != [0.0; 2];
+    jittered.then_some(reproject::Jitter { target: target.jitter, source: source.jitter })
+}
 
 fn is_reprojected(code: u8) -> bool {
     code == Reason::Reprojected as u8
@@ -253,6 +261,7 @@ impl<S: FrameSource> Pipeline<S> {
             eyes: [EyeState::try_new(left, &config)?, EyeState::try_new(right, &config)?],
             frames_done: 0,
             planner: BudgetPlanner::default(),
+            jitter: [0.0; 2],
         })
     }
 
@@ -292,6 +301,21 @@ impl<S: FrameSource> Pipeline<S> {
         self.source.resize(extent)?;
         (self.eyes, self.extent) = (eyes, extent);
         self.reset();
+        Ok(())
+    }
+
+    /// Renders the next frames' G-buffers with a sub-pixel camera jitter (TAA-style; for
+    /// example a Halton sequence, changed every frame), in pixels (x right, y down), within
+    /// one pixel: G-buffer pixel (x, y) then shows the surface at (x + 0.5 + jitter.x,
+    /// y + 0.5 + jitter.y) of the unjittered camera (each G-buffer's `camera` is the jittered
+    /// one, `CameraModel::jittered`). The traced images and the output stay on the unjittered
+    /// grid, and reprojection reads the colour where each pixel's unjittered centre lands
+    /// (`ReprojectInput::jitter`), so the history converges to the unjittered image. Both
+    /// eyes share the jitter (the rasterised pass needs a parallel pair). `[0, 0]` (the
+    /// default) is no jitter, bit for bit.
+    pub fn set_jitter(&mut self, jitter: [f32; 2]) -> Result<(), PipelineError> {
+        self.eyes[0].camera.jittered(jitter)?;
+        self.jitter = jitter;
         Ok(())
     }
 
@@ -382,7 +406,8 @@ impl<S: FrameSource> Pipeline<S> {
         for camera in &cameras {
             crate::kernels::frame::same_extent("eye camera", self.extent, camera.extent)?;
         }
-        let committed = self.begin_frame(cameras);
+        let gbuffer_cameras = [cameras[0].jittered(self.jitter)?, cameras[1].jittered(self.jitter)?];
+        let committed = self.begin_frame(cameras, gbuffer_cameras);
         match self.run_frame(frame) {
             Ok(stats) => {
                 self.frames_done += 1;
@@ -395,17 +420,18 @@ impl<S: FrameSource> Pipeline<S> {
         }
     }
 
-    /// Starts a frame seen by `cameras`: the committed frame's buffers become the previous
-    /// frame's (see [`EyeState`]). Returns what [`Pipeline::roll_back`] restores.
-    fn begin_frame(&mut self, cameras: [CameraModel; 2]) -> Committed {
+    /// Starts a frame seen by `cameras` (the G-buffers' by `gbuffer_cameras`, the same but for
+    /// jitter): the committed frame's buffers become the previous frame's (see
+    /// [`EyeState`]). Returns what [`Pipeline::roll_back`] restores.
+    fn begin_frame(&mut self, cameras: [CameraModel; 2], gbuffer_cameras: [CameraModel; 2]) -> Committed {
         let committed =
             Committed { cameras: self.eyes.each_ref().map(|s| (s.camera, s.prev_camera)), planner: self.planner };
         let has_history = self.frames_done > 0;
-        for (s, camera) in self.eyes.iter_mut().zip(cameras) {
+        for ((s, camera), gbuffer_camera) in self.eyes.iter_mut().zip(cameras).zip(gbuffer_cameras) {
             std::mem::swap(&mut s.cur, &mut s.prev);
             s.prev_camera = has_history.then_some(s.camera);
             s.camera = camera;
-            s.cur.gbuffer.camera = camera;
+            (s.cur.gbuffer.camera, s.cur.gbuffer.jitter) = (gbuffer_camera, self.jitter);
         }
         committed
     }
@@ -539,10 +565,10 @@ impl<S: FrameSource> Pipeline<S> {
         let ramp = self.config.ramp;
         let layout = self.config.layout;
         let s = &mut self.eyes[eye as usize];
-        let Some(prev_camera) = s.prev_camera.filter(|_| has_history) else {
+        if s.prev_camera.is_none() || !has_history {
             s.cur.temporal_reason.as_mut_slice().fill(Reason::Invalid as u8);
             return Ok(ReasonCounts::default());
-        };
+        }
         let pixel_mask = only_wanted.then(|| s.wanted.view());
         let target_depth = s.cur.gbuffer.depth.view();
         let (history, len, reason) = (&mut s.cur.history, &mut s.cur.len, &mut s.cur.temporal_reason);
@@ -557,6 +583,7 @@ impl<S: FrameSource> Pipeline<S> {
         let g = &s.cur.gbuffer;
         // The surfaces' own motion since the last frame, where the source gives it.
         let motion = g.motion.as_ref().map(|m| m.each_ref().map(|p| p.view()));
+        let (prev_camera, jitter) = (s.prev.gbuffer.camera, jitter_between(g, &s.prev.gbuffer));
         let counts = match layout {
             Layout::Compact => {
                 let t = CompactGBuffer::new(target_depth, g.normal_oct.view(), g.camera)?;
@@ -569,6 +596,7 @@ impl<S: FrameSource> Pipeline<S> {
                     extra,
                     pixel_mask,
                     motion,
+                    jitter,
                 };
                 reproject::reproject(&input, out, &params)?
             }
@@ -587,6 +615,7 @@ impl<S: FrameSource> Pipeline<S> {
                     extra,
                     pixel_mask,
                     motion,
+                    jitter,
                 };
                 reproject::reproject(&input, out, &params)?
             }
@@ -624,11 +653,12 @@ impl<S: FrameSource> Pipeline<S> {
                 let input = ReprojectInput {
                     target: &t,
                     source: &src,
-                    source_camera: &other.camera,
+                    source_camera: &other.cur.gbuffer.camera,
                     colour,
                     extra: None,
                     pixel_mask: None,
                     motion: None,
+                    jitter: jitter_between(&target.cur.gbuffer, &other.cur.gbuffer),
                 };
                 reproject::reproject(&input, out, &params)?
             }
@@ -637,11 +667,12 @@ impl<S: FrameSource> Pipeline<S> {
                 let input = ReprojectInput {
                     target: &t,
                     source: &src,
-                    source_camera: &other.camera,
+                    source_camera: &other.cur.gbuffer.camera,
                     colour,
                     extra: None,
                     pixel_mask: None,
                     motion: None,
+                    jitter: jitter_between(&target.cur.gbuffer, &other.cur.gbuffer),
                 };
                 reproject::reproject(&input, out, &params)?
             }
