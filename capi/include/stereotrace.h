@@ -433,6 +433,13 @@ typedef struct StPipelineConfig {
   // [`StGBufferMut::motion`]), a scene pipeline fills them from the scene's moving area
   // lights; 0: none (every surface is taken as still).
   uint32_t motion_vectors;
+  // Callback pipelines: 0 (the default) calls `trace` once per eye (or budget tile) from
+  // one worker thread at a time; N ≥ 1 declares the engine's `trace` thread-safe and splits
+  // each call's rows into bands of N rows, called concurrently from the pipeline's worker
+  // threads (`config.threads` of them): the engine's own tracing then runs in parallel
+  // without a job system of its own. Bands of one call cover its rows exactly once; a
+  // band that fails refuses the frame like any failing call. Scene pipelines ignore it.
+  uint32_t trace_band_rows;
 } StPipelineConfig;
 
 // A writable plane of `uint32_t`.
@@ -494,7 +501,9 @@ typedef struct StGBufferMut {
 // **Threads.** The callbacks run on one of the pipeline's worker threads (not the thread
 // that called `stereotrace_pipeline_render_frame_at`, which waits), one at a time, only
 // during that call: first `fill_gbuffers` once, then `trace` once per eye without a budget
-// or once per tile of rows under one. `user` must be usable from that thread, and anything
+// or once per tile of rows under one. With `config.trace_band_rows` ≥ 1 each of those
+// `trace` calls becomes one call per band of rows, concurrent on the pipeline's workers (the
+// engine declares `trace` thread-safe). `user` must be usable from that thread, and anything
 // the callbacks share with the engine's other threads needs the engine's own
 // synchronisation. From a callback, any call on the same pipeline returns `ST_STATUS_BUSY`
 // (and changes nothing); calls on other pipelines and contexts are allowed.

@@ -97,6 +97,13 @@ pub struct StPipelineConfig {
     /// [`StGBufferMut::motion`]), a scene pipeline fills them from the scene's moving area
     /// lights; 0: none (every surface is taken as still).
     pub motion_vectors: u32,
+    /// Callback pipelines: 0 (the default) calls `trace` once per eye (or budget tile) from
+    /// one worker thread at a time; N ≥ 1 declares the engine's `trace` thread-safe and splits
+    /// each call's rows into bands of N rows, called concurrently from the pipeline's worker
+    /// threads (`config.threads` of them): the engine's own tracing then runs in parallel
+    /// without a job system of its own. Bands of one call cover its rows exactly once; a
+    /// band that fails refuses the frame like any failing call. Scene pipelines ignore it.
+    pub trace_band_rows: u32,
 }
 
 /// Spatiotemporal mode in the paper's order, compact G-buffers, 1 spp, 1280×720, one
@@ -116,6 +123,7 @@ pub extern "C" fn stereotrace_pipeline_config_default() -> StPipelineConfig {
         reprojection: std::ptr::null(),
         history_confidence: 0,
         motion_vectors: 0,
+        trace_band_rows: 0,
     }
 }
 
@@ -254,7 +262,9 @@ pub struct StGBufferMut {
 /// **Threads.** The callbacks run on one of the pipeline's worker threads (not the thread
 /// that called `stereotrace_pipeline_render_frame_at`, which waits), one at a time, only
 /// during that call: first `fill_gbuffers` once, then `trace` once per eye without a budget
-/// or once per tile of rows under one. `user` must be usable from that thread, and anything
+/// or once per tile of rows under one. With `config.trace_band_rows` ≥ 1 each of those
+/// `trace` calls becomes one call per band of rows, concurrent on the pipeline's workers (the
+/// engine declares `trace` thread-safe). `user` must be usable from that thread, and anything
 /// the callbacks share with the engine's other threads needs the engine's own
 /// synchronisation. From a callback, any call on the same pipeline returns `ST_STATUS_BUSY`
 /// (and changes nothing); calls on other pipelines and contexts are allowed.
@@ -309,6 +319,50 @@ struct CallbackSource {
     frame: u32,
     /// This frame's cameras as the caller gave them (f64, not the kernels' f32 rows).
     cameras: [StCamera; 2],
+    /// Rows per concurrent `trace` call (0: one call, on one thread).
+    band_rows: u32,
+}
+
+/// The arguments every band of one `trace` call shares, across the pool's threads.
+struct TraceCall<'a> {
+    callbacks: &'a StFrameSourceCallbacks,
+    eye: u32,
+    request: &'a TraceRequest,
+    camera: &'a StCamera,
+    mask: *const StPlaneU8,
+    out: &'a StRgbMut,
+}
+
+// SAFETY: the engine declared `trace` thread-safe (`trace_band_rows` ≥ 1); the planes behind
+// `mask` and `out` outlive the call, and concurrent bands write disjoint rows of `out`.
+unsafe impl Sync for TraceCall<'_> {}
+
+impl TraceCall<'_> {
+    /// Calls `trace` for `rows`; `Err` names the refusal.
+    fn rows(&self, rows: std::ops::Range<usize>) -> Result<(), PipelineError> {
+        let trace = self.callbacks.trace.ok_or(PipelineError::Source("no trace callback".into()))?;
+        // SAFETY: as in `fill_gbuffers`.
+        let code = unsafe {
+            trace(
+                self.callbacks.user,
+                self.eye,
+                self.request.frame,
+                self.request.spp,
+                self.camera,
+                self.mask,
+                rows.start as u32,
+                rows.end as u32,
+                self.out,
+            )
+        };
+        if code != 0 {
+            return Err(PipelineError::Source(format!(
+                "trace callback returned {code} (eye {}, frame {}, rows {}..{}); the frame was refused",
+                self.eye, self.request.frame, rows.start, rows.end
+            )));
+        }
+        Ok(())
+    }
 }
 
 // SAFETY: `user` and the callbacks are only used while a render call runs, one call at a
@@ -388,27 +442,24 @@ impl FrameSource for CallbackSource {
             out.slices_mut().map(|s| StPlaneMutF32 { data: s.as_mut_ptr(), width: w, height: h, stride: w });
         let out = StRgbMut { r, g, b };
         let eye = request.eye as usize;
-        let mask_ptr = mask.as_ref().map_or(std::ptr::null(), |m| m as *const StPlaneU8);
-        let trace = self.callbacks.trace.ok_or(PipelineError::Source("no trace callback".into()))?;
-        // SAFETY: as in `fill_gbuffers`.
-        let code = unsafe {
-            trace(
-                self.callbacks.user,
-                eye as u32,
-                request.frame,
-                request.spp,
-                &self.cameras[eye],
-                mask_ptr,
-                rows.start as u32,
-                rows.end as u32,
-                &out,
-            )
+        let call = TraceCall {
+            callbacks: &self.callbacks,
+            eye: eye as u32,
+            request,
+            camera: &self.cameras[eye],
+            mask: mask.as_ref().map_or(std::ptr::null(), |m| m as *const StPlaneU8),
+            out: &out,
         };
-        if code != 0 {
-            return Err(PipelineError::Source(format!(
-                "trace callback returned {code} (eye {eye}, frame {}, rows {}..{}); the frame was refused",
-                request.frame, rows.start, rows.end
-            )));
+        match self.band_rows as usize {
+            0 => call.rows(rows)?,
+            band => {
+                use rayon::prelude::*;
+                let bands = rows.len().div_ceil(band);
+                (0..bands).into_par_iter().try_for_each(|b| {
+                    let start = rows.start + b * band;
+                    call.rows(start..(start + band).min(rows.end))
+                })?;
+            }
         }
         Ok(TraceStats::default())
     }
@@ -557,7 +608,7 @@ pub unsafe extern "C" fn stereotrace_pipeline_create_callbacks(
         let (given, models) = eye_cameras(cameras, extent)?;
         config.check_threads()?;
         let runtime = config.runtime(Tolerances::default())?;
-        let source = CallbackSource { callbacks, frame: 0, cameras: given };
+        let source = CallbackSource { callbacks, frame: 0, cameras: given, band_rows: config.trace_band_rows };
         let pipeline = Pipeline::with_source(source, runtime, models).map_err(pipeline_error)?;
         let pool = config.pool()?;
         out.write(Box::into_raw(Box::new(StPipeline::new(pool, Inner::Callbacks(Box::new(pipeline))))));

@@ -436,6 +436,32 @@ fn stated_jitter_keeps_the_history_on_the_unjittered_grid() {
     expect(unsafe { stereotrace_pipeline_destroy(p) }, StStatus::Ok);
 }
 
+/// A thread-safe engine's `trace` called per band of rows from the pipeline's workers
+/// (`trace_band_rows`): the same images bit for bit as one call per eye, with and without a
+/// budget, and one call per band.
+#[test]
+fn trace_bands_give_the_images_of_one_call_per_eye() {
+    use std::sync::atomic::Ordering;
+    let run = |mode: StMode, band_rows: u32, budget_ms: f64| {
+        let mut engine = RoomEngine::new();
+        let p = room_pipeline_with(&mut engine, mode, W, H, |c| {
+            (c.trace_band_rows, c.threads, c.budget_ms) = (band_rows, 2, budget_ms);
+        });
+        let out = frames(p, 0..3);
+        expect(unsafe { stereotrace_pipeline_destroy(p) }, StStatus::Ok);
+        (out, engine.trace_calls.load(Ordering::Relaxed))
+    };
+    for mode in [StMode::PathTraced, StMode::Spatiotemporal] {
+        let (one_call, calls) = run(mode, 0, 0.0);
+        let (banded, band_calls) = run(mode, 3, 0.0);
+        assert_eq!(banded, one_call, "{mode:?}");
+        if mode == StMode::PathTraced {
+            assert_eq!((calls, band_calls), (3 * 2, 3 * 2 * u64::from(H.div_ceil(3))));
+        }
+        assert_eq!(run(mode, 3, 1e6).0, one_call, "{mode:?} under a budget");
+    }
+}
+
 /// `stereotrace_pipeline_reset` forgets the history: the next frame is what a new pipeline's
 /// first frame would be.
 #[test]

@@ -5,6 +5,7 @@
 #![allow(dead_code)]
 
 use std::ffi::{CStr, c_void};
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use glam::{DMat4, Vec3};
 use stereotrace_capi::*;
@@ -38,10 +39,10 @@ pub fn camera(x: f64, width: u32, height: u32) -> StCamera {
 pub struct RoomEngine {
     pub scene: AnalyticScene,
     /// Pixels traced per eye since made.
-    pub traced: [u64; 2],
+    pub traced: [AtomicU64; 2],
     /// Calls of each callback.
     pub gbuffer_calls: u64,
-    pub trace_calls: u64,
+    pub trace_calls: AtomicU64,
     /// The history confidence written where the pipeline gives a plane for it.
     pub confidence: f32,
     /// The motion vector written to every pixel where the pipeline gives motion planes.
@@ -57,9 +58,9 @@ impl RoomEngine {
     pub fn new() -> Box<Self> {
         Box::new(Self {
             scene: AnalyticScene::room(6.0),
-            traced: [0; 2],
+            traced: [AtomicU64::new(0), AtomicU64::new(0)],
             gbuffer_calls: 0,
-            trace_calls: 0,
+            trace_calls: AtomicU64::new(0),
             confidence: 1.0,
             motion: [0.0; 3],
             hidden_jitter: [0.0; 2],
@@ -135,8 +136,9 @@ unsafe extern "C" fn trace(
     row_end: u32,
     out: *const StRgbMut,
 ) -> i32 {
-    let engine = unsafe { &mut *user.cast::<RoomEngine>() };
-    engine.trace_calls += 1;
+    // Shared, not exclusive: with `trace_band_rows` bands run concurrently.
+    let engine = unsafe { &*user.cast::<RoomEngine>() };
+    engine.trace_calls.fetch_add(1, Ordering::Relaxed);
     let _ = spp;
     let rendered = engine.scene.render(&model(unsafe { &*camera }), [0.0; 3]);
     let out = unsafe { &*out };
@@ -155,7 +157,7 @@ unsafe extern "C" fn trace(
             for (p, v) in [out.r, out.g, out.b].iter().zip(c) {
                 unsafe { *p.data.add(y * p.stride as usize + x) = v * noise };
             }
-            engine.traced[eye as usize] += 1;
+            engine.traced[eye as usize].fetch_add(1, Ordering::Relaxed);
         }
     }
     0
