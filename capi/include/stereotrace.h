@@ -788,6 +788,19 @@ enum StStatus stereotrace_pipeline_pixels(const struct StPipeline *pipeline,
                                           uint32_t what,
                                           const struct StPlaneMutU8 *out);
 
+// Lends the image eye `eye` (0 left, 1 right) shows after the last successful frame without
+// copying it: writes to `view` three read-only planes of the pipeline's own memory (packed:
+// stride = width). They stay valid and unchanged until the next call that renders, resets,
+// resizes or destroys this pipeline (a render reuses the memory for a later frame); read them
+// before that, or copy with `stereotrace_pipeline_output`. Refused before the first
+// successful frame; `view` is left as it was on any refusal.
+//
+// # Safety
+// `pipeline` null or a live pipeline; `view` null or writable.
+enum StStatus stereotrace_pipeline_output_view(const struct StPipeline *pipeline,
+                                               uint32_t eye,
+                                               struct StRgb *view);
+
 // Copies the image eye `eye` (0 left, 1 right) shows after the last successful frame into
 // the caller's planes `out` (the pipeline's size, any stride). Refused before the first
 // successful frame (there is no image yet).

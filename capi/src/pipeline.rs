@@ -21,7 +21,7 @@ use stereotrace_runtime::source::{FrameSource, RendererSource};
 use crate::StStatus;
 use crate::boundary::{Context, Exclusive, Failure, guard};
 use crate::kernels::{StCamera, StLayout, StReprojectParams};
-use crate::views::{Borrows, StPlaneMutF32, StPlaneMutU8, StPlaneU8, StRgbMut, required};
+use crate::views::{Borrows, StPlaneF32, StPlaneMutF32, StPlaneMutU8, StPlaneU8, StRgb, StRgbMut, required};
 
 /// The pipeline's modes (the paper's Section IV): the values of [`StPipelineConfig::mode`].
 /// Each names which eye the trace callback is asked for: "both" means every pixel of each eye
@@ -826,6 +826,48 @@ fn pixel_record<S: FrameSource>(pipeline: &Pipeline<S>, eye: Eye, what: u32) -> 
         2 => Ok(pipeline.traced_mask(eye)),
         other => Err(Failure::invalid(format!("what {other} is not 0 (stereo reasons), 1 (temporal) or 2 (traced)"))),
     }
+}
+
+/// Lends the image eye `eye` (0 left, 1 right) shows after the last successful frame without
+/// copying it: writes to `view` three read-only planes of the pipeline's own memory (packed:
+/// stride = width). They stay valid and unchanged until the next call that renders, resets,
+/// resizes or destroys this pipeline (a render reuses the memory for a later frame); read them
+/// before that, or copy with `stereotrace_pipeline_output`. Refused before the first
+/// successful frame; `view` is left as it was on any refusal.
+///
+/// # Safety
+/// `pipeline` null or a live pipeline; `view` null or writable.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn stereotrace_pipeline_output_view(
+    pipeline: *const StPipeline,
+    eye: u32,
+    view: *mut StRgb,
+) -> StStatus {
+    guard(|| unsafe {
+        let p = pipeline.as_ref().ok_or_else(|| Failure::null("pipeline"))?;
+        let state = p.state.enter("stereotrace_pipeline_output_view")?;
+        let view = view.as_mut().ok_or_else(|| Failure::null("view"))?;
+        if state.frames_rendered == 0 {
+            return Err(Failure::invalid(
+                "no frame has been rendered yet: the output exists after the first successful render call",
+            ));
+        }
+        let eye = match eye {
+            0 => Eye::Left,
+            1 => Eye::Right,
+            other => return Err(Failure::invalid(format!("eye {other} is not 0 (left) or 1 (right)"))),
+        };
+        let image = match &state.inner {
+            Inner::Scene(inner) => inner.output(eye),
+            Inner::Callbacks(inner) => inner.output(eye),
+        };
+        let e = image.extent();
+        let (w, h) = (e.width() as u32, e.height() as u32);
+        let [r, g, b] =
+            image.planes().map(|p| StPlaneF32 { data: p.as_slice().as_ptr(), width: w, height: h, stride: w });
+        *view = StRgb { r, g, b };
+        Ok(())
+    })
 }
 
 /// Copies the image eye `eye` (0 left, 1 right) shows after the last successful frame into

@@ -462,6 +462,36 @@ fn trace_bands_give_the_images_of_one_call_per_eye() {
     }
 }
 
+/// The output lent without a copy (`stereotrace_pipeline_output_view`) is the copied output,
+/// bit for bit, after every frame; refused before the first frame and for a null view.
+#[test]
+fn the_lent_output_is_the_copied_output() {
+    let mut engine = RoomEngine::new();
+    let p = room_pipeline(&mut engine, StMode::Spatiotemporal, W, H);
+    let empty = StPlaneF32 { data: std::ptr::null(), width: 0, height: 0, stride: 0 };
+    let mut view = StRgb { r: empty, g: empty, b: empty };
+    let message = expect(unsafe { stereotrace_pipeline_output_view(p, 0, &mut view) }, StStatus::InvalidArgument);
+    assert!(message.contains("no frame has been rendered yet"), "{message}");
+    assert!(view.r.data.is_null(), "a refused call wrote the view");
+    for frame in 0..3 {
+        let copied = frames(p, frame..frame + 1).pop().unwrap();
+        for eye in 0..2 {
+            expect(unsafe { stereotrace_pipeline_output_view(p, eye, &mut view) }, StStatus::Ok);
+            let lent: Vec<u32> = [view.r, view.g, view.b]
+                .iter()
+                .flat_map(|plane| {
+                    assert_eq!((plane.width, plane.height, plane.stride), (W, H, W));
+                    unsafe { std::slice::from_raw_parts(plane.data, (W * H) as usize) }.iter().map(|v| v.to_bits())
+                })
+                .collect();
+            assert!(lent == copied[eye as usize], "eye {eye}, frame {frame}: the lent output differs");
+        }
+    }
+    expect(unsafe { stereotrace_pipeline_output_view(p, 2, &mut view) }, StStatus::InvalidArgument);
+    expect(unsafe { stereotrace_pipeline_output_view(p, 0, std::ptr::null_mut()) }, StStatus::NullPointer);
+    expect(unsafe { stereotrace_pipeline_destroy(p) }, StStatus::Ok);
+}
+
 /// `stereotrace_pipeline_reset` forgets the history: the next frame is what a new pipeline's
 /// first frame would be.
 #[test]

@@ -93,6 +93,16 @@ static void scene_pipeline(void) {
                     sum += v;
                 }
         CHECK(bad == 0, "eye %u: %d non-finite or negative samples", eye, bad);
+        /* The same image lent without a copy (valid until the next render call). */
+        StRgb lent;
+        expect(stereotrace_pipeline_output_view(p, eye, &lent), ST_STATUS_OK, "output view");
+        const StPlaneF32 *lent_planes[3] = {&lent.r, &lent.g, &lent.b};
+        int differ = 0;
+        for (int c = 0; c < 3; c++)
+            for (uint32_t y = 0; y < im.height; y++)
+                differ += memcmp(&lent_planes[c]->data[y * lent_planes[c]->stride], &im.planes[c][y * im.stride],
+                                 sizeof(float) * im.width) != 0;
+        CHECK(differ == 0, "eye %u: %d rows of the lent output differ from the copy", eye, differ);
         CHECK(sum / (160 * 90 * 3) > 0.01, "eye %u is dark: mean %g", eye, sum / (160 * 90 * 3));
         printf("cornell eye %u: mean %.4f\n", eye, sum / (160 * 90 * 3));
         image_free(&im);

@@ -1,13 +1,15 @@
-//! What an engine's own tracing gains from `trace_band_rows`: milliseconds per 1280×720
-//! path-traced stereo frame through the C ABI, with `trace` called once per eye on one worker
-//! against per band of rows on the pipeline's workers.
+//! What an engine gains from two parts of the C ABI, at 1280×720 stereo:
+//! - `trace_band_rows`: milliseconds per path-traced frame with `trace` called once per eye on
+//!   one worker against per band of rows on the pipeline's workers;
+//! - `stereotrace_pipeline_output_view`: milliseconds to get both eyes' images, copied into
+//!   the engine's planes (`stereotrace_pipeline_output`) against lent.
 //!
 //! The engine is synthetic: each pixel's "path tracing" is a fixed amount of arithmetic
 //! (`WORK` rounds of a hash per sample), so the frame's time is the engine's, as with a real
 //! tracer, and the figures compare scheduling, not renderers.
 //!
 //! ```sh
-//! cargo run --release -p stereotrace-capi --example trace_bands -- [FRAMES] [THREADS]
+//! cargo run --release -p stereotrace-capi --example engine_frames -- [FRAMES] [THREADS]
 //! ```
 
 use std::ffi::c_void;
@@ -85,8 +87,9 @@ fn camera(x: f64) -> StCamera {
     StCamera { view_proj: vp.as_dmat4().to_cols_array(), width: W, height: H }
 }
 
-/// Median milliseconds per frame over `frames` frames (after one warm-up frame).
-fn median_frame_ms(band_rows: u32, threads: u32, frames: u32) -> f64 {
+/// Median milliseconds per frame over `frames` frames (after one warm-up frame), and the
+/// median milliseconds to read both eyes' output after each, copied and lent.
+fn median_frame_ms(band_rows: u32, threads: u32, frames: u32) -> (f64, [f64; 2]) {
     let callbacks =
         StFrameSourceCallbacks { user: std::ptr::null_mut(), fill_gbuffers: Some(fill_gbuffers), trace: Some(trace) };
     let mut config = stereotrace_pipeline_config_default();
@@ -95,18 +98,44 @@ fn median_frame_ms(band_rows: u32, threads: u32, frames: u32) -> f64 {
     let mut p = std::ptr::null_mut();
     let status = unsafe { stereotrace_pipeline_create_callbacks(&callbacks, &config, cameras.as_ptr(), &mut p) };
     assert_eq!(status, StStatus::Ok);
-    let mut times = Vec::new();
+    let n = (W * H) as usize;
+    let mut planes = vec![vec![0.0f32; n]; 3];
+    let [r, g, b] = [0, 1, 2].map(|c| StPlaneMutF32 { data: planes[c].as_mut_ptr(), width: W, height: H, stride: W });
+    let copy_into = StRgbMut { r, g, b };
+    let (mut times, mut copies, mut views) = (Vec::new(), Vec::new(), Vec::new());
+    let mut checksum = 0.0f32;
     for f in 0..=frames {
         let start = Instant::now();
         let status = unsafe { stereotrace_pipeline_render_frame_at(p, f, cameras.as_ptr(), std::ptr::null_mut()) };
         assert_eq!(status, StStatus::Ok);
+        let rendered = start.elapsed().as_secs_f64() * 1e3;
+        let start = Instant::now();
+        for eye in 0..2 {
+            assert_eq!(unsafe { stereotrace_pipeline_output(p, eye, &copy_into) }, StStatus::Ok);
+            checksum += planes[1][n / 2];
+        }
+        let copied = start.elapsed().as_secs_f64() * 1e3;
+        let start = Instant::now();
+        for eye in 0..2 {
+            let empty = StPlaneF32 { data: std::ptr::null(), width: 0, height: 0, stride: 0 };
+            let mut view = StRgb { r: empty, g: empty, b: empty };
+            assert_eq!(unsafe { stereotrace_pipeline_output_view(p, eye, &mut view) }, StStatus::Ok);
+            checksum += unsafe { *view.g.data.add(n / 2) };
+        }
+        let lent = start.elapsed().as_secs_f64() * 1e3;
         if f > 0 {
-            times.push(start.elapsed().as_secs_f64() * 1e3);
+            times.push(rendered);
+            copies.push(copied);
+            views.push(lent);
         }
     }
+    assert!(checksum.is_finite());
     unsafe { stereotrace_pipeline_destroy(p) };
-    times.sort_by(f64::total_cmp);
-    times[times.len() / 2]
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    (median(times), [median(copies), median(views)])
 }
 
 fn main() {
@@ -114,12 +143,13 @@ fn main() {
     let frames: u32 = args.next().map_or(9, |a| a.parse().expect("FRAMES"));
     let threads: u32 = args.next().map_or(2, |a| a.parse().expect("THREADS"));
     println!("1280x720 path-traced stereo frame, synthetic engine, {threads} pipeline threads, median of {frames}");
-    let one_call = median_frame_ms(0, threads, frames);
+    let (one_call, [copied, lent]) = median_frame_ms(0, threads, frames);
     println!("| trace calls | ms per frame | speed-up |");
     println!("|---|--:|--:|");
     println!("| one per eye (trace_band_rows = 0) | {one_call:.1} | 1.00 |");
     for band in [8, 32, 128] {
-        let ms = median_frame_ms(band, threads, frames);
+        let (ms, _) = median_frame_ms(band, threads, frames);
         println!("| per band of {band} rows | {ms:.1} | {:.2} |", one_call / ms);
     }
+    println!("\nboth eyes' output: copied {copied:.3} ms, lent {lent:.4} ms");
 }
