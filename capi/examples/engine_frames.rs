@@ -80,6 +80,32 @@ unsafe extern "C" fn trace(
     0
 }
 
+/// The engine's own job system: two threads of its own (started per call, as a simple engine
+/// might) pull band indices from a shared counter.
+unsafe extern "C" fn engine_jobs(
+    _: *mut c_void,
+    count: u32,
+    job: unsafe extern "C" fn(*mut c_void, u32),
+    context: *mut c_void,
+) -> i32 {
+    let next = std::sync::atomic::AtomicU32::new(0);
+    let context = context as usize;
+    std::thread::scope(|s| {
+        for _ in 0..2 {
+            s.spawn(|| {
+                loop {
+                    let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                    if i >= count {
+                        break;
+                    }
+                    unsafe { job(context as *mut c_void, i) };
+                }
+            });
+        }
+    });
+    0
+}
+
 fn camera(x: f64) -> StCamera {
     let extent = stereotrace_kernels::Extent::new(W as usize, H as usize).unwrap();
     let eye = glam::Vec3::new(x as f32, 0.0, 0.0);
@@ -89,9 +115,13 @@ fn camera(x: f64) -> StCamera {
 
 /// Median milliseconds per frame over `frames` frames (after one warm-up frame), and the
 /// median milliseconds to read both eyes' output after each, copied and lent.
-fn median_frame_ms(band_rows: u32, threads: u32, frames: u32) -> (f64, [f64; 2]) {
-    let callbacks =
-        StFrameSourceCallbacks { user: std::ptr::null_mut(), fill_gbuffers: Some(fill_gbuffers), trace: Some(trace) };
+fn median_frame_ms(band_rows: u32, threads: u32, frames: u32, own_jobs: bool) -> (f64, [f64; 2]) {
+    let callbacks = StFrameSourceCallbacks {
+        user: std::ptr::null_mut(),
+        fill_gbuffers: Some(fill_gbuffers),
+        trace: Some(trace),
+        run_jobs: if own_jobs { Some(engine_jobs) } else { None },
+    };
     let mut config = stereotrace_pipeline_config_default();
     (config.mode, config.threads, config.trace_band_rows) = (StMode::PathTraced as u32, threads, band_rows);
     let cameras = [camera(-0.0325), camera(0.0325)];
@@ -143,13 +173,17 @@ fn main() {
     let frames: u32 = args.next().map_or(9, |a| a.parse().expect("FRAMES"));
     let threads: u32 = args.next().map_or(2, |a| a.parse().expect("THREADS"));
     println!("1280x720 path-traced stereo frame, synthetic engine, {threads} pipeline threads, median of {frames}");
-    let (one_call, [copied, lent]) = median_frame_ms(0, threads, frames);
+    let (one_call, [copied, lent]) = median_frame_ms(0, threads, frames, false);
     println!("| trace calls | ms per frame | speed-up |");
     println!("|---|--:|--:|");
     println!("| one per eye (trace_band_rows = 0) | {one_call:.1} | 1.00 |");
     for band in [8, 32, 128] {
-        let (ms, _) = median_frame_ms(band, threads, frames);
-        println!("| per band of {band} rows | {ms:.1} | {:.2} |", one_call / ms);
+        let (ms, _) = median_frame_ms(band, threads, frames, false);
+        println!("| per band of {band} rows, pipeline workers | {ms:.1} | {:.2} |", one_call / ms);
+    }
+    for band in [8, 32] {
+        let (ms, _) = median_frame_ms(band, threads, frames, true);
+        println!("| per band of {band} rows, engine's job system (2 threads) | {ms:.1} | {:.2} |", one_call / ms);
     }
     println!("\nboth eyes' output: copied {copied:.3} ms, lent {lent:.4} ms");
 }

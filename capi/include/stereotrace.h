@@ -538,6 +538,17 @@ typedef struct StFrameSourceCallbacks {
                    uint32_t row_start,
                    uint32_t row_end,
                    const struct StRgbMut *out);
+  // Optional: the engine's own job system, used with `config.trace_band_rows` ≥ 1 instead
+  // of the pipeline's workers (null: the workers). Each `trace` call's bands are handed
+  // over as `count` jobs: the engine must call `job(context, i)` exactly once for every `i`
+  // in `0 .. count`, on any of its threads and in any order, and return after the last has
+  // returned: 0, or anything else to refuse the frame. A job runs `trace` for its band and
+  // records a failure itself; a job skipped or run twice refuses the frame. `context` is
+  // the pipeline's, valid only until `run_jobs` returns.
+  int32_t (*run_jobs)(void *user,
+                      uint32_t count,
+                      void (*job)(void *context, uint32_t index),
+                      void *context);
 } StFrameSourceCallbacks;
 
 // What one frame did.

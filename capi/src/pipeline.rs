@@ -310,6 +310,62 @@ pub struct StFrameSourceCallbacks {
             out: *const StRgbMut,
         ) -> i32,
     >,
+    /// Optional: the engine's own job system, used with `config.trace_band_rows` ≥ 1 instead
+    /// of the pipeline's workers (null: the workers). Each `trace` call's bands are handed
+    /// over as `count` jobs: the engine must call `job(context, i)` exactly once for every `i`
+    /// in `0 .. count`, on any of its threads and in any order, and return after the last has
+    /// returned: 0, or anything else to refuse the frame. A job runs `trace` for its band and
+    /// records a failure itself; a job skipped or run twice refuses the frame. `context` is
+    /// the pipeline's, valid only until `run_jobs` returns.
+    #[allow(clippy::type_complexity)]
+    pub run_jobs: Option<
+        unsafe extern "C" fn(
+            user: *mut c_void,
+            count: u32,
+            job: unsafe extern "C" fn(context: *mut c_void, index: u32),
+            context: *mut c_void,
+        ) -> i32,
+    >,
+}
+
+/// The bands of one `trace` call handed to an engine's `run_jobs` (its `context`).
+struct BandJobs<'a> {
+    call: &'a TraceCall<'a>,
+    rows: std::ops::Range<usize>,
+    band: usize,
+    /// How many times each job ran (an engine that skips or repeats one refuses the frame).
+    runs: &'a [std::sync::atomic::AtomicU8],
+    failure: std::sync::Mutex<Option<PipelineError>>,
+}
+
+impl BandJobs<'_> {
+    fn fail(&self, error: PipelineError) {
+        let mut first = self.failure.lock().unwrap_or_else(|e| e.into_inner());
+        first.get_or_insert(error);
+    }
+}
+
+/// One band's job, as the engine's job system calls it: runs `trace` on the band and records
+/// a failure (or an index out of range) for the pipeline to report. Never unwinds into C.
+unsafe extern "C" fn run_band_job(context: *mut c_void, index: u32) {
+    // SAFETY: `context` is the `BandJobs` passed to `run_jobs`, alive until it returns.
+    let jobs = unsafe { &*context.cast::<BandJobs<'_>>() };
+    let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        let Some(runs) = jobs.runs.get(index as usize) else {
+            return Err(PipelineError::Source(format!(
+                "run_jobs called job {index} of {} jobs; the frame was refused",
+                jobs.runs.len()
+            )));
+        };
+        runs.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let start = jobs.rows.start + index as usize * jobs.band;
+        jobs.call.rows(start..(start + jobs.band).min(jobs.rows.end))
+    }));
+    match outcome {
+        Ok(Ok(())) => {}
+        Ok(Err(e)) => jobs.fail(e),
+        Err(_) => jobs.fail(PipelineError::Source("a trace job panicked; the frame was refused".into())),
+    }
 }
 
 /// [`StFrameSourceCallbacks`] as a [`FrameSource`] (both callbacks checked non-null when the
@@ -321,6 +377,8 @@ struct CallbackSource {
     cameras: [StCamera; 2],
     /// Rows per concurrent `trace` call (0: one call, on one thread).
     band_rows: u32,
+    /// How many times each band's job ran, for an engine's `run_jobs` (grown once, reused).
+    job_runs: std::sync::Mutex<Vec<std::sync::atomic::AtomicU8>>,
 }
 
 /// The arguments every band of one `trace` call shares, across the pool's threads.
@@ -368,6 +426,55 @@ impl TraceCall<'_> {
 // SAFETY: `user` and the callbacks are only used while a render call runs, one call at a
 // time, and the header states that they are called from a worker thread.
 unsafe impl Send for CallbackSource {}
+
+/// The `run_jobs` callback's type.
+type RunJobs = unsafe extern "C" fn(
+    user: *mut c_void,
+    count: u32,
+    job: unsafe extern "C" fn(context: *mut c_void, index: u32),
+    context: *mut c_void,
+) -> i32;
+
+impl CallbackSource {
+    /// Hands the `bands` bands of one trace call to the engine's job system and checks that
+    /// every job ran exactly once. Allocates nothing but the run counters (one byte a band,
+    /// kept between frames).
+    fn run_engine_jobs(
+        &self,
+        run_jobs: RunJobs,
+        call: &TraceCall<'_>,
+        rows: std::ops::Range<usize>,
+        band: usize,
+        bands: usize,
+    ) -> Result<(), PipelineError> {
+        use std::sync::atomic::{AtomicU8, Ordering};
+        let mut runs = self.job_runs.lock().unwrap_or_else(|e| e.into_inner());
+        if runs.len() < bands {
+            runs.resize_with(bands, || AtomicU8::new(0));
+        }
+        for r in runs.iter() {
+            r.store(0, Ordering::Relaxed);
+        }
+        let jobs = BandJobs { call, rows, band, runs: &runs[..bands], failure: std::sync::Mutex::new(None) };
+        let context = (&jobs as *const BandJobs<'_>).cast_mut().cast::<c_void>();
+        // SAFETY: the engine's contract (the header's): `job` is called with `context` only
+        // until `run_jobs` returns.
+        let code = unsafe { run_jobs(self.callbacks.user, bands as u32, run_band_job, context) };
+        if let Some(e) = jobs.failure.into_inner().unwrap_or_else(|e| e.into_inner()) {
+            return Err(e);
+        }
+        if code != 0 {
+            return Err(PipelineError::Source(format!("run_jobs returned {code}; the frame was refused")));
+        }
+        if let Some(i) = runs[..bands].iter().position(|r| r.load(Ordering::Relaxed) != 1) {
+            return Err(PipelineError::Source(format!(
+                "run_jobs returned with job {i} of {bands} run {} times (each must run once); the frame was refused",
+                runs[i].load(Ordering::Relaxed)
+            )));
+        }
+        Ok(())
+    }
+}
 
 fn packed<T: Copy + Send + Sync>(buf: &mut PlaneBuf<T>) -> (*mut T, u32, u32) {
     let e = buf.extent();
@@ -453,12 +560,17 @@ impl FrameSource for CallbackSource {
         match self.band_rows as usize {
             0 => call.rows(rows)?,
             band => {
-                use rayon::prelude::*;
                 let bands = rows.len().div_ceil(band);
-                (0..bands).into_par_iter().try_for_each(|b| {
-                    let start = rows.start + b * band;
-                    call.rows(start..(start + band).min(rows.end))
-                })?;
+                match self.callbacks.run_jobs {
+                    None => {
+                        use rayon::prelude::*;
+                        (0..bands).into_par_iter().try_for_each(|b| {
+                            let start = rows.start + b * band;
+                            call.rows(start..(start + band).min(rows.end))
+                        })?;
+                    }
+                    Some(run_jobs) => self.run_engine_jobs(run_jobs, &call, rows, band, bands)?,
+                }
             }
         }
         Ok(TraceStats::default())
@@ -608,7 +720,9 @@ pub unsafe extern "C" fn stereotrace_pipeline_create_callbacks(
         let (given, models) = eye_cameras(cameras, extent)?;
         config.check_threads()?;
         let runtime = config.runtime(Tolerances::default())?;
-        let source = CallbackSource { callbacks, frame: 0, cameras: given, band_rows: config.trace_band_rows };
+        let band_rows = config.trace_band_rows;
+        let job_runs = std::sync::Mutex::new(Vec::new());
+        let source = CallbackSource { callbacks, frame: 0, cameras: given, band_rows, job_runs };
         let pipeline = Pipeline::with_source(source, runtime, models).map_err(pipeline_error)?;
         let pool = config.pool()?;
         out.write(Box::into_raw(Box::new(StPipeline::new(pool, Inner::Callbacks(Box::new(pipeline))))));

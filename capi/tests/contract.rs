@@ -436,14 +436,16 @@ fn stated_jitter_keeps_the_history_on_the_unjittered_grid() {
     expect(unsafe { stereotrace_pipeline_destroy(p) }, StStatus::Ok);
 }
 
-/// A thread-safe engine's `trace` called per band of rows from the pipeline's workers
-/// (`trace_band_rows`): the same images bit for bit as one call per eye, with and without a
-/// budget, and one call per band.
+/// A thread-safe engine's `trace` called per band of rows (`trace_band_rows`), on the
+/// pipeline's workers or on the engine's own job system (`run_jobs`): the same images bit for
+/// bit as one call per eye, with and without a budget, and one call per band. A job system
+/// that forgets a job refuses the frame, which changes nothing.
 #[test]
 fn trace_bands_give_the_images_of_one_call_per_eye() {
     use std::sync::atomic::Ordering;
-    let run = |mode: StMode, band_rows: u32, budget_ms: f64| {
+    let run = |mode: StMode, band_rows: u32, budget_ms: f64, jobs: Option<common::RunJobs>| {
         let mut engine = RoomEngine::new();
+        engine.run_jobs = jobs;
         let p = room_pipeline_with(&mut engine, mode, W, H, |c| {
             (c.trace_band_rows, c.threads, c.budget_ms) = (band_rows, 2, budget_ms);
         });
@@ -452,14 +454,25 @@ fn trace_bands_give_the_images_of_one_call_per_eye() {
         (out, engine.trace_calls.load(Ordering::Relaxed))
     };
     for mode in [StMode::PathTraced, StMode::Spatiotemporal] {
-        let (one_call, calls) = run(mode, 0, 0.0);
-        let (banded, band_calls) = run(mode, 3, 0.0);
-        assert_eq!(banded, one_call, "{mode:?}");
-        if mode == StMode::PathTraced {
-            assert_eq!((calls, band_calls), (3 * 2, 3 * 2 * u64::from(H.div_ceil(3))));
+        let (one_call, calls) = run(mode, 0, 0.0, None);
+        for jobs in [None, Some(common::two_thread_jobs as common::RunJobs)] {
+            let (banded, band_calls) = run(mode, 3, 0.0, jobs);
+            assert!(banded == one_call, "{mode:?}, engine jobs {}", jobs.is_some());
+            if mode == StMode::PathTraced {
+                assert_eq!((calls, band_calls), (3 * 2, 3 * 2 * u64::from(H.div_ceil(3))));
+            }
+            assert!(run(mode, 3, 1e6, jobs).0 == one_call, "{mode:?} under a budget, engine jobs {}", jobs.is_some());
         }
-        assert_eq!(run(mode, 3, 1e6).0, one_call, "{mode:?} under a budget");
     }
+
+    let mut engine = RoomEngine::new();
+    engine.run_jobs = Some(common::forgetful_jobs);
+    let p = room_pipeline_with(&mut engine, StMode::PathTraced, W, H, |c| c.trace_band_rows = 4);
+    let cameras = [camera(-0.03, W, H), camera(0.03, W, H)];
+    let status = unsafe { stereotrace_pipeline_render_frame_at(p, 0, cameras.as_ptr(), std::ptr::null_mut()) };
+    let message = expect(status, StStatus::CallbackFailed);
+    assert!(message.contains("run 0 times (each must run once)"), "{message}");
+    expect(unsafe { stereotrace_pipeline_destroy(p) }, StStatus::Ok);
 }
 
 /// The output lent without a copy (`stereotrace_pipeline_output_view`) is the copied output,

@@ -168,7 +168,7 @@ static int trace(void *user, uint32_t eye, uint32_t frame, uint32_t spp, const S
 
 static void callback_pipeline(void) {
     Engine engine = {{-HALF_BASELINE, HALF_BASELINE}, {0, 0}, 0};
-    StFrameSourceCallbacks callbacks = {&engine, fill_gbuffers, trace};
+    StFrameSourceCallbacks callbacks = {.user = &engine, .fill_gbuffers = fill_gbuffers, .trace = trace};
     StPipelineConfig config = stereotrace_pipeline_config_default();
     config.mode = ST_MODE_STEREO, config.width = CW, config.height = CH, config.threads = 2;
     /* Tolerances for this coarse view: a tap is a source pixel centre up to a pixel (~16 cm
@@ -236,7 +236,7 @@ static void callback_pipeline(void) {
     image_free(&after);
     expect(stereotrace_pipeline_destroy(p), ST_STATUS_OK, "destroy");
 
-    StFrameSourceCallbacks missing = {&engine, fill_gbuffers, NULL};
+    StFrameSourceCallbacks missing = {.user = &engine, .fill_gbuffers = fill_gbuffers};
     p = NULL;
     expect(stereotrace_pipeline_create_callbacks(&missing, &config, cameras, &p), ST_STATUS_NULL_POINTER,
            "missing trace callback");
@@ -313,7 +313,7 @@ static int sliding_trace(void *user, uint32_t eye, uint32_t frame, uint32_t spp,
  * form after `frames` frames, away from the columns the wall slides in through. */
 static double sliding_error(int motion_vectors, uint32_t frames) {
     SlidingWall wall = {0};
-    StFrameSourceCallbacks callbacks = {&wall, sliding_gbuffers, sliding_trace};
+    StFrameSourceCallbacks callbacks = {.user = &wall, .fill_gbuffers = sliding_gbuffers, .trace = sliding_trace};
     StPipelineConfig config = stereotrace_pipeline_config_default();
     config.mode = ST_MODE_TEMPORAL, config.layout = ST_LAYOUT_FULL, config.width = CW, config.height = CH;
     config.threads = 2, config.motion_vectors = (uint32_t)motion_vectors;

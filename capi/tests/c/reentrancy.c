@@ -114,7 +114,7 @@ static StStatus kernel_call(StContext *context, int kind) {
             g.normal[c] = (StPlaneF32){normal[c], W, H, W};
         }
         StRgbMut o = image_view(&out);
-        StReprojectInput input = {in, NULL, NULL};
+        StReprojectInput input = {.colour = in};
         StReprojectOutput output = {o, NULL, {reasons, W, H, W}, NULL};
         return stereotrace_reproject(context, &g, &g, &input, &output, NULL, NULL);
     }
@@ -146,7 +146,7 @@ static void intrude(Engine *e, const char *in_progress, const char *from) {
     struct {
         StStatus status;
         const char *what;
-    } calls[7];
+    } calls[9];
     static _Thread_local uint8_t mask[W * H];
     StPlaneMutU8 mask_view = {mask, W, H, W};
     calls[0].status = stereotrace_pipeline_render_frame(self, 0, &stats), calls[0].what = "render_frame";
@@ -156,7 +156,10 @@ static void intrude(Engine *e, const char *in_progress, const char *from) {
     calls[4].status = stereotrace_pipeline_reset(self), calls[4].what = "reset";
     calls[5].status = stereotrace_pipeline_resize(self, W + 1, H), calls[5].what = "resize";
     calls[6].status = stereotrace_pipeline_destroy(self), calls[6].what = "destroy";
-    for (int i = 0; i < 7; i++) {
+    calls[7].status = stereotrace_pipeline_set_jitter(self, 0.25f, 0), calls[7].what = "set_jitter";
+    StRgb lent;
+    calls[8].status = stereotrace_pipeline_output_view(self, 0, &lent), calls[8].what = "output_view";
+    for (int i = 0; i < 9; i++) {
         CHECK(calls[i].status == ST_STATUS_BUSY, "%s: %s on the busy pipeline returned %d", from, calls[i].what,
               calls[i].status);
     }
@@ -234,7 +237,7 @@ static int trace(void *user, uint32_t eye, uint32_t frame, uint32_t spp, const S
 }
 
 static StPipeline *make_pipeline(Engine *e, uint32_t mode, uint32_t order) {
-    StFrameSourceCallbacks callbacks = {e, fill_gbuffers, trace};
+    StFrameSourceCallbacks callbacks = {.user = e, .fill_gbuffers = fill_gbuffers, .trace = trace};
     StPipelineConfig config = stereotrace_pipeline_config_default();
     /* One worker: each pipeline's callbacks always run on the same thread. */
     config.mode = mode, config.order = order, config.width = W, config.height = H, config.threads = 1;

@@ -52,6 +52,8 @@ pub struct RoomEngine {
     pub hidden_jitter: [f32; 2],
     /// Whether traced samples carry the per-frame noise (±20 %) or are exact.
     pub noisy: bool,
+    /// The engine's own job system, if it offers one.
+    pub run_jobs: Option<RunJobs>,
 }
 
 impl RoomEngine {
@@ -65,6 +67,7 @@ impl RoomEngine {
             motion: [0.0; 3],
             hidden_jitter: [0.0; 2],
             noisy: true,
+            run_jobs: None,
         })
     }
 
@@ -73,8 +76,53 @@ impl RoomEngine {
             user: (&mut **self as *mut RoomEngine).cast::<c_void>(),
             fill_gbuffers: Some(fill_gbuffers),
             trace: Some(trace),
+            run_jobs: self.run_jobs,
         }
     }
+}
+
+/// The `run_jobs` callback's type.
+pub type RunJobs = unsafe extern "C" fn(*mut c_void, u32, unsafe extern "C" fn(*mut c_void, u32), *mut c_void) -> i32;
+
+/// An engine's job system: two threads of its own pull job indices from a shared counter
+/// (`skip` jobs at the end are left out, to play a broken job system).
+fn run_on_two_threads(count: u32, job: unsafe extern "C" fn(*mut c_void, u32), context: *mut c_void, skip: u32) -> i32 {
+    let next = AtomicU64::new(0);
+    let context = context as usize;
+    std::thread::scope(|s| {
+        for _ in 0..2 {
+            s.spawn(|| {
+                loop {
+                    let i = next.fetch_add(1, Ordering::Relaxed);
+                    if i + u64::from(skip) >= u64::from(count) {
+                        break;
+                    }
+                    unsafe { job(context as *mut c_void, i as u32) };
+                }
+            });
+        }
+    });
+    0
+}
+
+/// [`run_on_two_threads`] running every job.
+pub unsafe extern "C" fn two_thread_jobs(
+    _: *mut c_void,
+    count: u32,
+    job: unsafe extern "C" fn(*mut c_void, u32),
+    context: *mut c_void,
+) -> i32 {
+    run_on_two_threads(count, job, context, 0)
+}
+
+/// [`run_on_two_threads`] that forgets the last job.
+pub unsafe extern "C" fn forgetful_jobs(
+    _: *mut c_void,
+    count: u32,
+    job: unsafe extern "C" fn(*mut c_void, u32),
+    context: *mut c_void,
+) -> i32 {
+    run_on_two_threads(count, job, context, 1)
 }
 
 pub fn model(c: &StCamera) -> CameraModel {
