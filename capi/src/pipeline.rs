@@ -942,6 +942,25 @@ fn pixel_record<S: FrameSource>(pipeline: &Pipeline<S>, eye: Eye, what: u32) -> 
     }
 }
 
+/// The image eye `eye` (0 left, 1 right) shows after the last successful frame, or the
+/// refusal: no frame yet, or no such eye.
+fn committed_output(state: &PipelineState, eye: u32) -> Result<&RgbBuf, Failure> {
+    if state.frames_rendered == 0 {
+        return Err(Failure::invalid(
+            "no frame has been rendered yet: the output exists after the first successful render call",
+        ));
+    }
+    let eye = match eye {
+        0 => Eye::Left,
+        1 => Eye::Right,
+        other => return Err(Failure::invalid(format!("eye {other} is not 0 (left) or 1 (right)"))),
+    };
+    Ok(match &state.inner {
+        Inner::Scene(inner) => inner.output(eye),
+        Inner::Callbacks(inner) => inner.output(eye),
+    })
+}
+
 /// Lends the image eye `eye` (0 left, 1 right) shows after the last successful frame without
 /// copying it: writes to `view` three read-only planes of the pipeline's own memory (packed:
 /// stride = width). They stay valid and unchanged until the next call that renders, resets,
@@ -961,20 +980,7 @@ pub unsafe extern "C" fn stereotrace_pipeline_output_view(
         let p = pipeline.as_ref().ok_or_else(|| Failure::null("pipeline"))?;
         let state = p.state.enter("stereotrace_pipeline_output_view")?;
         let view = view.as_mut().ok_or_else(|| Failure::null("view"))?;
-        if state.frames_rendered == 0 {
-            return Err(Failure::invalid(
-                "no frame has been rendered yet: the output exists after the first successful render call",
-            ));
-        }
-        let eye = match eye {
-            0 => Eye::Left,
-            1 => Eye::Right,
-            other => return Err(Failure::invalid(format!("eye {other} is not 0 (left) or 1 (right)"))),
-        };
-        let image = match &state.inner {
-            Inner::Scene(inner) => inner.output(eye),
-            Inner::Callbacks(inner) => inner.output(eye),
-        };
+        let image = committed_output(&state, eye)?;
         let e = image.extent();
         let (w, h) = (e.width() as u32, e.height() as u32);
         let [r, g, b] =
@@ -999,20 +1005,7 @@ pub unsafe extern "C" fn stereotrace_pipeline_output(
     guard(|| unsafe {
         let p = pipeline.as_ref().ok_or_else(|| Failure::null("pipeline"))?;
         let state = p.state.enter("stereotrace_pipeline_output")?;
-        if state.frames_rendered == 0 {
-            return Err(Failure::invalid(
-                "no frame has been rendered yet: the output exists after the first successful render call",
-            ));
-        }
-        let eye = match eye {
-            0 => Eye::Left,
-            1 => Eye::Right,
-            other => return Err(Failure::invalid(format!("eye {other} is not 0 (left) or 1 (right)"))),
-        };
-        let image = match &state.inner {
-            Inner::Scene(inner) => inner.output(eye),
-            Inner::Callbacks(inner) => inner.output(eye),
-        };
+        let image = committed_output(&state, eye)?;
         let mut b = Borrows::new();
         let out = required(out, "out")?.view(["out.r", "out.g", "out.b"], &mut b)?;
         same_extent("out", image.extent(), out.extent()).about("out")?;
