@@ -477,7 +477,7 @@ typedef struct StGBufferMut {
   struct StCamera camera;
   // In: the sub-pixel jitter to render this G-buffer with, in pixels (x right, y down), as
   // set by `stereotrace_pipeline_set_jitter` (0, 0 without): pixel (x, y) must show the
-  // surface `camera` sees at (x + 0.5 + jitter[0], y + 0.5 + jitter[1]) (a TAA projection
+  // surface `camera` sees at `(x + 0.5 + jitter[0], y + 0.5 + jitter[1])` (a TAA projection
   // offset). The traced images stay on the unjittered grid.
   float jitter[2];
   // Out, only with `config.history_confidence` (else `data` is null): how far each pixel's
