@@ -30,6 +30,17 @@ pub struct CameraModel {
     pub extent: Extent,
 }
 
+/// Refuses ([`FrameError::InvalidParameter`]) a sub-pixel jitter offset (in pixels) that is
+/// not finite or exceeds one pixel on either axis: the one rule for every jitter the crate
+/// takes ([`CameraModel::jittered`], `reproject::Jitter`).
+pub fn check_jitter(jitter: [f32; 2]) -> Result<(), FrameError> {
+    if jitter.iter().all(|j| j.abs() <= 1.0) {
+        Ok(())
+    } else {
+        Err(FrameError::InvalidParameter("jitter offsets must be finite and within one pixel"))
+    }
+}
+
 impl CameraModel {
     /// Validates `view_proj` for frames of `extent`.
     ///
@@ -97,9 +108,7 @@ impl CameraModel {
     /// bit for bit. Refuses ([`FrameError::InvalidParameter`]) an offset that is not finite or
     /// exceeds one pixel.
     pub fn jittered(&self, jitter: [f32; 2]) -> Result<Self, FrameError> {
-        if !jitter.iter().all(|j| j.abs() <= 1.0) {
-            return Err(FrameError::InvalidParameter("jitter offsets must be finite and within one pixel"));
-        }
+        check_jitter(jitter)?;
         if jitter == [0.0; 2] {
             return Ok(*self);
         }

@@ -275,10 +275,8 @@ impl Jitter {
     /// How far the colour footprint moves, or the refusal of an offset that is not finite or
     /// exceeds a pixel.
     fn shift(&self) -> Result<[f32; 2], FrameError> {
-        let ok = |j: [f32; 2]| j.iter().all(|v| v.abs() <= 1.0);
-        if !(ok(self.target) && ok(self.source)) {
-            return Err(FrameError::InvalidParameter("jitter offsets must be finite and within one pixel"));
-        }
+        crate::camera::check_jitter(self.target)?;
+        crate::camera::check_jitter(self.source)?;
         Ok([self.source[0] - self.target[0], self.source[1] - self.target[1]])
     }
 }

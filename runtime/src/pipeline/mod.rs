@@ -133,7 +133,6 @@ impl FrameBuffers {
 /// `traced` (module notes).
 struct EyeState {
     camera: CameraModel,
-    prev_camera: Option<CameraModel>,
     cur: FrameBuffers,
     prev: FrameBuffers,
     /// The history-validity plane the EMA reads (a combination in some modes).
@@ -152,7 +151,6 @@ impl EyeState {
         let e = camera.extent;
         Ok(Self {
             camera,
-            prev_camera: None,
             cur: FrameBuffers::try_new(camera, config)?,
             prev: FrameBuffers::try_new(camera, config)?,
             ema_reason: PlaneBuf::try_new(e, Reason::Invalid as u8)?,
@@ -163,10 +161,10 @@ impl EyeState {
     }
 }
 
-/// What a refused frame restores besides the buffers: each eye's camera and previous
-/// camera, and the budget planner's predictions.
+/// What a refused frame restores besides the buffers: each eye's camera and the budget
+/// planner's predictions. (The previous frame's cameras are its G-buffers'.)
 struct Committed {
-    cameras: [(CameraModel, Option<CameraModel>); 2],
+    cameras: [CameraModel; 2],
     planner: BudgetPlanner,
 }
 
@@ -314,7 +312,7 @@ impl<S: FrameSource> Pipeline<S> {
     /// eyes share the jitter (the rasterised pass needs a parallel pair). `[0, 0]` (the
     /// default) is no jitter, bit for bit.
     pub fn set_jitter(&mut self, jitter: [f32; 2]) -> Result<(), PipelineError> {
-        self.eyes[0].camera.jittered(jitter)?;
+        crate::kernels::camera::check_jitter(jitter)?;
         self.jitter = jitter;
         Ok(())
     }
@@ -322,9 +320,6 @@ impl<S: FrameSource> Pipeline<S> {
     /// Forgets the history (the next frame starts fresh, as the first one did).
     pub fn reset(&mut self) {
         self.frames_done = 0;
-        for e in &mut self.eyes {
-            e.prev_camera = None;
-        }
     }
 
     /// The image `eye` shows for the last frame.
@@ -424,12 +419,9 @@ impl<S: FrameSource> Pipeline<S> {
     /// jitter): the committed frame's buffers become the previous frame's (see
     /// [`EyeState`]). Returns what [`Pipeline::roll_back`] restores.
     fn begin_frame(&mut self, cameras: [CameraModel; 2], gbuffer_cameras: [CameraModel; 2]) -> Committed {
-        let committed =
-            Committed { cameras: self.eyes.each_ref().map(|s| (s.camera, s.prev_camera)), planner: self.planner };
-        let has_history = self.frames_done > 0;
+        let committed = Committed { cameras: self.eyes.each_ref().map(|s| s.camera), planner: self.planner };
         for ((s, camera), gbuffer_camera) in self.eyes.iter_mut().zip(cameras).zip(gbuffer_cameras) {
             std::mem::swap(&mut s.cur, &mut s.prev);
-            s.prev_camera = has_history.then_some(s.camera);
             s.camera = camera;
             (s.cur.gbuffer.camera, s.cur.gbuffer.jitter) = (gbuffer_camera, self.jitter);
         }
@@ -439,9 +431,9 @@ impl<S: FrameSource> Pipeline<S> {
     /// Undoes [`Pipeline::begin_frame`] after a refused frame: the committed buffers,
     /// cameras and planner are back, as if the call had never been made.
     fn roll_back(&mut self, committed: Committed) {
-        for (s, (camera, prev_camera)) in self.eyes.iter_mut().zip(committed.cameras) {
+        for (s, camera) in self.eyes.iter_mut().zip(committed.cameras) {
             std::mem::swap(&mut s.cur, &mut s.prev);
-            (s.camera, s.prev_camera) = (camera, prev_camera);
+            s.camera = camera;
         }
         self.planner = committed.planner;
     }
@@ -565,7 +557,7 @@ impl<S: FrameSource> Pipeline<S> {
         let ramp = self.config.ramp;
         let layout = self.config.layout;
         let s = &mut self.eyes[eye as usize];
-        if s.prev_camera.is_none() || !has_history {
+        if !has_history {
             s.cur.temporal_reason.as_mut_slice().fill(Reason::Invalid as u8);
             return Ok(ReasonCounts::default());
         }
