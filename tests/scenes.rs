@@ -150,6 +150,7 @@ fn every_builtin_builds_validates_and_is_listed() {
             "atrium",
             "atrium-glossy",
             "atrium-moving-light",
+            "atrium-moving-object",
             "living-room",
             "living-room-glossy",
             "living-room-moving-light",
@@ -246,11 +247,12 @@ fn builtins_are_deterministic() {
 
 #[test]
 fn builtin_effect_flags_match_their_content() {
-    let expected: [(&str, &[&str]); 11] = [
+    let expected: [(&str, &[&str]); 12] = [
         ("cornell", &["area-lights"]),
         ("atrium", &["textures", "area-lights"]),
         ("atrium-glossy", &["glossy", "textures", "area-lights"]),
         ("atrium-moving-light", &["moving-lights", "textures", "area-lights"]),
+        ("atrium-moving-object", &["moving-objects", "textures", "area-lights"]),
         ("living-room", &["textures", "area-lights"]),
         ("living-room-glossy", &["glossy", "textures", "area-lights"]),
         ("living-room-moving-light", &["moving-lights", "textures", "area-lights", "point-lights"]),
@@ -268,11 +270,19 @@ fn builtin_effect_flags_match_their_content() {
         assert_eq!(s.effects.has(Effect::Glossy), kinds.contains("Glossy"), "{name}");
         assert_eq!(s.effects.has(Effect::Mirror), kinds.contains("Mirror"), "{name}");
         assert_eq!(s.effects.has(Effect::MovingLights), !s.lights.moving.is_empty(), "{name}");
+        assert_eq!(s.effects.has(Effect::MovingObjects), !s.moving_objects.is_empty(), "{name}");
     }
     // The diffuse, static-light bases pay for nothing they do not have.
     for name in ["cornell", "atrium", "living-room", "classroom", "courtyard"] {
         let e = build(name).effects;
-        for f in [Effect::Glossy, Effect::Mirror, Effect::MovingLights, Effect::EnvMap, Effect::AlphaMasks] {
+        for f in [
+            Effect::Glossy,
+            Effect::Mirror,
+            Effect::MovingLights,
+            Effect::MovingObjects,
+            Effect::EnvMap,
+            Effect::AlphaMasks,
+        ] {
             assert!(!e.has(f), "{name} has {f:?}");
         }
     }
@@ -382,6 +392,37 @@ fn lights_emit_and_moving_lights_fly_clear_of_geometry() {
             assert!((at(59.0) - at(0.0)).length() > 1.0, "{name}: the moving light hardly moves");
         }
     }
+}
+
+/// Moving objects never touch the static geometry: at every frame the object's bounding box
+/// overlaps no static triangle's (conservative for a turning object), and it really moves.
+#[test]
+fn moving_objects_stay_clear_of_the_static_geometry() {
+    let mut seen = 0;
+    for name in builtin_names() {
+        let s = build(name);
+        for o in &s.moving_objects {
+            seen += 1;
+            let bounds = |f: f32| {
+                o.at_frame(f)
+                    .flatten()
+                    .fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(lo, hi), p| {
+                        (lo.min(p), hi.max(p))
+                    })
+            };
+            for f in 0..s.frame_count() {
+                let (lo, hi) = bounds(f as f32);
+                for t in &s.mesh.positions {
+                    let (tlo, thi) = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
+                    let overlap = tlo.cmple(hi).all() && thi.cmpge(lo).all();
+                    assert!(!overlap, "{name}: object {:?} touches {t:?} at frame {f}", o.name);
+                }
+            }
+            let (a, b) = (bounds(0.0).0, bounds((s.frame_count() - 1) as f32).0);
+            assert!((b - a).length() > 1.0, "{name}: object {:?} hardly moves", o.name);
+        }
+    }
+    assert!(seen > 0, "no built-in has a moving object");
 }
 
 #[test]
@@ -701,6 +742,41 @@ normal_degrees = 20
     assert_eq!(s.tolerances.normal_degrees, 20.0);
     let PlacedLight::Point(p) = s.lights.moving[0].at_frame(29.0) else { panic!() };
     assert!((p.position - Vec3::new(1.0, 1.0, 0.0)).length() < 1e-5);
+
+    // A moving object with a material of its own; `moving_objects = false` strips it.
+    let object = "mesh = \"room.obj\"\n[[objects]]\ntype = \"moving-box\"\nname = \"crate\"\nsize = [0.3, 0.3, 0.3]\nalbedo = [0.6, 0.4, 0.2]\nkind = \"glossy\"\nroughness = 0.2\nkeys = [ { frame = 0, translation = [-0.5, 0.5, -0.5] }, { frame = 59, translation = [0.5, 0.5, -0.5], yaw_deg = 45 } ]\n";
+    let s = load_manifest(&dir.write("object.toml", object)).unwrap();
+    assert_eq!(s.effects, effects(&["glossy", "area-lights", "moving-objects"]));
+    let crate_ = &s.moving_objects[0];
+    assert_eq!((crate_.name.as_str(), crate_.triangles.len()), ("crate", 12));
+    let m = &s.materials[crate_.material as usize];
+    assert_eq!((m.name.as_str(), m.kind, m.roughness), ("object_crate", MaterialKind::Glossy, 0.2));
+    let centre = crate_.at_frame(59.0).flatten().sum::<Vec3>() / 36.0;
+    assert!((centre - Vec3::new(0.5, 0.5, -0.5)).length() < 1e-5, "{centre}");
+    let stripped =
+        load_manifest(&dir.write("stripped.toml", format!("{object}[effects]\nmoving_objects = false\n"))).unwrap();
+    assert!(stripped.moving_objects.is_empty() && !stripped.effects.has(Effect::MovingObjects));
+    let sphere = load_manifest(&dir.write(
+        "sphere.toml",
+        "mesh = \"room.obj\"\n[[objects]]\ntype = \"moving-sphere\"\nradius = 0.2\nalbedo = [0.5, 0.5, 0.5]\nkeys = [ { frame = 0, translation = [0, 1, -0.5] } ]\n",
+    ))
+    .unwrap();
+    assert_eq!(sphere.moving_objects[0].triangles.len(), 80);
+    // Bad objects are refused by key: a zero size, an albedo above 1, an unknown field.
+    for (bad, needle) in [
+        ("size = [0, 1, 1]", "objects[0]: size"),
+        ("size = [1, 1, 1]\nalbedo = [2, 0, 0]", "albedo"),
+        ("size = [1, 1, 1]\nalbedo = [0.5, 0.5, 0.5]\nemission = [1, 1, 1]", "emission"),
+    ] {
+        let body = format!(
+            "mesh = \"room.obj\"\n[[objects]]\ntype = \"moving-box\"\n{bad}\nalbedo = [0.5, 0.5, 0.5]\nkeys = [ {{ frame = 0, translation = [0, 1, 0] }} ]\n"
+        );
+        // A repeated key is itself a TOML error; keep the first albedo only where the case sets one.
+        let body =
+            if bad.contains("albedo") { body.replacen("\nalbedo = [0.5, 0.5, 0.5]\nkeys", "\nkeys", 1) } else { body };
+        let err = load_manifest(&dir.write("bad-object.toml", body)).unwrap_err().to_string();
+        assert!(err.contains(needle), "{bad}: {err}");
+    }
 
     // A quad light from a manifest becomes emissive geometry.
     let quad = dir.write(

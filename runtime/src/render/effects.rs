@@ -1,9 +1,9 @@
 //! Effect bits the integrator is specialised on.
 //!
 //! The integrator is generic over `const E: u16`. Each bit switches on one piece of code:
-//! glossy lobes, mirrors, light motion, texture lookups and cut-out (alpha-masked) geometry.
-//! With a bit clear the compiler removes that code, so an all-diffuse, static-light,
-//! untextured scene runs no glossy, mirror or moving-light code at all. Light *types* (area,
+//! glossy lobes, mirrors, moving geometry (lights or objects), texture lookups and cut-out
+//! (alpha-masked) geometry. With a bit clear the compiler removes that code, so an
+//! all-diffuse, static, untextured scene runs no glossy, mirror or motion code at all. Light *types* (area,
 //! point, sun, environment) need no bits: they are records in the per-frame light table,
 //! and a scene without a type simply has no such record.
 //!
@@ -17,14 +17,15 @@ use crate::scene::{Effect, EffectSet};
 pub const GLOSSY: u16 = 1 << 0;
 /// Mirror materials.
 pub const MIRROR: u16 = 1 << 1;
-/// Area lights that move during the camera path.
-pub const MOVING_LIGHTS: u16 = 1 << 2;
+/// Triangles placed per frame outside the static BVH: moving area lights and moving objects
+/// (one bit: both are hit, occlude and move by the same code).
+pub const MOVING_GEOMETRY: u16 = 1 << 2;
 /// Texture lookups.
 pub const TEXTURES: u16 = 1 << 3;
 /// Alpha-masked (cut-out) materials.
 pub const ALPHA_MASKS: u16 = 1 << 4;
 /// The general integrator.
-pub const ALL: u16 = GLOSSY | MIRROR | MOVING_LIGHTS | TEXTURES | ALPHA_MASKS;
+pub const ALL: u16 = GLOSSY | MIRROR | MOVING_GEOMETRY | TEXTURES | ALPHA_MASKS;
 
 /// Whether effect bits `e` include `bit` (usable in `if` on a const generic: folded away).
 #[inline(always)]
@@ -38,7 +39,8 @@ pub fn bits_for(effects: EffectSet) -> u16 {
     for (effect, bit) in [
         (Effect::Glossy, GLOSSY),
         (Effect::Mirror, MIRROR),
-        (Effect::MovingLights, MOVING_LIGHTS),
+        (Effect::MovingLights, MOVING_GEOMETRY),
+        (Effect::MovingObjects, MOVING_GEOMETRY),
         (Effect::Textures, TEXTURES),
         (Effect::AlphaMasks, ALPHA_MASKS),
     ] {
@@ -54,7 +56,7 @@ pub fn describe(e: u16) -> String {
     let names: Vec<&str> = [
         (GLOSSY, "glossy"),
         (MIRROR, "mirror"),
-        (MOVING_LIGHTS, "moving-lights"),
+        (MOVING_GEOMETRY, "moving-geometry"),
         (TEXTURES, "textures"),
         (ALPHA_MASKS, "alpha-masks"),
     ]

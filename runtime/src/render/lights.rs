@@ -4,14 +4,15 @@
 //! moving light placed at this frame), each point light, the sun, the environment. One
 //! record is chosen per shadow ray with probability proportional to its approximate power
 //! (distant lights as the power they deliver through a disc of the scene's radius), then a
-//! point on it. Moving area lights also keep their triangles for ray hits, since they are
-//! not part of the static BVH.
+//! point on it. Moving area lights and moving objects also keep their triangles for ray
+//! hits, since they are not part of the static BVH.
 //!
 //! The table is rebuilt in place each frame: vectors are cleared and refilled, so after the
 //! first frame no allocation happens (the real-time runtime relies on it).
 
 use glam::{Vec2, Vec3};
 
+use super::MOVING_LIGHT_MATERIAL;
 use super::spawn::barycentric_point;
 use crate::scene::light::sample_triangle;
 use crate::scene::sampling::luminance;
@@ -79,7 +80,8 @@ pub enum ShadowTarget {
     },
 }
 
-/// A triangle of a moving area light, for ray hits.
+/// A triangle placed for this frame (of a moving area light or a moving object), for ray
+/// hits.
 #[derive(Clone, Copy, Debug)]
 pub struct MovingTriangle {
     /// The vertices at this frame.
@@ -87,8 +89,11 @@ pub struct MovingTriangle {
     /// The vertices at the table's previous frame (the same as `v` on the first): where a
     /// point of the triangle was, for motion vectors.
     pub previous: [Vec3; 3],
-    /// Emitted radiance.
+    /// Emitted radiance (zero for an object's triangle).
     pub radiance: Vec3,
+    /// The material a G-buffer records: [`MOVING_LIGHT_MATERIAL`] for a light's triangle, the
+    /// scene material that shades it for an object's.
+    pub material: u32,
 }
 
 /// The light table of one frame.
@@ -141,9 +146,21 @@ impl FrameLights {
                         let v = t.map(|p| transform.transform_point3(p));
                         self.push_triangle(v, *radiance);
                         let previous = t.map(|p| previous.transform_point3(p));
-                        self.moving_triangles.push(MovingTriangle { v, previous, radiance: *radiance });
+                        let material = MOVING_LIGHT_MATERIAL;
+                        self.moving_triangles.push(MovingTriangle { v, previous, radiance: *radiance, material });
                     }
                 }
+            }
+        }
+        for o in &scene.moving_objects {
+            let (transform, previous) = (o.path.transform(frame as f32), o.path.transform(previous_frame as f32));
+            for t in &o.triangles {
+                self.moving_triangles.push(MovingTriangle {
+                    v: t.map(|p| transform.transform_point3(p)),
+                    previous: t.map(|p| previous.transform_point3(p)),
+                    radiance: Vec3::ZERO,
+                    material: o.material,
+                });
             }
         }
         if let Some(sun) = scene.lights.sun {

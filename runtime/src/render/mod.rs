@@ -47,7 +47,7 @@ use rayon::prelude::*;
 
 use crate::camera::Eye;
 use crate::kernels::bvh::{
-    BuildQuality, BuildStats, BvhBuildParams, Hit, PreparedRay, Ray, TriangleBvh, intersect_triangle,
+    BuildQuality, BuildStats, BvhBuildParams, Hit, PreparedRay, Ray, TriHit, TriangleBvh, intersect_triangle,
 };
 pub use crate::kernels::gbuffer::GBufferBuf;
 use crate::kernels::gbuffer::{NO_NORMAL, encode_normal};
@@ -55,8 +55,8 @@ use crate::kernels::simd::{F32s, LANES};
 use crate::kernels::{CameraModel, FrameError, PlaneBuf, RgbBuf};
 use crate::scene::{MaterialKind, Scene};
 use bsdf::ShadingPoint;
-use effects::{ALPHA_MASKS, MOVING_LIGHTS, TEXTURES, has};
-use lights::FrameLights;
+use effects::{ALPHA_MASKS, MOVING_GEOMETRY, TEXTURES, has};
+use lights::{FrameLights, MovingTriangle};
 use rng::{Dim, SampleStream};
 
 /// Why rendering could not start.
@@ -91,15 +91,26 @@ pub struct Renderer {
 enum Surface {
     /// A triangle of the static mesh.
     Mesh(Hit),
-    /// A triangle of a moving area light (emits `radiance` on the side of `normal`).
-    MovingLight { t: f32, normal: Vec3, radiance: Vec3, index: u32 },
+    /// A triangle placed for the frame (`index` into [`FrameLights::moving_triangles`]) at
+    /// barycentrics `(u, v)`: of a moving area light (emits `radiance` on the side of the unit
+    /// winding `normal`; `material` is [`MOVING_LIGHT_MATERIAL`]) or of a moving object
+    /// (`radiance` zero, shaded flat with the scene material `material`).
+    Moving { t: f32, u: f32, v: f32, normal: Vec3, radiance: Vec3, material: u32, index: u32 },
 }
 
 impl Surface {
+    /// The hit at `t`, barycentrics `uv`, on the moving triangle `index` of `triangles`.
+    #[inline]
+    fn moving(triangles: &[MovingTriangle], index: u32, t: f32, (u, v): (f32, f32)) -> Self {
+        let tri = &triangles[index as usize];
+        let normal = (tri.v[1] - tri.v[0]).cross(tri.v[2] - tri.v[0]).normalize_or_zero();
+        Surface::Moving { t, u, v, normal, radiance: tri.radiance, material: tri.material, index }
+    }
+
     fn t(&self) -> f32 {
         match self {
             Surface::Mesh(h) => h.t,
-            Surface::MovingLight { t, .. } => *t,
+            Surface::Moving { t, .. } => *t,
         }
     }
 }
@@ -260,10 +271,12 @@ impl Renderer {
     }
 
     /// Fills `out.motion`, if it has motion planes, with each pixel's world-space motion since
-    /// the light table's previous frame: zero on the mesh (it never moves) and background, and
-    /// the moving area light's own motion where one is seen (the pixel ray's hit on the
-    /// light's triangle now, less the same barycentric point of it then). Nothing is written
-    /// for a scene without moving area lights: its planes stay as allocated, zero.
+    /// the light table's previous frame: zero on the static mesh and background, and the
+    /// motion of the moving light or object seen at the pixel (its centre ray's hit on the
+    /// triangle now, less the same barycentric point of it then). A pixel sees moving geometry
+    /// when its material is one that moving triangles carry and a moving triangle lies at its
+    /// depth (not behind a static surface of the same material). Nothing is written for a
+    /// scene without moving geometry: its planes stay as allocated, zero.
     pub fn write_motion(&self, lights: &FrameLights, out: &mut GBufferBuf) {
         let Some(motion) = &mut out.motion else { return };
         let triangles = lights.moving_triangles();
@@ -275,21 +288,18 @@ impl Renderer {
         }
         let camera = &out.camera;
         let width = out.material.extent().width();
-        for (i, _) in out.material.as_slice().iter().enumerate().filter(|(_, m)| **m == MOVING_LIGHT_MATERIAL) {
+        let depth = out.depth.as_slice();
+        let moving_material = |m: u32| triangles.iter().any(|t| t.material == m);
+        for (i, _) in out.material.as_slice().iter().enumerate().filter(|(_, m)| moving_material(**m)) {
             let (x, y) = (i % width, i / width);
             let dir = Vec3::from(camera.ray(x as f32 + 0.5, y as f32 + 0.5));
             let Some(ray) = PreparedRay::new(&Ray::new(Vec3::from(camera.centre), dir)) else { continue };
-            let mut nearest = None;
-            let mut limit = f32::INFINITY;
-            for tri in triangles {
-                let v = tri.v;
-                let verts = [v[0].x, v[0].y, v[0].z, v[1].x, v[1].y, v[1].z, v[2].x, v[2].y, v[2].z];
-                if let Some(hit) = intersect_triangle(&ray, &verts, limit) {
-                    limit = hit.t;
-                    nearest = Some((tri, hit.uv()));
-                }
-            }
-            if let Some((tri, (u, v))) = nearest {
+            // The ray has unit view depth, so the pixel's surface lies at t = depth; a moving
+            // triangle up to a rounding margin beyond it is the one the pixel sees.
+            let limit = depth[i] * (1.0 + 1e-5) + f32::MIN_POSITIVE;
+            if let Some((index, hit)) = nearest_moving(triangles, &ray, limit) {
+                let tri = &triangles[index as usize];
+                let (u, v) = hit.uv();
                 let moved = |k: usize| tri.v[k] - tri.previous[k];
                 let m = (1.0 - u - v) * moved(0) + u * moved(1) + v * moved(2);
                 for c in 0..3 {
@@ -411,32 +421,50 @@ impl Renderer {
         }
     }
 
-    /// Closest moving-light triangle nearer than `tmax`.
+    /// Closest moving triangle (of a light or an object) nearer than `tmax`.
     #[inline]
     fn closest_moving(lights: &FrameLights, ray: &Ray, tmax: f32) -> Option<Surface> {
         if !lights.may_hit_moving(ray.origin, ray.dir.normalize_or_zero()) {
             return None;
         }
         let prepared = PreparedRay::new(&Ray { tmax, ..*ray })?;
-        let mut best: Option<Surface> = None;
-        let mut limit = tmax;
-        for (index, tri) in lights.moving_triangles().iter().enumerate() {
-            let v = tri.v;
-            let verts = [v[0].x, v[0].y, v[0].z, v[1].x, v[1].y, v[1].z, v[2].x, v[2].y, v[2].z];
-            if let Some(h) = intersect_triangle(&prepared, &verts, limit) {
-                limit = h.t;
-                let normal = (v[1] - v[0]).cross(v[2] - v[0]).normalize_or_zero();
-                best = Some(Surface::MovingLight { t: h.t, normal, radiance: tri.radiance, index: index as u32 });
+        let triangles = lights.moving_triangles();
+        let (index, hit) = nearest_moving(triangles, &prepared, tmax)?;
+        Some(Surface::moving(triangles, index, hit.t, hit.uv()))
+    }
+
+    /// Shading information where a ray along `dir` meets `surface`, or `None` for a moving
+    /// light (an emitter only: it reflects nothing).
+    #[inline(always)]
+    fn shade_surface<const E: u16>(&self, lights: &FrameLights, surface: &Surface, dir: Vec3) -> Option<ShadingPoint> {
+        match *surface {
+            Surface::Mesh(h) => Some(self.shade::<E>(&h, dir)),
+            Surface::Moving { material: MOVING_LIGHT_MATERIAL, .. } => None,
+            Surface::Moving { u, v, normal, material, index, .. } => {
+                // A moving object: flat and untextured (see `scene::object`).
+                let m = &self.scene.materials[material as usize];
+                let n = if normal.dot(dir) > 0.0 { -normal } else { normal };
+                let tri = &lights.moving_triangles()[index as usize];
+                let (position, position_error) = spawn::barycentric_point(&tri.v, u, v);
+                Some(ShadingPoint {
+                    position,
+                    position_error,
+                    geometric_normal: n,
+                    shading_normal: n,
+                    kind: m.kind,
+                    albedo: m.albedo,
+                    specular: m.specular,
+                    alpha: m.alpha(),
+                })
             }
         }
-        best
     }
 
     /// Closest surface along `ray`.
     #[inline]
     fn closest<const E: u16>(&self, lights: &FrameLights, ray: Ray) -> Option<Surface> {
         let mesh = self.closest_mesh::<E>(ray).map(Surface::Mesh);
-        if has(E, MOVING_LIGHTS) {
+        if has(E, MOVING_GEOMETRY) {
             let tmax = mesh.map_or(ray.tmax, |s| s.t());
             if let Some(light) = Self::closest_moving(lights, &ray, tmax) {
                 return Some(light);
@@ -449,7 +477,7 @@ impl Renderer {
     #[inline]
     fn occluded<const E: u16>(&self, lights: &FrameLights, ray: Ray) -> bool {
         let blocked = if has(E, ALPHA_MASKS) { self.closest_mesh::<E>(ray).is_some() } else { self.bvh.occluded(&ray) };
-        blocked || (has(E, MOVING_LIGHTS) && Self::closest_moving(lights, &ray, ray.tmax).is_some())
+        blocked || (has(E, MOVING_GEOMETRY) && Self::closest_moving(lights, &ray, ray.tmax).is_some())
     }
 
     /// Shading information at a mesh hit seen along `dir`.
@@ -507,7 +535,7 @@ impl Renderer {
                     m.emission
                 }
             }
-            Surface::MovingLight { normal, radiance, .. } => {
+            Surface::Moving { normal, radiance, .. } => {
                 if normal.dot(dir) < 0.0 {
                     *radiance
                 } else {
@@ -578,10 +606,9 @@ impl Renderer {
             return self.escaped(dir);
         };
         let mut radiance = self.emitted(&first, dir);
-        let Surface::Mesh(hit) = first else {
+        let Some(sp) = self.shade_surface::<E>(lights, &first, dir) else {
             return radiance;
         };
-        let sp = self.shade::<E>(&hit, dir);
         let wo = -dir;
         if !(sp.kind == MaterialKind::Mirror && has(E, effects::MIRROR)) {
             radiance += self.next_event::<E>(lights, &sp, wo, rng, (Dim::LightPick1, Dim::LightPoint1), rays);
@@ -603,10 +630,9 @@ impl Renderer {
         if bounce.delta {
             radiance += bounce.weight * self.emitted(&second, bounce.wi);
         }
-        let Surface::Mesh(hit2) = second else {
+        let Some(sp2) = self.shade_surface::<E>(lights, &second, bounce.wi) else {
             return radiance;
         };
-        let sp2 = self.shade::<E>(&hit2, bounce.wi);
         if !(sp2.kind == MaterialKind::Mirror && has(E, effects::MIRROR)) {
             let nee = self.next_event::<E>(lights, &sp2, -bounce.wi, rng, (Dim::LightPick2, Dim::LightPoint2), rays);
             radiance += bounce.weight * nee;
@@ -763,7 +789,7 @@ impl Renderer {
                     row[x0 + i] = match surfaces[i] {
                         None => u32::MAX,
                         Some(Surface::Mesh(h)) => h.prim,
-                        Some(Surface::MovingLight { index, .. }) => mesh_len + index,
+                        Some(Surface::Moving { index, .. }) => mesh_len + index,
                     };
                 }
             }
@@ -784,12 +810,29 @@ impl Renderer {
                 let (_, shading_normal) = self.normals(&h, dir);
                 (shading_normal, self.scene.mesh.material[h.prim as usize])
             }
-            Surface::MovingLight { normal, .. } => {
-                (if normal.dot(dir) > 0.0 { -normal } else { normal }, MOVING_LIGHT_MATERIAL)
+            Surface::Moving { normal, material, .. } => {
+                (if normal.dot(dir) > 0.0 { -normal } else { normal }, material)
             }
         };
         GTexel { depth: t, position, normal: n.to_array(), oct: encode_normal(n.to_array()), material }
     }
+}
+
+/// The nearest of `triangles` along `ray` nearer than `limit`: its index and the hit. The
+/// one loop behind moving geometry's ray hits and its motion vectors.
+#[inline]
+fn nearest_moving(triangles: &[MovingTriangle], ray: &PreparedRay, limit: f32) -> Option<(u32, TriHit)> {
+    let mut nearest = None;
+    let mut limit = limit;
+    for (index, tri) in triangles.iter().enumerate() {
+        let v = tri.v;
+        let verts = [v[0].x, v[0].y, v[0].z, v[1].x, v[1].y, v[1].z, v[2].x, v[2].y, v[2].z];
+        if let Some(hit) = intersect_triangle(ray, &verts, limit) {
+            limit = hit.t;
+            nearest = Some((index as u32, hit));
+        }
+    }
+    nearest
 }
 
 /// One pixel of a [`GBufferBuf`].

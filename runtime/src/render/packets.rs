@@ -31,7 +31,7 @@
 use glam::Vec3;
 
 use super::bsdf::{self, BsdfSample};
-use super::effects::{self, ALPHA_MASKS, MIRROR, MOVING_LIGHTS, has};
+use super::effects::{self, ALPHA_MASKS, MIRROR, MOVING_GEOMETRY, has};
 use super::lights::FrameLights;
 use super::rng::{Dim, SampleStream};
 use super::{Renderer, Surface, TraceRequest, spawn};
@@ -119,7 +119,7 @@ impl Renderer {
         for i in lanes(active) {
             let mesh = hits.get(i).map(Surface::Mesh);
             out[i] = mesh;
-            if has(E, MOVING_LIGHTS) {
+            if has(E, MOVING_GEOMETRY) {
                 let tmax = mesh.map_or(rays[i].tmax, |s| s.t());
                 if let Some(light) = Self::closest_moving(lights, &rays[i], tmax) {
                     out[i] = Some(light);
@@ -155,7 +155,7 @@ impl Renderer {
         } else {
             self.bvh.occluded_packet_with(&packet, active, threshold)
         };
-        if has(E, MOVING_LIGHTS) {
+        if has(E, MOVING_GEOMETRY) {
             for i in lanes(active & !blocked) {
                 if Self::closest_moving(lights, &rays[i], rays[i].tmax).is_some() {
                     blocked |= 1 << i;
@@ -240,8 +240,7 @@ impl Renderer {
                 continue;
             };
             radiance[i] = self.emitted(&surface, dir);
-            let Surface::Mesh(hit) = surface else { continue };
-            let sp = self.shade::<E>(&hit, dir);
+            let Some(sp) = self.shade_surface::<E>(lights, &surface, dir) else { continue };
             let wo = -dir;
             if !(sp.kind == MaterialKind::Mirror && has(E, MIRROR)) {
                 nee |= 1 << i;
@@ -286,8 +285,7 @@ impl Renderer {
             if b.delta {
                 radiance[i] += b.weight * self.emitted(&surface, b.wi);
             }
-            let Surface::Mesh(hit) = surface else { continue };
-            let sp = self.shade::<E>(&hit, b.wi);
+            let Some(sp) = self.shade_surface::<E>(lights, &surface, b.wi) else { continue };
             if !(sp.kind == MaterialKind::Mirror && has(E, effects::MIRROR)) {
                 nee |= 1 << i;
                 let dims = (Dim::LightPick2, Dim::LightPoint2);

@@ -265,10 +265,7 @@ impl Renderer {
                 if prim < mesh_len {
                     Surface::Mesh(Hit { t: hit.t, prim, u, v })
                 } else {
-                    let index = prim - mesh_len;
-                    let tri = &lights.moving_triangles()[index as usize];
-                    let normal = (tri.v[1] - tri.v[0]).cross(tri.v[2] - tri.v[0]).normalize_or_zero();
-                    Surface::MovingLight { t: hit.t, normal, radiance: tri.radiance, index }
+                    Surface::moving(lights.moving_triangles(), prim - mesh_len, hit.t, (u, v))
                 }
             });
         self.gbuffer_texel(surface, dir, camera)

@@ -1,6 +1,6 @@
 //! The effect set: which rendering features a scene needs, so the integrator can be
 //! specialised (monomorphised) for it and an all-diffuse, static-light scene runs no glossy,
-//! mirror or light-motion code.
+//! mirror, light-motion or object-motion code.
 //!
 //! The set is derived from the content ([`EffectSet::derive`]); a manifest may force flags on
 //! (the general code then runs and must give the same image) or strip content so that a flag
@@ -11,6 +11,7 @@ use std::fmt;
 use super::light::{Environment, Lights, MovingShape};
 use super::material::{Material, MaterialKind};
 use super::mesh::Mesh;
+use super::object::MovingObject;
 
 /// A set of [`Effect`]s, as bits.
 #[derive(Clone, Copy, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -40,11 +41,13 @@ pub enum Effect {
     AlphaMasks = 1 << 8,
     /// The environment is analytic: constant or a sky gradient.
     Sky = 1 << 9,
+    /// Some non-emissive object moves over the frames.
+    MovingObjects = 1 << 10,
 }
 
 impl Effect {
     /// Every effect, in bit order.
-    pub const ALL: [Effect; 10] = [
+    pub const ALL: [Effect; 11] = [
         Effect::Glossy,
         Effect::Mirror,
         Effect::MovingLights,
@@ -55,6 +58,7 @@ impl Effect {
         Effect::PointLights,
         Effect::AlphaMasks,
         Effect::Sky,
+        Effect::MovingObjects,
     ];
 
     /// Short kebab-case name (used in listings and manifests, `effects.<name>` with `-` → `_`).
@@ -70,6 +74,7 @@ impl Effect {
             Effect::PointLights => "point-lights",
             Effect::AlphaMasks => "alpha-masks",
             Effect::Sky => "sky",
+            Effect::MovingObjects => "moving-objects",
         }
     }
 
@@ -125,10 +130,10 @@ impl EffectSet {
     }
 
     /// Derives the set from what the scene contains. Only materials used by at least one
-    /// triangle count.
-    pub fn derive(mesh: &Mesh, materials: &[Material], lights: &Lights) -> Self {
+    /// triangle (of the mesh or of a moving object) count.
+    pub fn derive(mesh: &Mesh, materials: &[Material], lights: &Lights, objects: &[MovingObject]) -> Self {
         let mut used = vec![false; materials.len()];
-        for &m in &mesh.material {
+        for &m in mesh.material.iter().chain(objects.iter().map(|o| &o.material)) {
             if let Some(u) = used.get_mut(m as usize) {
                 *u = true;
             }
@@ -160,6 +165,9 @@ impl EffectSet {
             Some(Environment::Map(_)) => set = set.with(Effect::EnvMap),
             Some(_) => set = set.with(Effect::Sky),
             None => {}
+        }
+        if !objects.is_empty() {
+            set = set.with(Effect::MovingObjects);
         }
         for m in &lights.moving {
             set = set.with(Effect::MovingLights);

@@ -127,6 +127,13 @@ pub fn export_folder(scene: &Scene, dir: &Path) -> Result<ExportSummary, SceneEr
             }
         }
     }
+    // Moving objects at frame 0, as static triangles of their own material.
+    for (k, object) in scene.moving_objects.iter().enumerate() {
+        let _ = write!(obj, "o moving_object_{k}\nusemtl {}\n", names[object.material as usize]);
+        for tri in object.at_frame(0.0) {
+            counts.triangle(&mut obj, tri, None, None);
+        }
+    }
     mtl.push_str(&mtl_frozen);
 
     let mut lights = points;

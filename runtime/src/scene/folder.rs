@@ -576,6 +576,7 @@ pub fn load_folder(dir: &Path, options: &FolderOptions) -> Result<Scene, SceneEr
         materials: parts.obj.materials,
         textures: parts.obj.textures,
         lights: parts.lights,
+        moving_objects: Vec::new(),
         camera,
         tolerances: SceneTolerances::for_size(size),
         effects: EffectSet::EMPTY,

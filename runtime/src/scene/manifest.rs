@@ -23,6 +23,15 @@
 //! radiance = [3000, 2800, 2500]
 //! keys = [ { frame = 0, translation = [-6, 5, 0] }, { frame = 59, translation = [8, 5, 0], yaw_deg = 0 } ]
 //!
+//! [[objects]]                           # moving objects (non-emissive, shaded flat)
+//! type = "moving-box"                   # moving-box | moving-sphere
+//! name = "crate"
+//! size = [1, 1, 1]                      # moving-box: edge lengths (moving-sphere: radius,
+//!                                       # subdivisions as for lights)
+//! albedo = [0.7, 0.45, 0.25]            # a diffuse material of its own (kind, specular and
+//!                                       # roughness as in [materials.all] may follow)
+//! keys = [ { frame = 0, translation = [-1.5, 0.5, -2.5] }, { frame = 59, translation = [-1.5, 0.5, 2.5], yaw_deg = 60 } ]
+//!
 //! [materials.all]                       # applied to every material first
 //! kind = "glossy"                       # diffuse | glossy | mirror
 //! roughness = 0.3
@@ -50,7 +59,7 @@
 //! become diffuse; `mirror` → mirrors become diffuse of their reflectance; `textures` → albedo
 //! maps dropped (flat `Kd`); `alpha_masks` → cutouts made opaque; `moving_lights`,
 //! `point_lights`, `sun`, `sky` → those lights dropped; `area_lights` → emission zeroed and
-//! moving area lights dropped; `env_map` → the map replaced by a constant environment of its
+//! moving area lights dropped; `moving_objects` → the objects dropped; `env_map` → the map replaced by a constant environment of its
 //! mean radiance. Set to `true`, a flag is forced on even without content (the integrator
 //! then runs its general code, which must give the same image).
 
@@ -67,6 +76,7 @@ use super::folder::{load_parts, path_around, robust_size};
 use super::light::{Environment, MovingLight, MovingShape, PointLight, SkyGradient, SunLight};
 use super::material::{Material, MaterialKind};
 use super::obj::GlassMode;
+use super::object::{MovingObject, box_triangles, sphere_triangles};
 use super::path::{CameraKey, CameraPath, DEFAULT_FRAMES, MAX_FRAMES, TransformKey, TransformPath};
 use super::{Scene, SceneSource, SceneTolerances};
 
@@ -85,6 +95,8 @@ struct ManifestToml {
     camera: Option<CameraToml>,
     #[serde(default)]
     lights: Vec<LightToml>,
+    #[serde(default)]
+    objects: Vec<ObjectToml>,
     materials: Option<MaterialsToml>,
     effects: Option<BTreeMap<String, bool>>,
     tolerances: Option<SceneTolerances>,
@@ -156,6 +168,58 @@ enum LightToml {
     },
 }
 
+/// A moving object: a shape, a material of its own (`albedo`, optionally `kind`, `specular`
+/// and `roughness` as in a material override) and a path.
+#[derive(Debug, Deserialize)]
+#[serde(tag = "type", rename_all = "kebab-case", deny_unknown_fields)]
+enum ObjectToml {
+    MovingBox {
+        #[serde(default)]
+        name: Option<String>,
+        size: [f32; 3],
+        albedo: [f32; 3],
+        kind: Option<KindToml>,
+        specular: Option<Scalar3>,
+        roughness: Option<f32>,
+        keys: Vec<TransformKey>,
+    },
+    MovingSphere {
+        #[serde(default)]
+        name: Option<String>,
+        radius: f32,
+        #[serde(default = "one_u32")]
+        subdivisions: u32,
+        albedo: [f32; 3],
+        kind: Option<KindToml>,
+        specular: Option<Scalar3>,
+        roughness: Option<f32>,
+        keys: Vec<TransformKey>,
+    },
+}
+
+impl ObjectToml {
+    /// The object's own material: diffuse of `albedo`, then `kind`, `specular` and
+    /// `roughness` applied as a material override applies them.
+    fn material(&self, name: String) -> Material {
+        let (Self::MovingBox { albedo, kind, specular, roughness, .. }
+        | Self::MovingSphere { albedo, kind, specular, roughness, .. }) = self;
+        let mut m = Material::diffuse(name, Vec3::from(*albedo));
+        let lobe = MaterialOverride {
+            name: None,
+            kind: *kind,
+            albedo: None,
+            specular: specular.clone(),
+            roughness: *roughness,
+            emission: None,
+            emission_scale: None,
+            texture: None,
+            opacity: None,
+        };
+        apply_override(&mut m, &lobe);
+        m
+    }
+}
+
 fn one_u32() -> u32 {
     1
 }
@@ -174,7 +238,7 @@ struct MaterialsToml {
     set: Vec<MaterialOverride>,
 }
 
-#[derive(Debug, Deserialize)]
+#[derive(Clone, Debug, Deserialize)]
 #[serde(untagged)]
 enum Scalar3 {
     Scalar(f32),
@@ -447,6 +511,36 @@ pub fn load_manifest(path: &Path) -> Result<Scene, SceneError> {
         }
     }
 
+    // Moving objects, each with a material of its own appended to the materials.
+    let mut objects = Vec::new();
+    for (i, o) in m.objects.iter().enumerate() {
+        let key = format!("objects[{i}]");
+        let (name, triangles, keys) = match o {
+            ObjectToml::MovingBox { name, size, keys, .. } => {
+                if !size.iter().all(|s| s.is_finite() && *s > 0.0) {
+                    return Err(bad(&key, format!("size {size:?} must be finite and > 0")));
+                }
+                (name, box_triangles((*size).into()), keys)
+            }
+            ObjectToml::MovingSphere { name, radius, subdivisions, keys, .. } => {
+                if !(radius.is_finite() && *radius > 0.0) || *subdivisions > 4 {
+                    return Err(bad(&key, "radius must be > 0 and subdivisions <= 4".into()));
+                }
+                (name, sphere_triangles(*radius, *subdivisions), keys)
+            }
+        };
+        let name = name.clone().unwrap_or_else(|| key.clone());
+        let object_material = o.material(format!("object_{name}"));
+        object_material.validate(0).map_err(|e| bad(&key, e))?;
+        materials.push(object_material);
+        objects.push(MovingObject {
+            name,
+            triangles,
+            material: materials.len() as u32 - 1,
+            path: TransformPath::new(keys.clone()).map_err(|e| bad(&key, e))?,
+        });
+    }
+
     // Effects.
     let mut forced = EffectSet::EMPTY;
     for (name, on) in m.effects.iter().flatten() {
@@ -458,6 +552,9 @@ pub fn load_manifest(path: &Path) -> Result<Scene, SceneError> {
             forced = forced.with(e);
         } else {
             strip(e, &mut materials, &mut lights);
+            if e == Effect::MovingObjects {
+                objects.clear();
+            }
         }
     }
 
@@ -471,6 +568,7 @@ pub fn load_manifest(path: &Path) -> Result<Scene, SceneError> {
         materials,
         textures,
         lights,
+        moving_objects: objects,
         camera,
         tolerances: m.tolerances.unwrap_or_else(|| SceneTolerances::for_size(size)),
         effects: EffectSet::EMPTY,
@@ -497,6 +595,8 @@ fn strip(effect: Effect, materials: &mut [Material], lights: &mut super::Lights)
             m.opacity_texture = None;
         }),
         Effect::MovingLights => lights.moving.clear(),
+        // The objects are dropped by the caller (they are not lights or materials).
+        Effect::MovingObjects => {}
         Effect::PointLights => {
             lights.points.clear();
             lights.moving.retain(|m| !matches!(m.shape, MovingShape::Point { .. }));

@@ -46,6 +46,7 @@ pub mod manifest;
 pub mod material;
 pub mod mesh;
 pub mod obj;
+pub mod object;
 pub mod path;
 pub mod resolve;
 pub mod sampling;
@@ -65,6 +66,7 @@ pub use light::{
 };
 pub use material::{Material, MaterialKind};
 pub use mesh::{Aabb, Mesh};
+pub use object::MovingObject;
 pub use path::{CameraKey, CameraPath, CameraPose, DEFAULT_FRAMES, TransformKey, TransformPath};
 pub use resolve::{resolve, scene_name};
 pub use texture::{Texture, TextureUsage};
@@ -214,6 +216,8 @@ pub struct Scene {
     pub textures: Vec<Texture>,
     /// Lights (`lights.area` is derived from emissive materials by [`Scene::update`]).
     pub lights: Lights,
+    /// Non-emissive objects that move over the frames (outside the static mesh).
+    pub moving_objects: Vec<MovingObject>,
     /// The moving observer.
     pub camera: CameraPath,
     /// Reprojection tolerances.
@@ -248,7 +252,8 @@ impl Scene {
     /// Call after editing materials, geometry or lights.
     pub fn update(&mut self) -> Result<(), SceneError> {
         self.lights.area = AreaLights::build(&self.mesh, &self.materials);
-        self.effects = EffectSet::derive(&self.mesh, &self.materials, &self.lights).union(self.forced_effects);
+        self.effects = EffectSet::derive(&self.mesh, &self.materials, &self.lights, &self.moving_objects)
+            .union(self.forced_effects);
         self.validate()
     }
 
@@ -283,6 +288,12 @@ impl Scene {
                 }
             }
         }
+        for o in &mut self.moving_objects {
+            for k in &mut o.path.keys {
+                k.translation = at(Vec3::from(k.translation)).to_array();
+            }
+            o.triangles.iter_mut().for_each(|t| *t = t.map(|p| p * scale));
+        }
         for k in &mut self.camera.keys {
             k.eye = at(Vec3::from(k.eye)).to_array();
             k.target = at(Vec3::from(k.target)).to_array();
@@ -310,9 +321,12 @@ impl Scene {
             ));
         }
         self.lights.validate().map_err(bad)?;
+        for o in &self.moving_objects {
+            o.validate(&self.materials).map_err(bad)?;
+        }
         self.camera.validate().map_err(|e| bad(format!("camera: {e}")))?;
         self.tolerances.validate().map_err(|e| bad(format!("tolerances: {e}")))?;
-        let derived = EffectSet::derive(&self.mesh, &self.materials, &self.lights);
+        let derived = EffectSet::derive(&self.mesh, &self.materials, &self.lights, &self.moving_objects);
         if !self.effects.contains(derived) {
             return Err(bad(format!("effects {} do not cover the content ({derived})", self.effects)));
         }
@@ -391,6 +405,15 @@ impl Scene {
                 h.f32s(&k.translation);
             }
         }
+        for o in &self.moving_objects {
+            h.str(&o.name);
+            o.triangles.iter().flatten().for_each(|v| h.vec3(*v));
+            h.u32(o.material);
+            for k in &o.path.keys {
+                h.f32s(&[k.frame, k.yaw_deg]);
+                h.f32s(&k.translation);
+            }
+        }
         for k in &self.camera.keys {
             h.f32s(&[k.frame]);
             [k.eye, k.target, k.up].iter().for_each(|v| h.f32s(v));
@@ -431,7 +454,7 @@ impl Scene {
         let t = &self.tolerances;
         format!(
             "{} ({})\n  paper scene: {}\n  triangles: {} ({} degenerate), materials: {}, textures: {}\n  bounds: {} .. {}\n  \
-             lights: {}\n  camera: {} frames, vfov {:.2} deg, {} keys, travel {:.3}\n  tolerances: position {}, depth {}, normal {} deg\n  \
+             lights: {}\n  moving objects: {}\n  camera: {} frames, vfov {:.2} deg, {} keys, travel {:.3}\n  tolerances: position {}, depth {}, normal {} deg\n  \
              effects: {}",
             self.display_name,
             self.name,
@@ -443,6 +466,7 @@ impl Scene {
             b.min,
             b.max,
             lights.join(", "),
+            self.moving_objects.len(),
             self.camera.frames,
             self.camera.vfov_deg,
             self.camera.keys.len(),

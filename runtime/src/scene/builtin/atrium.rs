@@ -7,7 +7,9 @@
 //! indirectly). About 1.7·10⁵ triangles.
 //!
 //! Axes: x along the atrium (±13.5), z across (±7.5), y up. The moving-light variant dims the
-//! skylight to a quarter and sends a glowing sphere across the courtyard.
+//! skylight to a quarter and sends a glowing sphere across the courtyard; the moving-object
+//! variant keeps the lighting and slides a turning crate across the courtyard in front of the
+//! camera.
 
 use glam::{Vec2, Vec3};
 
@@ -18,6 +20,7 @@ use super::{Parts, Variant};
 use crate::scene::SceneTolerances;
 use crate::scene::light::{Lights, MovingLight, MovingShape};
 use crate::scene::material::Material;
+use crate::scene::object::{MovingObject, box_triangles};
 use crate::scene::path::{TransformKey, TransformPath};
 
 const HALF_X: f32 = 13.5;
@@ -112,6 +115,9 @@ pub(crate) fn build(variant: Variant) -> Parts {
     ];
     let sky_scale = if variant == Variant::MovingLight { 0.25 } else { 1.0 };
     let sky = b.material(Material::emitter("skylight", SKY_RADIANCE * sky_scale, Vec3::ZERO));
+    // Last, so that the mesh's material indices are those of the base scene.
+    let crate_material =
+        (variant == Variant::MovingObject).then(|| b.material(Material::diffuse("crate", rgb(0.7, 0.45, 0.25))));
 
     // Ground floor and outer shell.
     b.use_material(floor);
@@ -260,6 +266,21 @@ pub(crate) fn build(variant: Variant) -> Parts {
             path: TransformPath::new(keys.to_vec()).expect("valid keys"),
         });
     }
+    // A 1.2 m crate sliding 4.4 m across the courtyard, about 4 m in front of the camera
+    // (about 12 pixels a frame at 1280×720), turning 60° on the way, clear of the benches; it
+    // clears the floor by 1 mm so that no face is coplanar with it.
+    let mut moving_objects = Vec::new();
+    if let Some(material) = crate_material {
+        let keys =
+            [(0.0, [-3.0, 0.601, -2.2], 0.0), (30.0, [-2.8, 0.601, 0.0], 30.0), (59.0, [-3.0, 0.601, 2.2], 60.0)]
+                .map(|(frame, translation, yaw_deg)| TransformKey { frame, translation, yaw_deg });
+        moving_objects.push(MovingObject {
+            name: "crate".into(),
+            triangles: box_triangles(Vec3::splat(1.2)),
+            material,
+            path: TransformPath::new(keys.to_vec()).expect("valid keys"),
+        });
+    }
     // Walking slowly down the courtyard (0.76 m), panning ~7° to the left.
     let camera = path(
         60.0,
@@ -274,6 +295,7 @@ pub(crate) fn build(variant: Variant) -> Parts {
         materials,
         textures,
         lights,
+        moving_objects,
         camera,
         tolerances: SceneTolerances { position: 0.08, depth_relative: 0.03, normal_degrees: 25.0 },
     }

@@ -280,6 +280,7 @@ pub(crate) fn build(variant: Variant) -> Parts {
         materials,
         textures,
         lights,
+        moving_objects: Vec::new(),
         camera,
         tolerances: SceneTolerances { position: 0.04, depth_relative: 0.02, normal_degrees: 25.0 },
     }

@@ -66,6 +66,7 @@ pub(crate) fn build(_variant: Variant) -> Parts {
         materials,
         textures,
         lights: Lights::default(),
+        moving_objects: Vec::new(),
         camera,
         tolerances: SceneTolerances { position: 0.01, depth_relative: 0.02, normal_degrees: 25.0 },
     }

@@ -345,6 +345,7 @@ pub(crate) fn build(_variant: Variant) -> Parts {
         materials,
         textures,
         lights,
+        moving_objects: Vec::new(),
         camera,
         tolerances: SceneTolerances { position: 0.03, depth_relative: 0.02, normal_degrees: 25.0 },
     }

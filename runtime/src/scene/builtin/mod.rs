@@ -7,6 +7,7 @@
 //! | `atrium` | Sponza | two-storey colonnaded atrium with arches, vaults, balustrades, banners; skylight over the open courtyard |
 //! | `atrium-glossy` | Sponza (Glossy) | every material glossy |
 //! | `atrium-moving-light` | Sponza (Moving Light) | dimmed skylight, a glowing sphere crossing the courtyard |
+//! | `atrium-moving-object` | (beyond the paper) | a turning crate sliding across the courtyard, for motion vectors |
 //! | `living-room` | Living Room | sofa, armchairs, table, shelves, lamp, curtains; daylight through two windows |
 //! | `living-room-glossy` | Living Room (Glossy) | every material glossy |
 //! | `living-room-moving-light` | Living Room (Moving Light) | dimmed windows, a carried lantern (point light) |
@@ -33,6 +34,7 @@ use super::error::SceneError;
 use super::light::Lights;
 use super::material::Material;
 use super::mesh::Mesh;
+use super::object::MovingObject;
 use super::path::CameraPath;
 use super::texture::Texture;
 use super::{Scene, SceneSource, SceneTolerances};
@@ -51,6 +53,8 @@ pub enum Variant {
     MovingLight,
     /// One designated surface turned into a mirror.
     Mirror,
+    /// A non-emissive object added that moves (the paper has no such scene).
+    MovingObject,
 }
 
 /// What a generator returns.
@@ -59,6 +63,7 @@ pub(crate) struct Parts {
     pub materials: Vec<Material>,
     pub textures: Vec<Texture>,
     pub lights: Lights,
+    pub moving_objects: Vec<MovingObject>,
     pub camera: CameraPath,
     pub tolerances: SceneTolerances,
 }
@@ -107,6 +112,13 @@ pub const BUILTINS: &[BuiltinSpec] = &[
         paper_scene: Some("Sponza (Moving Light)"),
         base: atrium::build,
         variant: Variant::MovingLight,
+    },
+    BuiltinSpec {
+        name: "atrium-moving-object",
+        display_name: "Atrium, moving object (beyond the paper: a crate crossing the courtyard)",
+        paper_scene: None,
+        base: atrium::build,
+        variant: Variant::MovingObject,
     },
     BuiltinSpec {
         name: "living-room",
@@ -186,6 +198,7 @@ fn build_spec(spec: &BuiltinSpec) -> Result<Scene, SceneError> {
         materials: parts.materials,
         textures: parts.textures,
         lights: parts.lights,
+        moving_objects: parts.moving_objects,
         camera: parts.camera,
         tolerances: parts.tolerances,
         effects: EffectSet::EMPTY,
