@@ -387,38 +387,48 @@ fn motion_vectors_follow_a_moving_object() {
     let e = Extent::new(320, 180).unwrap();
     let head = r.scene().camera.pose_at(0.0);
     let object = &r.scene().moving_objects[0];
-    let mut cfg = PipelineConfig::paper(Mode::Temporal, 1, r.scene().tolerances.at_height(e.height()));
-    cfg.motion_vectors = true;
-    let mut p = Pipeline::new(&r, cfg, StereoRig::default(), e).unwrap();
-    for frame in 20..23 {
-        p.render_frame(frame, &head).unwrap();
-    }
     let (now, then) = (object.path.transform(22.0), object.path.transform(21.0));
-    let (mut pixels, mut kept) = (0usize, 0usize);
-    for eye in Eye::BOTH {
-        let g = p.gbuffer(eye);
-        let motion = g.motion.as_ref().unwrap();
-        let reasons = p.temporal_reasons(eye).as_slice();
-        for (i, &material) in g.material.as_slice().iter().enumerate() {
-            let (x, y) = (i % e.width(), i / e.width());
-            let m = glam::Vec3::from(std::array::from_fn(|c| motion[c].as_slice()[i]));
-            if material != object.material {
-                assert_eq!(m, glam::Vec3::ZERO, "{eye} ({x}, {y}): still geometry");
-                continue;
+    let mut kept = [0usize; 2];
+    let mut pixels = 0usize;
+    for motion_vectors in [false, true] {
+        let mut cfg = PipelineConfig::paper(Mode::Temporal, 1, r.scene().tolerances.at_height(e.height()));
+        cfg.motion_vectors = motion_vectors;
+        let mut p = Pipeline::new(&r, cfg, StereoRig::default(), e).unwrap();
+        for frame in 20..23 {
+            p.render_frame(frame, &head).unwrap();
+        }
+        for eye in Eye::BOTH {
+            let g = p.gbuffer(eye);
+            let reasons = p.temporal_reasons(eye).as_slice();
+            for (i, &material) in g.material.as_slice().iter().enumerate() {
+                let on_object = material == object.material;
+                if on_object {
+                    pixels += usize::from(motion_vectors);
+                    kept[usize::from(motion_vectors)] += usize::from(reasons[i] == Reason::Reprojected as u8);
+                }
+                let Some(motion) = &g.motion else { continue };
+                let (x, y) = (i % e.width(), i / e.width());
+                let m = glam::Vec3::from(std::array::from_fn(|c| motion[c].as_slice()[i]));
+                if !on_object {
+                    assert_eq!(m, glam::Vec3::ZERO, "{eye} ({x}, {y}): still geometry");
+                    continue;
+                }
+                let point = glam::Vec3::from(g.camera.unproject_pixel(x, y, g.depth.as_slice()[i]));
+                let expected = point - then.transform_point3(now.inverse().transform_point3(point));
+                assert!(
+                    (m - expected).length() < 1e-3 * expected.length().max(1e-2),
+                    "{eye} ({x}, {y}): {m} vs {expected}"
+                );
             }
-            pixels += 1;
-            kept += usize::from(reasons[i] == Reason::Reprojected as u8);
-            let point = glam::Vec3::from(g.camera.unproject_pixel(x, y, g.depth.as_slice()[i]));
-            let expected = point - then.transform_point3(now.inverse().transform_point3(point));
-            assert!(
-                (m - expected).length() < 1e-3 * expected.length().max(1e-2),
-                "{eye} ({x}, {y}): {m} vs {expected}"
-            );
         }
     }
-    eprintln!("crate pixels {pixels}: history kept on {kept}");
+    let [without, with] = kept;
+    // Without vectors the sliding crate mostly keeps a history too, but of the wrong texels
+    // (its faces slide along themselves and pass the geometric tests); RESULTS.md measures
+    // what that costs.
+    eprintln!("crate pixels {pixels}: history kept on {without} without vectors, {with} with");
     assert!(pixels > 500, "the crate covers {pixels} pixels");
-    assert!(kept * 10 >= pixels * 8, "with vectors {kept} of {pixels}");
+    assert!(with * 10 >= pixels * 8, "with vectors {with} of {pixels}");
 }
 
 /// A scene pipeline renders its G-buffers with the stated jitter (the rasterised pass takes the
