@@ -5,7 +5,7 @@ use stereotrace::camera::{Eye, StereoRig};
 use stereotrace::kernels::accumulate;
 use stereotrace::kernels::reproject::{self, Reason, ReprojectInput, ReprojectOutput, ReprojectParams};
 use stereotrace::kernels::{Extent, PlaneBuf, RgbBuf};
-use stereotrace::pipeline::{Mode, Order, Pipeline, PipelineConfig, RendererPipeline};
+use stereotrace::pipeline::{GBufferView, Layout, Mode, Order, Pipeline, PipelineConfig, RendererPipeline};
 use stereotrace::render::{GBufferBuf, PixelSelection, Renderer, TraceRequest};
 use stereotrace::scene::resolve;
 
@@ -458,4 +458,131 @@ fn a_jittered_scene_pipeline_keeps_its_history() {
         }
     }
     assert!(p.set_jitter([0.0, -1.5]).is_err());
+}
+
+/// An engine's own G-buffer planes, at a stride wider than the frame (zero-copy input).
+struct EnginePlanes {
+    stride: usize,
+    depth: Vec<f32>,
+    normal_oct: Vec<u32>,
+    position: [Vec<f32>; 3],
+    normal: [Vec<f32>; 3],
+    motion: [Vec<f32>; 3],
+}
+
+impl EnginePlanes {
+    /// A strided copy of `g` (what an engine's rasteriser would have written), padding NaN.
+    fn copy_of(g: &GBufferBuf) -> Self {
+        let (w, h) = (g.extent().width(), g.extent().height());
+        let stride = w + 5;
+        fn strided<T: Copy>(src: &[T], w: usize, h: usize, stride: usize, pad: T) -> Vec<T> {
+            let mut out = vec![pad; stride * h];
+            for y in 0..h {
+                out[y * stride..y * stride + w].copy_from_slice(&src[y * w..(y + 1) * w]);
+            }
+            out
+        }
+        let f = |p: &PlaneBuf| strided(p.as_slice(), w, h, stride, f32::NAN);
+        let motion = match &g.motion {
+            Some(m) => m.each_ref().map(f),
+            None => [vec![], vec![], vec![]],
+        };
+        Self {
+            stride,
+            depth: f(&g.depth),
+            normal_oct: strided(g.normal_oct.as_slice(), w, h, stride, 0),
+            position: g.position.each_ref().map(f),
+            normal: g.normal.each_ref().map(f),
+            motion,
+        }
+    }
+
+    fn view(&self, e: Extent, layout: Layout) -> stereotrace::pipeline::GBufferView<'_> {
+        use stereotrace::kernels::Plane;
+        let (w, h, s) = (e.width(), e.height(), self.stride);
+        fn plane(d: &[f32], w: usize, h: usize, s: usize) -> Plane<'_> {
+            Plane::new(d, w, h, s).unwrap()
+        }
+        let plane = |d| plane(d, w, h, s);
+        stereotrace::pipeline::GBufferView {
+            depth: plane(&self.depth),
+            normal_oct: (layout == Layout::Compact).then(|| Plane::new(&self.normal_oct, w, h, s).unwrap()),
+            position: (layout == Layout::Full).then(|| self.position.each_ref().map(|p| plane(p))),
+            normal: (layout == Layout::Full).then(|| self.normal.each_ref().map(|p| plane(p))),
+            history_confidence: None,
+            motion: (!self.motion[0].is_empty()).then(|| self.motion.each_ref().map(|p| plane(p))),
+        }
+    }
+}
+
+/// Lent G-buffers (the engine's own planes, strided, read in place) give the frames the
+/// source's G-buffers give, bit for bit, in every mode and both layouts; the engine lends
+/// the previous frame's planes too, and a lent frame without them is refused and changes
+/// nothing.
+#[test]
+fn lent_g_buffers_give_the_frames_the_source_gives() {
+    let r = renderer("atrium-moving-object");
+    let e = extent();
+    let rig = StereoRig::default();
+    for layout in [Layout::Compact, Layout::Full] {
+        for mode in Mode::ALL {
+            let mut cfg = config(&r, mode, 1);
+            (cfg.layout, cfg.motion_vectors) = (layout, mode.temporal());
+            let mut owned = Pipeline::new(&r, cfg, rig, e).unwrap();
+            let mut lent = Pipeline::new(&r, cfg, rig, e).unwrap();
+            let mut previous: Option<[EnginePlanes; 2]> = None;
+            for frame in 20..24 {
+                let head = r.scene().camera.pose_at(frame as f32);
+                owned.render_frame(frame, &head).unwrap();
+                let current = Eye::BOTH.map(|eye| EnginePlanes::copy_of(owned.gbuffer(eye)));
+                let cameras = Eye::BOTH.map(|eye| rig.eye_camera(&head, eye, e).unwrap());
+                fn views(p: &[EnginePlanes; 2], e: Extent, layout: Layout) -> [GBufferView<'_>; 2] {
+                    [p[0].view(e, layout), p[1].view(e, layout)]
+                }
+                let views = |p| views(p, e, layout);
+                if let Some(p) = &previous {
+                    // Without the previous frame's planes a lent frame is refused, untouched.
+                    let before = lent.output(Eye::Right).clone();
+                    let err = lent.render_frame_lent(frame, cameras, views(&current), None).unwrap_err();
+                    assert!(err.to_string().contains("previous"), "{err}");
+                    assert_eq!(lent.output(Eye::Right), &before);
+                    lent.render_frame_lent(frame, cameras, views(&current), Some(views(p))).unwrap();
+                } else {
+                    lent.render_frame_lent(frame, cameras, views(&current), None).unwrap();
+                }
+                for eye in Eye::BOTH {
+                    let what = format!("{mode:?} {layout:?} frame {frame} {eye}");
+                    assert_eq!(lent.output(eye), owned.output(eye), "{what}: output");
+                    assert_eq!(lent.temporal_reasons(eye), owned.temporal_reasons(eye), "{what}: reasons");
+                }
+                previous = Some(current);
+            }
+        }
+    }
+}
+
+/// A lent view that does not fit the configuration is refused by name.
+#[test]
+fn lent_g_buffers_are_checked() {
+    use stereotrace::kernels::Plane;
+    let r = renderer("cornell");
+    let e = extent();
+    let mut p = Pipeline::new(&r, config(&r, Mode::Temporal, 1), StereoRig::default(), e).unwrap();
+    let head = r.scene().camera.pose_at(0.0);
+    let cameras = Eye::BOTH.map(|eye| StereoRig::default().eye_camera(&head, eye, e).unwrap());
+    let depth = vec![1.0f32; W * H];
+    let normals = vec![0u32; W * H];
+    let small = vec![1.0f32; (W - 1) * H];
+    let good = GBufferView::compact(Plane::packed(&depth, W, H).unwrap(), Plane::packed(&normals, W, H).unwrap());
+    let mut no_normals = good;
+    no_normals.normal_oct = None;
+    let mut narrow = good;
+    narrow.depth = Plane::packed(&small, W - 1, H).unwrap();
+    let mut extra = good;
+    extra.motion = Some([good.depth; 3]);
+    for (view, needle) in [(no_normals, "normal_oct plane is missing"), (narrow, "depth"), (extra, "motion_vectors")] {
+        let err = p.render_frame_lent(0, cameras, [good, view], None).unwrap_err().to_string();
+        assert!(err.contains(needle), "{err}");
+    }
+    p.render_frame_lent(0, cameras, [good, good], None).unwrap();
 }

@@ -63,6 +63,7 @@ use crate::source::{FrameSource, RendererSource};
 
 mod budget;
 pub(crate) mod config;
+mod lent;
 mod plan;
 mod session;
 mod stats;
@@ -71,6 +72,8 @@ use budget::BudgetPlanner;
 pub use config::{
     GBufferPass, Layout, MAX_BUDGET_MS, MAX_SPP, Mode, Order, PipelineConfig, PipelineError, budget_duration, readable,
 };
+pub use lent::GBufferView;
+use lent::Lent;
 use plan::Target;
 pub use plan::{Source, Step, StereoSource, plan};
 pub use session::{CameraWalk, Session, View};
@@ -182,12 +185,41 @@ pub struct Pipeline<S: FrameSource> {
     planner: BudgetPlanner,
     /// The sub-pixel jitter of the next frames' G-buffers ([`Pipeline::set_jitter`]).
     jitter: [f32; 2],
+    /// Whether the committed frame's G-buffers were lent ([`Pipeline::render_frame_lent`]):
+    /// then the pipeline's own planes do not hold them, and the next lent frame must lend
+    /// them again as its previous frame's.
+    gbuffers_lent: bool,
 }
 
 /// The pipeline over this crate's renderer.
 pub type RendererPipeline<'r> = Pipeline<RendererSource<&'r Renderer>>;
 
 const L: usize = Eye::Left as usize;
+
+/// The planes of an owned G-buffer as a view (all present, as the configuration allocated
+/// them).
+fn planes_of(g: &GBufferBuf) -> GBufferView<'_> {
+    GBufferView {
+        depth: g.depth.view(),
+        normal_oct: Some(g.normal_oct.view()),
+        position: Some(g.position.each_ref().map(|p| p.view())),
+        normal: Some(g.normal.each_ref().map(|p| p.view())),
+        history_confidence: g.history_confidence.as_ref().map(|c| c.view()),
+        motion: g.motion.as_ref().map(|m| m.each_ref().map(|p| p.view())),
+    }
+}
+
+/// The kernel's compact G-buffer of `planes` seen by `camera` (present: checked on entry).
+fn compact<'a>(planes: &GBufferView<'a>, camera: CameraModel) -> Result<CompactGBuffer<'a>, FrameError> {
+    let normals = planes.normal_oct.ok_or(FrameError::InvalidParameter("compact layout without normals"))?;
+    CompactGBuffer::new(planes.depth, normals, camera)
+}
+
+/// The kernel's full G-buffer of `planes` (present: checked on entry).
+fn full<'a>(planes: &GBufferView<'a>) -> Result<GBuffer<'a>, FrameError> {
+    let missing = FrameError::InvalidParameter("full layout without positions or normals");
+    GBuffer::new(planes.depth, planes.position.ok_or(missing.clone())?, planes.normal.ok_or(missing)?)
+}
 
 /// The jitter of a reprojection from `source`'s G-buffer into `target`'s, if either has one.
 fn jitter_between(target: &GBufferBuf, source: &GBufferBuf) -> Option<reproject::Jitter> {
@@ -260,6 +292,7 @@ impl<S: FrameSource> Pipeline<S> {
             frames_done: 0,
             planner: BudgetPlanner::default(),
             jitter: [0.0; 2],
+            gbuffers_lent: false,
         })
     }
 
@@ -398,14 +431,59 @@ impl<S: FrameSource> Pipeline<S> {
     /// [`Pipeline::render_frame`] with the eye cameras given (`[left, right]`, of the
     /// pipeline's extent) instead of a head pose: what an engine with its own cameras calls.
     pub fn render_frame_at(&mut self, frame: u32, cameras: [CameraModel; 2]) -> Result<FrameStats, PipelineError> {
+        self.render_with(frame, cameras, None)
+    }
+
+    /// [`Pipeline::render_frame_at`] with both eyes' G-buffers lent by the caller instead of
+    /// filled by the source (zero-copy input; see [`GBufferView`] for which planes the
+    /// configuration reads): the source's `fill_gbuffers` is not called, and the kernels read
+    /// the caller's planes directly, at their strides. `current` are this frame's
+    /// G-buffers, rendered for `cameras` jittered by [`Pipeline::set_jitter`]'s jitter, as a
+    /// source's would be. `previous` are the G-buffers of the last frame this pipeline
+    /// committed, unchanged since: temporal reprojection reads them. They may be `None` when
+    /// there is no history (the first frame, after [`Pipeline::reset`] or a resize) or when
+    /// the last frame's G-buffers were the pipeline's own (filled by the source); otherwise
+    /// the call is refused. The views are read during the call only. After a lent frame,
+    /// [`Pipeline::gbuffer`] does not hold that frame's planes (only its camera and jitter).
+    pub fn render_frame_lent(
+        &mut self,
+        frame: u32,
+        cameras: [CameraModel; 2],
+        current: [GBufferView<'_>; 2],
+        previous: Option<[GBufferView<'_>; 2]>,
+    ) -> Result<FrameStats, PipelineError> {
+        for (eye, view) in Eye::BOTH.into_iter().zip(&current) {
+            view.check(&format!("{eye} G-buffer"), self.extent, &self.config)?;
+        }
+        for (eye, view) in Eye::BOTH.into_iter().zip(previous.iter().flatten()) {
+            view.check(&format!("previous {eye} G-buffer"), self.extent, &self.config)?;
+        }
+        if self.frames_done > 0 && self.gbuffers_lent && previous.is_none() {
+            return Err(PipelineError::Config(
+                "the last frame's G-buffers were lent, so the pipeline does not hold them: lend them again as \
+                 `previous` (or reset the history)"
+                    .into(),
+            ));
+        }
+        self.render_with(frame, cameras, Some(Lent { current, previous }))
+    }
+
+    /// A frame, transactional: G-buffers from the source or `lent`.
+    fn render_with(
+        &mut self,
+        frame: u32,
+        cameras: [CameraModel; 2],
+        lent: Option<Lent<'_>>,
+    ) -> Result<FrameStats, PipelineError> {
         for camera in &cameras {
             crate::kernels::frame::same_extent("eye camera", self.extent, camera.extent)?;
         }
         let gbuffer_cameras = [cameras[0].jittered(self.jitter)?, cameras[1].jittered(self.jitter)?];
         let committed = self.begin_frame(cameras, gbuffer_cameras);
-        match self.run_frame(frame) {
+        match self.run_frame(frame, lent.as_ref()) {
             Ok(stats) => {
                 self.frames_done += 1;
+                self.gbuffers_lent = lent.is_some();
                 Ok(stats)
             }
             Err(e) => {
@@ -440,7 +518,7 @@ impl<S: FrameSource> Pipeline<S> {
 
     /// The body of [`Pipeline::render_frame_at`], between [`Pipeline::begin_frame`] and the
     /// commit or roll-back: writes only the in-flight buffers.
-    fn run_frame(&mut self, frame: u32) -> Result<FrameStats, PipelineError> {
+    fn run_frame(&mut self, frame: u32, lent: Option<&Lent<'_>>) -> Result<FrameStats, PipelineError> {
         let start = Instant::now();
         let mut stats = FrameStats { frame, budget: self.config.budget, ..FrameStats::default() };
         let has_history = self.frames_done > 0;
@@ -449,9 +527,11 @@ impl<S: FrameSource> Pipeline<S> {
         // G-buffers of both eyes (last frame's are the temporal source).
         let t0 = Instant::now();
         self.source.begin_frame(frame);
-        let [left, right] = &mut self.eyes;
-        stats.raster =
-            self.source.fill_gbuffers([&mut left.cur.gbuffer, &mut right.cur.gbuffer], self.config.layout)?;
+        if lent.is_none() {
+            let [left, right] = &mut self.eyes;
+            stats.raster =
+                self.source.fill_gbuffers([&mut left.cur.gbuffer, &mut right.cur.gbuffer], self.config.layout)?;
+        }
         stats.times.gbuffer = t0.elapsed();
 
         let mode = self.config.mode;
@@ -460,7 +540,7 @@ impl<S: FrameSource> Pipeline<S> {
             let t = Instant::now();
             for eye in Eye::BOTH {
                 if !(eye == Eye::Left && self.left_history_on_demand()) {
-                    stats.temporal_reasons[eye as usize] = self.reproject_history(eye, has_history, false)?;
+                    stats.temporal_reasons[eye as usize] = self.reproject_history(eye, has_history, false, lent)?;
                 }
             }
             stats.times.reprojection += t.elapsed();
@@ -469,8 +549,8 @@ impl<S: FrameSource> Pipeline<S> {
         for &step in plan(mode, self.config.order) {
             match step {
                 Step::Trace(eye) => self.trace_all(eye, &mut stats, start)?,
-                Step::StereoFillLeft(source) => self.stereo_fill_left(source, &mut stats, start)?,
-                Step::StereoBlend(eye, source) => self.stereo_blend(eye, source, &mut stats)?,
+                Step::StereoFillLeft(source) => self.stereo_fill_left(source, &mut stats, start, lent)?,
+                Step::StereoBlend(eye, source) => self.stereo_blend(eye, source, &mut stats, lent)?,
                 Step::CombineLeftValidity => {
                     // Stereo-valid pixels show the reprojected right-eye accumulation as is;
                     // the rest accumulate their own path-traced samples with the left history.
@@ -485,7 +565,7 @@ impl<S: FrameSource> Pipeline<S> {
                         *ema = if is_reprojected(stereo) { Reason::Invalid as u8 } else { temporal };
                     }
                 }
-                Step::Accumulate(eye, source) => self.accumulate(eye, source, &mut stats)?,
+                Step::Accumulate(eye, source) => self.accumulate(eye, source, &mut stats, lent)?,
             }
         }
         stats.times.total = start.elapsed();
@@ -552,6 +632,7 @@ impl<S: FrameSource> Pipeline<S> {
         eye: Eye,
         has_history: bool,
         only_wanted: bool,
+        lent: Option<&Lent<'_>>,
     ) -> Result<ReasonCounts, PipelineError> {
         let params = self.reproject_params();
         let ramp = self.config.ramp;
@@ -562,7 +643,12 @@ impl<S: FrameSource> Pipeline<S> {
             return Ok(ReasonCounts::default());
         }
         let pixel_mask = only_wanted.then(|| s.wanted.view());
-        let target_depth = s.cur.gbuffer.depth.view();
+        // This frame's planes and the last committed frame's: lent or the pipeline's own.
+        let target = lent.map_or_else(|| planes_of(&s.cur.gbuffer), |l| l.current[eye as usize]);
+        let source = match lent.and_then(|l| l.previous) {
+            Some(previous) => previous[eye as usize],
+            None => planes_of(&s.prev.gbuffer),
+        };
         let (history, len, reason) = (&mut s.cur.history, &mut s.cur.len, &mut s.cur.temporal_reason);
         let out = ReprojectOutput {
             colour: history.view_mut(),
@@ -574,12 +660,11 @@ impl<S: FrameSource> Pipeline<S> {
         let extra = ramp.then(|| s.prev.len.view());
         let g = &s.cur.gbuffer;
         // The surfaces' own motion since the last frame, where the source gives it.
-        let motion = g.motion.as_ref().map(|m| m.each_ref().map(|p| p.view()));
+        let motion = target.motion;
         let (prev_camera, jitter) = (s.prev.gbuffer.camera, jitter_between(g, &s.prev.gbuffer));
         let counts = match layout {
             Layout::Compact => {
-                let t = CompactGBuffer::new(target_depth, g.normal_oct.view(), g.camera)?;
-                let src = s.prev.gbuffer.compact();
+                let (t, src) = (compact(&target, g.camera)?, compact(&source, prev_camera)?);
                 let input = ReprojectInput {
                     target: &t,
                     source: &src,
@@ -593,12 +678,7 @@ impl<S: FrameSource> Pipeline<S> {
                 reproject::reproject(&input, out, &params)?
             }
             Layout::Full => {
-                let t = GBuffer::new(
-                    target_depth,
-                    g.position.each_ref().map(|p| p.view()),
-                    g.normal.each_ref().map(|p| p.view()),
-                )?;
-                let src = s.prev.gbuffer.view();
+                let (t, src) = (full(&target)?, full(&source)?);
                 let input = ReprojectInput {
                     target: &t,
                     source: &src,
@@ -616,7 +696,12 @@ impl<S: FrameSource> Pipeline<S> {
     }
 
     /// Stereo reprojection of the other eye's `source` image into `eye`'s `work` buffer.
-    fn stereo_into(&mut self, eye: Eye, source: StereoSource) -> Result<ReasonCounts, PipelineError> {
+    fn stereo_into(
+        &mut self,
+        eye: Eye,
+        source: StereoSource,
+        lent: Option<&Lent<'_>>,
+    ) -> Result<ReasonCounts, PipelineError> {
         let params = self.reproject_params();
         let layout = self.config.layout;
         let (target, other) = match eye {
@@ -633,6 +718,10 @@ impl<S: FrameSource> Pipeline<S> {
             StereoSource::Traced => other.cur.traced.view(),
             StereoSource::History => other.cur.history.view(),
         };
+        let (target_planes, source_planes) = match lent {
+            Some(l) => (l.current[eye as usize], l.current[1 - eye as usize]),
+            None => (planes_of(&target.cur.gbuffer), planes_of(&other.cur.gbuffer)),
+        };
         let out = ReprojectOutput {
             colour: target.cur.work.view_mut(),
             extra: None,
@@ -641,7 +730,8 @@ impl<S: FrameSource> Pipeline<S> {
         };
         let counts = match layout {
             Layout::Compact => {
-                let (t, src) = (target.cur.gbuffer.compact(), other.cur.gbuffer.compact());
+                let t = compact(&target_planes, target.cur.gbuffer.camera)?;
+                let src = compact(&source_planes, other.cur.gbuffer.camera)?;
                 let input = ReprojectInput {
                     target: &t,
                     source: &src,
@@ -655,7 +745,7 @@ impl<S: FrameSource> Pipeline<S> {
                 reproject::reproject(&input, out, &params)?
             }
             Layout::Full => {
-                let (t, src) = (target.cur.gbuffer.view(), other.cur.gbuffer.view());
+                let (t, src) = (full(&target_planes)?, full(&source_planes)?);
                 let input = ReprojectInput {
                     target: &t,
                     source: &src,
@@ -679,16 +769,17 @@ impl<S: FrameSource> Pipeline<S> {
         source: StereoSource,
         stats: &mut FrameStats,
         start: Instant,
+        lent: Option<&Lent<'_>>,
     ) -> Result<(), PipelineError> {
         let t = Instant::now();
-        stats.stereo_reasons[L] = self.stereo_into(Eye::Left, source)?;
+        stats.stereo_reasons[L] = self.stereo_into(Eye::Left, source, lent)?;
         // Wanted (traced, and the left history reprojected): where stereo was discarded.
         let s = &mut self.eyes[L];
         for (wanted, &stereo) in s.wanted.as_mut_slice().iter_mut().zip(s.cur.stereo_reason.as_slice()) {
             *wanted = u8::from(!is_reprojected(stereo));
         }
         if self.left_history_on_demand() && self.config.mode.temporal() {
-            stats.temporal_reasons[L] = self.reproject_history(Eye::Left, self.frames_done > 0, true)?;
+            stats.temporal_reasons[L] = self.reproject_history(Eye::Left, self.frames_done > 0, true, lent)?;
         }
         stats.times.reprojection += t.elapsed();
         let s = &mut self.eyes[L];
@@ -709,9 +800,15 @@ impl<S: FrameSource> Pipeline<S> {
     }
 
     /// `eye`'s `work` = blend of its own image and the other eye's reprojection.
-    fn stereo_blend(&mut self, eye: Eye, source: StereoSource, stats: &mut FrameStats) -> Result<(), PipelineError> {
+    fn stereo_blend(
+        &mut self,
+        eye: Eye,
+        source: StereoSource,
+        stats: &mut FrameStats,
+        lent: Option<&Lent<'_>>,
+    ) -> Result<(), PipelineError> {
         let t = Instant::now();
-        stats.stereo_reasons[eye as usize] = self.stereo_into(eye, source)?;
+        stats.stereo_reasons[eye as usize] = self.stereo_into(eye, source, lent)?;
         stats.times.reprojection += t.elapsed();
         let t = Instant::now();
         let params = BlendParams { own_weight: self.config.blend_own_weight, band_rows: 16 };
@@ -815,7 +912,13 @@ impl<S: FrameSource> Pipeline<S> {
     }
 
     /// EMA of `eye`'s reprojected history with this frame's `source` samples.
-    fn accumulate(&mut self, eye: Eye, source: Source, stats: &mut FrameStats) -> Result<(), PipelineError> {
+    fn accumulate(
+        &mut self,
+        eye: Eye,
+        source: Source,
+        stats: &mut FrameStats,
+        lent: Option<&Lent<'_>>,
+    ) -> Result<(), PipelineError> {
         let t = Instant::now();
         let params = EmaParams { alpha: self.config.alpha, ramp: self.config.ramp, band_rows: 16 };
         let ramp = self.config.ramp;
@@ -825,7 +928,10 @@ impl<S: FrameSource> Pipeline<S> {
             Source::Work => (s.cur.work.view(), s.cur.temporal_reason.view()),
             Source::WorkCombined => (s.cur.work.view(), s.ema_reason.view()),
         };
-        let confidence = s.cur.gbuffer.history_confidence.as_ref().map(|c| c.view());
+        let confidence = match lent {
+            Some(l) => l.current[eye as usize].history_confidence,
+            None => s.cur.gbuffer.history_confidence.as_ref().map(|c| c.view()),
+        };
         let input = EmaInput { new, reason, has_new: Some(s.has_new.view()), confidence };
         let state = EmaState { accum: s.cur.history.view_mut(), history_len: ramp.then(|| s.cur.len.view_mut()) };
         let acc = accumulate::ema(&input, state, &params)?;
