@@ -2,7 +2,10 @@
 //! - `trace_band_rows`: milliseconds per path-traced frame with `trace` called once per eye on
 //!   one worker against per band of rows on the pipeline's workers;
 //! - `stereotrace_pipeline_output_view`: milliseconds to get both eyes' images, copied into
-//!   the engine's planes (`stereotrace_pipeline_output`) against lent.
+//!   the engine's planes (`stereotrace_pipeline_output`) against lent;
+//! - `stereotrace_pipeline_render_frame_lent`: the pipeline's own milliseconds per temporal
+//!   frame (the frame less the engine's tracing) when the engine copies its G-buffers into
+//!   the pipeline's planes in `fill_gbuffers` against lending them in place.
 //!
 //! The engine is synthetic: each pixel's "path tracing" is a fixed amount of arithmetic
 //! (`WORK` rounds of a hash per sample), so the frame's time is the engine's, as with a real
@@ -168,6 +171,118 @@ fn median_frame_ms(band_rows: u32, threads: u32, frames: u32, own_jobs: bool) ->
     (median(times), [median(copies), median(views)])
 }
 
+/// An engine's own compact G-buffers (both eyes, this frame's and last frame's), at a padded
+/// stride as a GPU readback might have: a floor plane receding from the camera.
+struct EngineGBuffers {
+    stride: u32,
+    depth: [Vec<f32>; 2],
+    normals: [Vec<u32>; 2],
+}
+
+impl EngineGBuffers {
+    fn new() -> Self {
+        let stride = W + 64;
+        let len = (stride * H) as usize;
+        let mut depth = vec![f32::INFINITY; len];
+        for y in 0..H as usize {
+            // Below the horizon a floor 1.6 m down: depth grows as the row nears the middle.
+            let below = (y as f32 + 0.5 - H as f32 / 2.0) / (H as f32 / 2.0);
+            let d = if below > 0.01 { (1.6 / below).min(1e3) } else { f32::INFINITY };
+            depth[y * stride as usize..y * stride as usize + W as usize].fill(d);
+        }
+        let up = stereotrace_encode_normal(0.0, 1.0, 0.0);
+        Self { stride, depth: [depth.clone(), depth], normals: [vec![up; len], vec![up; len]] }
+    }
+
+    fn lent(&self, eye: usize) -> StLentGBuffer {
+        let null = StPlaneF32 { data: std::ptr::null(), width: 0, height: 0, stride: 0 };
+        let f = |d: &Vec<f32>| StPlaneF32 { data: d.as_ptr(), width: W, height: H, stride: self.stride };
+        StLentGBuffer {
+            depth: f(&self.depth[eye]),
+            position: [null; 3],
+            normal: [null; 3],
+            normal_octahedral: StPlaneU32 {
+                data: self.normals[eye].as_ptr(),
+                width: W,
+                height: H,
+                stride: self.stride,
+            },
+            history_confidence: null,
+            motion: [null; 3],
+        }
+    }
+}
+
+/// `fill_gbuffers` of an engine with G-buffers of its own: row copies into the pipeline's.
+unsafe extern "C" fn copy_gbuffers(
+    user: *mut c_void,
+    _: u32,
+    left: *const StGBufferMut,
+    right: *const StGBufferMut,
+) -> i32 {
+    let engine = unsafe { &*(user as *const EngineGBuffers) };
+    for (eye, g) in [left, right].into_iter().enumerate() {
+        let g = unsafe { &*g };
+        for y in 0..H as usize {
+            let from = y * engine.stride as usize..y * engine.stride as usize + W as usize;
+            let (to_depth, to_normals) = (y * g.depth.stride as usize, y * g.normal_octahedral.stride as usize);
+            unsafe {
+                std::slice::from_raw_parts_mut(g.depth.data.add(to_depth), W as usize)
+                    .copy_from_slice(&engine.depth[eye][from.clone()]);
+                std::slice::from_raw_parts_mut(g.normal_octahedral.data.add(to_normals), W as usize)
+                    .copy_from_slice(&engine.normals[eye][from]);
+            }
+        }
+    }
+    0
+}
+
+/// Median of the pipeline's own milliseconds per temporal frame (total less tracing) and of
+/// the G-buffer step's, with the engine's G-buffers copied in or lent.
+fn gbuffers_in_ms(threads: u32, frames: u32, lend: bool) -> (f64, f64) {
+    // Two frames' G-buffers, as an engine double-buffers them; the walls do not move, so
+    // both hold the same picture and each frame lends one as this frame's, one as last's.
+    let engine = [EngineGBuffers::new(), EngineGBuffers::new()];
+    let callbacks = StFrameSourceCallbacks {
+        user: &engine[0] as *const EngineGBuffers as *mut c_void,
+        fill_gbuffers: Some(copy_gbuffers),
+        trace: Some(trace),
+        run_jobs: None,
+    };
+    let mut config = stereotrace_pipeline_config_default();
+    (config.mode, config.threads, config.trace_band_rows) = (StMode::Temporal as u32, threads, 16);
+    let cameras = [camera(-0.0325), camera(0.0325)];
+    let mut p = std::ptr::null_mut();
+    let status = unsafe { stereotrace_pipeline_create_callbacks(&callbacks, &config, cameras.as_ptr(), &mut p) };
+    assert_eq!(status, StStatus::Ok);
+    let (mut own, mut gbuffer) = (Vec::new(), Vec::new());
+    for f in 0..=frames {
+        let mut stats = unsafe { std::mem::zeroed::<StFrameStats>() };
+        let status = if lend {
+            let (now, then) = (&engine[f as usize % 2], &engine[(f as usize + 1) % 2]);
+            let current = [now.lent(0), now.lent(1)];
+            let previous = [then.lent(0), then.lent(1)];
+            let previous = if f == 0 { std::ptr::null() } else { previous.as_ptr() };
+            unsafe {
+                stereotrace_pipeline_render_frame_lent(p, f, cameras.as_ptr(), current.as_ptr(), previous, &mut stats)
+            }
+        } else {
+            unsafe { stereotrace_pipeline_render_frame_at(p, f, cameras.as_ptr(), &mut stats) }
+        };
+        assert_eq!(status, StStatus::Ok);
+        if f > 0 {
+            own.push(stats.total_ms - stats.tracing_ms);
+            gbuffer.push(stats.gbuffer_ms);
+        }
+    }
+    unsafe { stereotrace_pipeline_destroy(p) };
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    (median(own), median(gbuffer))
+}
+
 fn main() {
     let mut args = std::env::args().skip(1);
     let frames: u32 = args.next().map_or(9, |a| a.parse().expect("FRAMES"));
@@ -186,4 +301,9 @@ fn main() {
         println!("| per band of {band} rows, engine's job system (2 threads) | {ms:.1} | {:.2} |", one_call / ms);
     }
     println!("\nboth eyes' output: copied {copied:.3} ms, lent {lent:.4} ms");
+    let (own_copied, gbuffer_copied) = gbuffers_in_ms(threads, frames, false);
+    let (own_lent, gbuffer_lent) = gbuffers_in_ms(threads, frames, true);
+    println!("\ntemporal frame, the pipeline's own ms (frame less tracing) / G-buffer step ms:");
+    println!("G-buffers copied in by fill_gbuffers: {own_copied:.2} / {gbuffer_copied:.2}");
+    println!("G-buffers lent (render_frame_lent):  {own_lent:.2} / {gbuffer_lent:.3}");
 }

@@ -569,6 +569,30 @@ typedef struct StFrameStats {
   uint32_t budget_met;
 } StFrameStats;
 
+// One eye's G-buffer lent by the engine for one frame (zero-copy input to
+// [`stereotrace_pipeline_render_frame_lent`]): read-only views of the engine's own planes,
+// any stride, each of the pipeline's size. Which planes must be given follows the pipeline's
+// configuration, and a plane the configuration does not read must be left null (`data`):
+// `depth` always; `normal_octahedral` with `ST_LAYOUT_COMPACT`; `position` and `normal` with
+// `ST_LAYOUT_FULL`; `history_confidence` exactly when `config.history_confidence`; `motion`
+// exactly when `config.motion_vectors`. Values mean what the same planes of
+// [`StGBufferMut`] mean. The cameras and jitter are the render call's.
+typedef struct StLentGBuffer {
+  // View-axis depth at the pixel centre, > 0 (`+INFINITY`: no surface).
+  struct StPlaneF32 depth;
+  // `ST_LAYOUT_FULL`: world position x, y, z (else null).
+  struct StPlaneF32 position[3];
+  // `ST_LAYOUT_FULL`: world shading normal x, y, z (else null).
+  struct StPlaneF32 normal[3];
+  // `ST_LAYOUT_COMPACT`: `stereotrace_encode_normal` of the shading normal (else null).
+  struct StPlaneU32 normal_octahedral;
+  // With `config.history_confidence`: history confidence in [0, 1] (else null).
+  struct StPlaneF32 history_confidence;
+  // With `config.motion_vectors`: world-space motion x, y, z since the previous frame
+  // (else null).
+  struct StPlaneF32 motion[3];
+} StLentGBuffer;
+
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
@@ -752,6 +776,32 @@ enum StStatus stereotrace_pipeline_render_frame_at(struct StPipeline *pipeline,
                                                    uint32_t frame,
                                                    const struct StCamera *cameras,
                                                    struct StFrameStats *stats);
+
+// [`stereotrace_pipeline_render_frame_at`] with both eyes' G-buffers lent by the engine
+// instead of filled by `fill_gbuffers` (zero-copy input; a scene pipeline also takes them
+// instead of rendering its own): the kernels read the engine's planes in place during this
+// call, and the callback `fill_gbuffers` is not called. `gbuffers` points to two
+// [`StLentGBuffer`]s (left, right) rendered for `cameras` (jittered as set by
+// `stereotrace_pipeline_set_jitter`).
+//
+// `previous` points to the two G-buffers of the last frame this pipeline committed,
+// unchanged since, which temporal reprojection reads: the engine keeps its last frame's
+// G-buffers alive (double-buffering, as TAA does). It may be null on the first frame, after
+// `stereotrace_pipeline_reset` or a resize, or when the last frame's G-buffers were filled
+// by `fill_gbuffers` (the pipeline then holds them); otherwise the call is refused
+// (`ST_STATUS_INVALID_ARGUMENT`). Nothing is kept after the call. Refused frames change
+// nothing, as for `stereotrace_pipeline_render_frame_at`.
+//
+// # Safety
+// As [`stereotrace_pipeline_render_frame_at`]; `gbuffers` null or two valid lent
+// G-buffers, `previous` null or two valid lent G-buffers, their planes readable and not
+// written during the call.
+enum StStatus stereotrace_pipeline_render_frame_lent(struct StPipeline *pipeline,
+                                                     uint32_t frame,
+                                                     const struct StCamera *cameras,
+                                                     const struct StLentGBuffer *gbuffers,
+                                                     const struct StLentGBuffer *previous,
+                                                     struct StFrameStats *stats);
 
 // Renders the next frames' G-buffers with a sub-pixel camera jitter of (`x`, `y`) pixels
 // (x right, y down; each within [−1, 1]), as TAA does, for example a Halton sequence changed

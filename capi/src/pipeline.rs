@@ -12,7 +12,7 @@ use stereotrace_kernels::reproject::Tolerances;
 use stereotrace_kernels::{CameraModel, Extent, PlaneBuf, RgbBuf};
 use stereotrace_runtime::camera::{Eye, StereoRig};
 use stereotrace_runtime::pipeline::{
-    FrameStats, Layout, MAX_SPP, Mode, Order, Pipeline, PipelineConfig, PipelineError, budget_duration,
+    FrameStats, GBufferView, Layout, MAX_SPP, Mode, Order, Pipeline, PipelineConfig, PipelineError, budget_duration,
 };
 use stereotrace_runtime::render::raster::RasterPassStats;
 use stereotrace_runtime::render::{GBufferBuf, PixelSelection, Renderer, TraceRequest, TraceStats};
@@ -21,7 +21,9 @@ use stereotrace_runtime::source::{FrameSource, RendererSource};
 use crate::StStatus;
 use crate::boundary::{Context, Exclusive, Failure, guard};
 use crate::kernels::{StCamera, StLayout, StReprojectParams};
-use crate::views::{Borrows, StPlaneF32, StPlaneMutF32, StPlaneMutU8, StPlaneU8, StRgb, StRgbMut, required};
+use crate::views::{
+    Borrows, StPlaneF32, StPlaneMutF32, StPlaneMutU8, StPlaneU8, StPlaneU32, StRgb, StRgbMut, required,
+};
 
 /// The pipeline's modes (the paper's Section IV): the values of [`StPipelineConfig::mode`].
 /// Each names which eye the trace callback is asked for: "both" means every pixel of each eye
@@ -814,6 +816,144 @@ pub unsafe extern "C" fn stereotrace_pipeline_render_frame_at(
                 let (given, models) = eye_cameras(cameras, inner.extent())?;
                 inner.source_mut().cameras = given;
                 pool.install(|| inner.render_frame_at(frame, models))
+            }
+        }
+        .map_err(pipeline_error)?;
+        *frames_rendered += 1;
+        if let Some(out) = stats.as_mut() {
+            *out = (&s).into();
+        }
+        Ok(())
+    })
+}
+
+/// One eye's G-buffer lent by the engine for one frame (zero-copy input to
+/// [`stereotrace_pipeline_render_frame_lent`]): read-only views of the engine's own planes,
+/// any stride, each of the pipeline's size. Which planes must be given follows the pipeline's
+/// configuration, and a plane the configuration does not read must be left null (`data`):
+/// `depth` always; `normal_octahedral` with `ST_LAYOUT_COMPACT`; `position` and `normal` with
+/// `ST_LAYOUT_FULL`; `history_confidence` exactly when `config.history_confidence`; `motion`
+/// exactly when `config.motion_vectors`. Values mean what the same planes of
+/// [`StGBufferMut`] mean. The cameras and jitter are the render call's.
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct StLentGBuffer {
+    /// View-axis depth at the pixel centre, > 0 (`+INFINITY`: no surface).
+    pub depth: StPlaneF32,
+    /// `ST_LAYOUT_FULL`: world position x, y, z (else null).
+    pub position: [StPlaneF32; 3],
+    /// `ST_LAYOUT_FULL`: world shading normal x, y, z (else null).
+    pub normal: [StPlaneF32; 3],
+    /// `ST_LAYOUT_COMPACT`: `stereotrace_encode_normal` of the shading normal (else null).
+    pub normal_octahedral: StPlaneU32,
+    /// With `config.history_confidence`: history confidence in [0, 1] (else null).
+    pub history_confidence: StPlaneF32,
+    /// With `config.motion_vectors`: world-space motion x, y, z since the previous frame
+    /// (else null).
+    pub motion: [StPlaneF32; 3],
+}
+
+impl StLentGBuffer {
+    /// The kernel views of the planes given (null `data`: not given), checked for pointer,
+    /// extent and stride; which of them the configuration needs is the pipeline's check.
+    ///
+    /// # Safety
+    /// Every non-null plane as the header requires of an input plane, for the call's length.
+    unsafe fn views<'a>(&self) -> Result<GBufferView<'a>, Failure> {
+        let mut b = Borrows::new();
+        let f32s = |p: &StPlaneF32, what, b: &mut Borrows| -> Result<Option<_>, Failure> {
+            // SAFETY: the caller's contract for a non-null plane.
+            if p.data.is_null() { Ok(None) } else { unsafe { p.view(what, b).map(Some) } }
+        };
+        let three = |p: &[StPlaneF32; 3],
+                     what: [&'static str; 3],
+                     b: &mut Borrows|
+         -> Result<Option<[_; 3]>, Failure> {
+            match (f32s(&p[0], what[0], b)?, f32s(&p[1], what[1], b)?, f32s(&p[2], what[2], b)?) {
+                (Some(x), Some(y), Some(z)) => Ok(Some([x, y, z])),
+                (None, None, None) => Ok(None),
+                _ => Err(Failure::invalid(format!("{}: give all three planes or none", &what[0][..what[0].len() - 2]))),
+            }
+        };
+        let depth = f32s(&self.depth, "depth", &mut b)?.ok_or_else(|| Failure::null("depth.data"))?;
+        let normal_oct = if self.normal_octahedral.data.is_null() {
+            None
+        } else {
+            // SAFETY: the caller's contract for a non-null plane.
+            Some(unsafe { self.normal_octahedral.view("normal_octahedral", &mut b)? })
+        };
+        Ok(GBufferView {
+            depth,
+            normal_oct,
+            position: three(&self.position, ["position.x", "position.y", "position.z"], &mut b)?,
+            normal: three(&self.normal, ["normal.x", "normal.y", "normal.z"], &mut b)?,
+            history_confidence: f32s(&self.history_confidence, "history_confidence", &mut b)?,
+            motion: three(&self.motion, ["motion.x", "motion.y", "motion.z"], &mut b)?,
+        })
+    }
+}
+
+/// Two lent G-buffers (left, right) from C.
+///
+/// # Safety
+/// `gbuffers` null or pointing to two `StLentGBuffer`s whose planes keep the header's
+/// contract.
+unsafe fn lent_pair<'a>(gbuffers: *const StLentGBuffer, what: &str) -> Result<[GBufferView<'a>; 2], Failure> {
+    if gbuffers.is_null() {
+        return Err(Failure::null(what));
+    }
+    // SAFETY: the caller's contract: two G-buffers, whose planes are valid.
+    unsafe {
+        let (left, right) = (&*gbuffers, &*gbuffers.add(1));
+        let left = left.views().map_err(|e| Failure::new(e.status, format!("{what}[0].{}", e.message)))?;
+        let right = right.views().map_err(|e| Failure::new(e.status, format!("{what}[1].{}", e.message)))?;
+        Ok([left, right])
+    }
+}
+
+/// [`stereotrace_pipeline_render_frame_at`] with both eyes' G-buffers lent by the engine
+/// instead of filled by `fill_gbuffers` (zero-copy input; a scene pipeline also takes them
+/// instead of rendering its own): the kernels read the engine's planes in place during this
+/// call, and the callback `fill_gbuffers` is not called. `gbuffers` points to two
+/// [`StLentGBuffer`]s (left, right) rendered for `cameras` (jittered as set by
+/// `stereotrace_pipeline_set_jitter`).
+///
+/// `previous` points to the two G-buffers of the last frame this pipeline committed,
+/// unchanged since, which temporal reprojection reads: the engine keeps its last frame's
+/// G-buffers alive (double-buffering, as TAA does). It may be null on the first frame, after
+/// `stereotrace_pipeline_reset` or a resize, or when the last frame's G-buffers were filled
+/// by `fill_gbuffers` (the pipeline then holds them); otherwise the call is refused
+/// (`ST_STATUS_INVALID_ARGUMENT`). Nothing is kept after the call. Refused frames change
+/// nothing, as for `stereotrace_pipeline_render_frame_at`.
+///
+/// # Safety
+/// As [`stereotrace_pipeline_render_frame_at`]; `gbuffers` null or two valid lent
+/// G-buffers, `previous` null or two valid lent G-buffers, their planes readable and not
+/// written during the call.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn stereotrace_pipeline_render_frame_lent(
+    pipeline: *mut StPipeline,
+    frame: u32,
+    cameras: *const StCamera,
+    gbuffers: *const StLentGBuffer,
+    previous: *const StLentGBuffer,
+    stats: *mut StFrameStats,
+) -> StStatus {
+    guard(|| unsafe {
+        let p = pipeline.as_ref().ok_or_else(|| Failure::null("pipeline"))?;
+        let mut state = p.state.enter("stereotrace_pipeline_render_frame_lent")?;
+        let PipelineState { pool, inner, frames_rendered } = &mut *state;
+        let current = lent_pair(gbuffers, "gbuffers")?;
+        let previous = if previous.is_null() { None } else { Some(lent_pair(previous, "previous")?) };
+        let s = match inner {
+            Inner::Scene(inner) => {
+                let (_, models) = eye_cameras(cameras, inner.extent())?;
+                pool.install(|| inner.render_frame_lent(frame, models, current, previous))
+            }
+            Inner::Callbacks(inner) => {
+                let (given, models) = eye_cameras(cameras, inner.extent())?;
+                inner.source_mut().cameras = given;
+                pool.install(|| inner.render_frame_lent(frame, models, current, previous))
             }
         }
         .map_err(pipeline_error)?;

@@ -309,9 +309,58 @@ static int sliding_trace(void *user, uint32_t eye, uint32_t frame, uint32_t spp,
     return 0;
 }
 
+/* An engine's own G-buffer of one eye (full layout, with motion), at a padded stride: what
+ * it lends to stereotrace_pipeline_render_frame_lent instead of copying. Planes: depth,
+ * position x y z, normal x y z, motion x y z. */
+enum { ENGINE_STRIDE = CW + 3, ENGINE_PLANES = 10 };
+typedef struct {
+    float *plane[ENGINE_PLANES];
+} EngineGBuffer;
+
+static EngineGBuffer engine_gbuffer_new(void) {
+    EngineGBuffer g;
+    for (int k = 0; k < ENGINE_PLANES; k++) g.plane[k] = calloc((size_t)ENGINE_STRIDE * CH, sizeof(float));
+    return g;
+}
+
+static void engine_gbuffer_free(EngineGBuffer *g) {
+    for (int k = 0; k < ENGINE_PLANES; k++) free(g->plane[k]);
+}
+
+/* The engine renders its own G-buffers (here by the same code as the callback, through
+ * writable views of its own planes) for the pipeline's jitter. */
+static void engine_render(EngineGBuffer g[2], const float jitter[2]) {
+    StGBufferMut views[2];
+    for (int eye = 0; eye < 2; eye++) {
+        StPlaneMutF32 planes[ENGINE_PLANES];
+        for (int k = 0; k < ENGINE_PLANES; k++)
+            planes[k] = (StPlaneMutF32){.data = g[eye].plane[k], .width = CW, .height = CH, .stride = ENGINE_STRIDE};
+        views[eye] = (StGBufferMut){.depth = planes[0],
+                                    .position = {planes[1], planes[2], planes[3]},
+                                    .normal = {planes[4], planes[5], planes[6]},
+                                    .motion = {planes[7], planes[8], planes[9]},
+                                    .jitter = {jitter[0], jitter[1]}};
+    }
+    sliding_gbuffers(NULL, 0, &views[0], &views[1]);
+}
+
+/* Read-only views of an engine G-buffer, with or without its motion planes. */
+static StLentGBuffer engine_lent(const EngineGBuffer *g, int motion_vectors) {
+    StPlaneF32 planes[ENGINE_PLANES];
+    for (int k = 0; k < ENGINE_PLANES; k++)
+        planes[k] = (StPlaneF32){.data = g->plane[k], .width = CW, .height = CH, .stride = ENGINE_STRIDE};
+    StLentGBuffer lent = {.depth = planes[0],
+                          .position = {planes[1], planes[2], planes[3]},
+                          .normal = {planes[4], planes[5], planes[6]}};
+    if (motion_vectors) lent.motion[0] = planes[7], lent.motion[1] = planes[8], lent.motion[2] = planes[9];
+    return lent;
+}
+
 /* The largest error of the left eye's temporal output against the sliding wall's closed
- * form after `frames` frames, away from the columns the wall slides in through. */
-static double sliding_error(int motion_vectors, uint32_t frames) {
+ * form after `frames` frames, away from the columns the wall slides in through. With `lend`
+ * the engine lends its own double-buffered G-buffers (zero-copy) instead of filling the
+ * pipeline's in the callback. */
+static double sliding_error(int motion_vectors, uint32_t frames, int lend) {
     SlidingWall wall = {0};
     StFrameSourceCallbacks callbacks = {.user = &wall, .fill_gbuffers = sliding_gbuffers, .trace = sliding_trace};
     StPipelineConfig config = stereotrace_pipeline_config_default();
@@ -328,6 +377,8 @@ static double sliding_error(int motion_vectors, uint32_t frames) {
     StPipeline *p = NULL;
     expect(stereotrace_pipeline_create_callbacks(&callbacks, &config, cameras, &p), ST_STATUS_OK, "sliding wall");
     if (p == NULL) return INFINITY;
+    EngineGBuffer engine[2][2] = {{engine_gbuffer_new(), engine_gbuffer_new()},
+                                  {engine_gbuffer_new(), engine_gbuffer_new()}};
     for (uint32_t f = 0; f < frames; f++) {
         wall.offset = SLIDE_PER_FRAME * f;
         /* A Halton (2, 3) jitter in [-0.5, 0.5), a new offset every frame. */
@@ -339,8 +390,23 @@ static double sliding_error(int motion_vectors, uint32_t frames) {
             jitter[k] = r - 0.5f;
         }
         expect(stereotrace_pipeline_set_jitter(p, jitter[0], jitter[1]), ST_STATUS_OK, "set jitter");
-        expect(stereotrace_pipeline_render_frame_at(p, f, cameras, NULL), ST_STATUS_OK, "sliding frame");
+        if (!lend) {
+            expect(stereotrace_pipeline_render_frame_at(p, f, cameras, NULL), ST_STATUS_OK, "sliding frame");
+            continue;
+        }
+        /* This frame's G-buffers in one pair of the engine's, last frame's in the other. */
+        EngineGBuffer *now = engine[f % 2], *then = engine[(f + 1) % 2];
+        engine_render(now, jitter);
+        StLentGBuffer current[2] = {engine_lent(&now[0], motion_vectors), engine_lent(&now[1], motion_vectors)};
+        StLentGBuffer previous[2] = {engine_lent(&then[0], motion_vectors), engine_lent(&then[1], motion_vectors)};
+        if (f > 0) {
+            expect(stereotrace_pipeline_render_frame_lent(p, f, cameras, current, NULL, NULL),
+                   ST_STATUS_INVALID_ARGUMENT, "a lent frame without last frame's G-buffers");
+        }
+        expect(stereotrace_pipeline_render_frame_lent(p, f, cameras, current, f > 0 ? previous : NULL, NULL),
+               ST_STATUS_OK, "sliding frame, lent G-buffers");
     }
+    for (int k = 0; k < 2; k++) engine_gbuffer_free(&engine[k][0]), engine_gbuffer_free(&engine[k][1]);
     Image left = image_new(CW, CH);
     StRgbMut view = image_view(&left);
     expect(stereotrace_pipeline_output(p, 0, &view), ST_STATUS_OK, "sliding output");
@@ -360,11 +426,16 @@ static double sliding_error(int motion_vectors, uint32_t frames) {
 }
 
 static void sliding_wall(void) {
-    double with = sliding_error(1, 8), without = sliding_error(0, 8);
+    double with = sliding_error(1, 8, 0), without = sliding_error(0, 8, 0);
     /* Linear colour, exact motion, stated jitter: the history is the closed form. */
     CHECK(with < 2e-4, "with motion vectors the sliding wall is off by %g", with);
     CHECK(without > 100 * with && without > 1e-2, "without motion vectors only %g off", without);
     printf("sliding wall, jittered G-buffers: worst error %.2e with motion vectors, %.2e without\n", with, without);
+    /* The engine's own planes lent in place give the same frames as planes filled in. */
+    double lent_with = sliding_error(1, 8, 1), lent_without = sliding_error(0, 8, 1);
+    CHECK(lent_with == with && lent_without == without, "lent G-buffers: %g and %g, filled: %g and %g", lent_with,
+          lent_without, with, without);
+    printf("the same with the engine's G-buffers lent (zero-copy): %.2e and %.2e\n", lent_with, lent_without);
 }
 
 static void bad_configs(void) {

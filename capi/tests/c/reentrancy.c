@@ -2,8 +2,8 @@
  * One call at a time per pipeline and per context, tested from C as an engine would meet it.
  *
  * 1. From inside each callback (fill_gbuffers, and every trace call) of a frame, every
- *    exported function on the same pipeline (render_frame, render_frame_at, output, pixels,
- *    reset, resize, destroy)
+ *    exported function on the same pipeline (render_frame, render_frame_at,
+ *    render_frame_lent, output, output_view, pixels, reset, resize, set_jitter, destroy)
  *    returns ST_STATUS_BUSY with a message naming the call in progress, while a call on
  *    another pipeline and a kernel call on an idle context succeed.
  * 2. From a second thread, while a frame waits inside its callback, the same: every call on
@@ -146,7 +146,7 @@ static void intrude(Engine *e, const char *in_progress, const char *from) {
     struct {
         StStatus status;
         const char *what;
-    } calls[9];
+    } calls[10];
     static _Thread_local uint8_t mask[W * H];
     StPlaneMutU8 mask_view = {mask, W, H, W};
     calls[0].status = stereotrace_pipeline_render_frame(self, 0, &stats), calls[0].what = "render_frame";
@@ -159,7 +159,10 @@ static void intrude(Engine *e, const char *in_progress, const char *from) {
     calls[7].status = stereotrace_pipeline_set_jitter(self, 0.25f, 0), calls[7].what = "set_jitter";
     StRgb lent;
     calls[8].status = stereotrace_pipeline_output_view(self, 0, &lent), calls[8].what = "output_view";
-    for (int i = 0; i < 9; i++) {
+    /* Refused as busy before its (here null) G-buffers are looked at. */
+    calls[9].status = stereotrace_pipeline_render_frame_lent(self, 9, cameras, NULL, NULL, &stats),
+    calls[9].what = "render_frame_lent";
+    for (int i = 0; i < 10; i++) {
         CHECK(calls[i].status == ST_STATUS_BUSY, "%s: %s on the busy pipeline returned %d", from, calls[i].what,
               calls[i].status);
     }

@@ -255,4 +255,8 @@ pub enum PipelineError {
     /// A [`crate::source::FrameSource`] other than the renderer failed (its own message).
     #[error("frame source: {0}")]
     Source(String),
+    /// G-buffers lent to [`super::Pipeline::render_frame_lent`] were refused (a plane missing
+    /// or of the wrong size, or last frame's G-buffers not lent again).
+    #[error("lent G-buffers: {0}")]
+    Lent(String),
 }

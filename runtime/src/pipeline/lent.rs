@@ -51,9 +51,9 @@ impl<'a> GBufferView<'a> {
     /// pipeline's `extent`, and no plane is given that the configuration would ignore.
     /// `what` names the view in messages (`"left G-buffer"`).
     pub(super) fn check(&self, what: &str, extent: Extent, config: &PipelineConfig) -> Result<(), PipelineError> {
-        let missing = |plane: &str| PipelineError::Config(format!("{what}: the {plane} plane is missing"));
+        let missing = |plane: &str| PipelineError::Lent(format!("{what}: the {plane} plane is missing"));
         let unused = |plane: &str, setting: &str| {
-            PipelineError::Config(format!("{what}: a {plane} plane was given but the pipeline has no {setting}"))
+            PipelineError::Lent(format!("{what}: a {plane} plane was given but the pipeline has no {setting}"))
         };
         same_extent("lent G-buffer depth", extent, self.depth.extent())?;
         match config.layout {

@@ -459,7 +459,7 @@ impl<S: FrameSource> Pipeline<S> {
             view.check(&format!("previous {eye} G-buffer"), self.extent, &self.config)?;
         }
         if self.frames_done > 0 && self.gbuffers_lent && previous.is_none() {
-            return Err(PipelineError::Config(
+            return Err(PipelineError::Lent(
                 "the last frame's G-buffers were lent, so the pipeline does not hold them: lend them again as \
                  `previous` (or reset the history)"
                     .into(),
