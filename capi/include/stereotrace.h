@@ -576,7 +576,9 @@ typedef struct StFrameStats {
 // `depth` always; `normal_octahedral` with `ST_LAYOUT_COMPACT`; `position` and `normal` with
 // `ST_LAYOUT_FULL`; `history_confidence` exactly when `config.history_confidence`; `motion`
 // exactly when `config.motion_vectors`. Values mean what the same planes of
-// [`StGBufferMut`] mean. The cameras and jitter are the render call's.
+// [`StGBufferMut`] mean. The cameras and jitter are the render call's. The pipeline's
+// worker threads read the planes during the render call only; the engine must not write
+// them meanwhile and keeps ownership.
 typedef struct StLentGBuffer {
   // View-axis depth at the pixel centre, > 0 (`+INFINITY`: no surface).
   struct StPlaneF32 depth;
