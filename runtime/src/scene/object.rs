@@ -2,7 +2,7 @@
 //! moving lights do.
 //!
 //! An object is not part of the static mesh (the BVH is built once). The renderer places
-//! it per frame beside the moving lights' triangles ([`crate::render::FrameLights`]): rays
+//! it per frame beside the moving lights' triangles ([`crate::render::lights::FrameLights`]): rays
 //! hit it, it casts shadows, it is shaded with its material, and the G-buffer's motion
 //! planes carry its motion. A scene without objects runs none of that code (the
 //! [`Effect::MovingObjects`](super::Effect::MovingObjects) effect).
