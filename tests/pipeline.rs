@@ -320,109 +320,87 @@ fn a_resized_pipeline_renders_what_a_new_one_of_that_size_renders() {
     assert_eq!(p.output(Eye::Left).extent(), extent());
 }
 
-/// Motion vectors (`PipelineConfig::motion_vectors`) on the moving sphere of atrium, seen by a
-/// still camera: the G-buffer's motion is the sphere's own translation between the frames
-/// (checked against the light's path, by the inverse transform rather than the renderer's
-/// barycentric way), zero on everything else; and temporal reprojection keeps the sphere's
-/// history with the vectors and loses it without (the sphere moves ~0.17 m a frame, more
-/// than the position tolerance).
-#[test]
-fn motion_vectors_follow_a_moving_light_and_keep_its_history() {
-    use stereotrace::render::MOVING_LIGHT_MATERIAL;
-    let r = renderer("atrium-moving-light");
+/// Renders frames `frames` of `scene` with a still camera (frame 0's), without and with motion
+/// vectors, and checks each G-buffer's motion against the closed form: the pixels whose
+/// material is `material` move by the rigid motion `path` makes between the last two frames
+/// (checked by the path's inverse transform, not the renderer's barycentric way), all others
+/// are still. Returns the pixels of `material` (both eyes) and how many of them kept their
+/// history without and with vectors.
+fn motion_and_history(
+    scene: &str,
+    material: impl Fn(&Renderer) -> (u32, stereotrace::scene::TransformPath),
+    frames: std::ops::Range<u32>,
+) -> (usize, [usize; 2]) {
+    let r = renderer(scene);
     let e = Extent::new(320, 180).unwrap();
     let head = r.scene().camera.pose_at(0.0);
-    let moving = &r.scene().lights.moving;
-    assert_eq!(moving.len(), 1);
-    let mut kept = [0usize; 2];
-    let mut light_pixels = 0;
+    let (material, path) = material(&r);
+    let last = frames.end as f32 - 1.0;
+    let (now, then) = (path.transform(last), path.transform(last - 1.0));
+    let (mut pixels, mut kept) = (0usize, [0usize; 2]);
     for motion_vectors in [false, true] {
         let mut cfg = PipelineConfig::paper(Mode::Temporal, 1, r.scene().tolerances.at_height(e.height()));
         cfg.motion_vectors = motion_vectors;
         let mut p = Pipeline::new(&r, cfg, StereoRig::default(), e).unwrap();
-        for frame in 10..13 {
+        for frame in frames.clone() {
             p.render_frame(frame, &head).unwrap();
         }
-        let (now, then) = (moving[0].path.transform(12.0), moving[0].path.transform(11.0));
         for eye in Eye::BOTH {
             let g = p.gbuffer(eye);
             assert_eq!(g.motion.is_some(), motion_vectors);
             let reasons = p.temporal_reasons(eye).as_slice();
-            for (i, &material) in g.material.as_slice().iter().enumerate() {
-                let (x, y) = (i % e.width(), i / e.width());
-                let on_light = material == MOVING_LIGHT_MATERIAL;
-                if on_light {
-                    light_pixels += usize::from(motion_vectors);
-                    kept[usize::from(motion_vectors)] += usize::from(reasons[i] == Reason::Reprojected as u8);
-                }
-                let Some(motion) = &g.motion else { continue };
-                let m = glam::Vec3::from(std::array::from_fn(|c| motion[c].as_slice()[i]));
-                if !on_light {
-                    assert_eq!(m, glam::Vec3::ZERO, "{eye} ({x}, {y}): still geometry");
-                    continue;
-                }
-                let point = glam::Vec3::from(g.camera.unproject_pixel(x, y, g.depth.as_slice()[i]));
-                let expected = point - then.transform_point3(now.inverse().transform_point3(point));
-                assert!(
-                    (m - expected).length() < 1e-3 * expected.length().max(1e-2),
-                    "{eye} ({x}, {y}): {m} vs {expected}"
-                );
-            }
-        }
-    }
-    let [without, with] = kept;
-    eprintln!("sphere pixels {light_pixels}: history kept on {without} without vectors, {with} with");
-    assert!(light_pixels > 50, "the sphere covers {light_pixels} pixels");
-    assert!(with * 10 >= light_pixels * 8, "with vectors {with} of {light_pixels}");
-    assert!(without * 5 <= light_pixels, "without vectors {without} of {light_pixels}");
-}
-
-/// Motion vectors on atrium's moving crate (a non-emissive object that slides and turns),
-/// seen by a still camera: the G-buffer's motion is the crate's own rigid motion between the
-/// frames (checked by its path's inverse transform), zero on everything else; with vectors
-/// temporal reprojection keeps the crate's history where it stays visible.
-#[test]
-fn motion_vectors_follow_a_moving_object() {
-    let r = renderer("atrium-moving-object");
-    let e = Extent::new(320, 180).unwrap();
-    let head = r.scene().camera.pose_at(0.0);
-    let object = &r.scene().moving_objects[0];
-    let (now, then) = (object.path.transform(22.0), object.path.transform(21.0));
-    let mut kept = [0usize; 2];
-    let mut pixels = 0usize;
-    for motion_vectors in [false, true] {
-        let mut cfg = PipelineConfig::paper(Mode::Temporal, 1, r.scene().tolerances.at_height(e.height()));
-        cfg.motion_vectors = motion_vectors;
-        let mut p = Pipeline::new(&r, cfg, StereoRig::default(), e).unwrap();
-        for frame in 20..23 {
-            p.render_frame(frame, &head).unwrap();
-        }
-        for eye in Eye::BOTH {
-            let g = p.gbuffer(eye);
-            let reasons = p.temporal_reasons(eye).as_slice();
-            for (i, &material) in g.material.as_slice().iter().enumerate() {
-                let on_object = material == object.material;
-                if on_object {
+            for (i, &m_id) in g.material.as_slice().iter().enumerate() {
+                let moving = m_id == material;
+                if moving {
                     pixels += usize::from(motion_vectors);
                     kept[usize::from(motion_vectors)] += usize::from(reasons[i] == Reason::Reprojected as u8);
                 }
                 let Some(motion) = &g.motion else { continue };
                 let (x, y) = (i % e.width(), i / e.width());
                 let m = glam::Vec3::from(std::array::from_fn(|c| motion[c].as_slice()[i]));
-                if !on_object {
-                    assert_eq!(m, glam::Vec3::ZERO, "{eye} ({x}, {y}): still geometry");
+                if !moving {
+                    assert_eq!(m, glam::Vec3::ZERO, "{scene} {eye} ({x}, {y}): still geometry");
                     continue;
                 }
                 let point = glam::Vec3::from(g.camera.unproject_pixel(x, y, g.depth.as_slice()[i]));
                 let expected = point - then.transform_point3(now.inverse().transform_point3(point));
                 assert!(
                     (m - expected).length() < 1e-3 * expected.length().max(1e-2),
-                    "{eye} ({x}, {y}): {m} vs {expected}"
+                    "{scene} {eye} ({x}, {y}): {m} vs {expected}"
                 );
             }
         }
     }
-    let [without, with] = kept;
+    (pixels, kept)
+}
+
+/// Motion vectors (`PipelineConfig::motion_vectors`) on the moving sphere of atrium, seen by a
+/// still camera: the G-buffer's motion is the sphere's own translation, zero on everything
+/// else; and temporal reprojection keeps the sphere's history with the vectors and loses it
+/// without (the sphere moves ~0.17 m a frame, more than the position tolerance).
+#[test]
+fn motion_vectors_follow_a_moving_light_and_keep_its_history() {
+    let sphere = |r: &Renderer| {
+        let moving = &r.scene().lights.moving;
+        assert_eq!(moving.len(), 1);
+        (stereotrace::render::MOVING_LIGHT_MATERIAL, moving[0].path.clone())
+    };
+    let (pixels, [without, with]) = motion_and_history("atrium-moving-light", sphere, 10..13);
+    eprintln!("sphere pixels {pixels}: history kept on {without} without vectors, {with} with");
+    assert!(pixels > 50, "the sphere covers {pixels} pixels");
+    assert!(with * 10 >= pixels * 8, "with vectors {with} of {pixels}");
+    assert!(without * 5 <= pixels, "without vectors {without} of {pixels}");
+}
+
+/// Motion vectors on atrium's moving crate (a non-emissive object that slides and turns): its
+/// rigid motion, rotation included, and with vectors its history kept where it stays visible.
+#[test]
+fn motion_vectors_follow_a_moving_object() {
+    let crate_ = |r: &Renderer| {
+        let object = &r.scene().moving_objects[0];
+        (object.material, object.path.clone())
+    };
+    let (pixels, [without, with]) = motion_and_history("atrium-moving-object", crate_, 20..23);
     // Without vectors the sliding crate mostly keeps a history too, but of the wrong texels
     // (its faces slide along themselves and pass the geometric tests); RESULTS.md measures
     // what that costs.
