@@ -28,6 +28,11 @@
 //! build time printed with the tree's size and depth) and traces the same single rays
 //! (primary, shadow, diffuse) through it, in groups `traversal/{scene}/tree/{setting}`. It is
 //! off by default: the builds take minutes whatever criterion's filter selects.
+//!
+//! Attribution: `STEREOTRACE_BENCH_ATTRIBUTION=1 cargo bench --bench traversal --features
+//! peer-embree -- attribution` prints, per scene and ray kind, what the single-ray traversal
+//! does per ray (nodes, boxes, leaves, triangles) and the tree's SAH cost beside other
+//! builders' trees of the same triangles (Embree's with spatial splits among them).
 
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
@@ -651,5 +656,75 @@ fn trees(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, traversal, trees);
+/// The attribution table (see the module docs): per ray kind, what our single-ray traversal
+/// does per ray on each scene (nodes read, child boxes tested, leaves entered, triangles
+/// tested, waiting children skipped), and the tree's SAH cost beside the costs of other
+/// builds of the same triangles: our fast and high obvhs presets and, with `peer-embree`,
+/// Embree's builder (binned SAH, and SAH with spatial splits), all 8-wide, leaves of at most
+/// 3 triangles, costs 1 per node read and 1 per triangle test.
+fn attribution(_: &mut Criterion) {
+    use stereotrace::kernels::traverse::TraversalCounts;
+    if std::env::var_os("STEREOTRACE_BENCH_ATTRIBUTION").is_none_or(|v| v != "1") {
+        eprintln!("SKIPPED attribution table: set STEREOTRACE_BENCH_ATTRIBUTION=1");
+        return;
+    }
+    let mut scenes: Vec<(&str, &Fixture)> = BUILTINS.iter().map(|name| (*name, builtin(name))).collect();
+    if let Some(f) = sponza() {
+        scenes.push(("sponza", f));
+    }
+    println!("| scene | rays | per ray: nodes | boxes tested | leaves | triangles | skipped |");
+    println!("|---|---|--:|--:|--:|--:|--:|");
+    for (name, f) in &scenes {
+        for (kind, rays, any_hit) in
+            [("primary", &f.primary, false), ("shadow", &f.shadow, true), ("diffuse", &f.diffuse, false)]
+        {
+            let mut c = TraversalCounts::default();
+            for r in rays.iter() {
+                if any_hit {
+                    f.bvh.occluded_counted(r, &mut c);
+                } else {
+                    f.bvh.intersect_counted(r, &mut c);
+                }
+            }
+            let per = |v: u64| v as f64 / c.rays as f64;
+            println!(
+                "| {name} | {kind} | {:.1} | {:.1} | {:.2} | {:.1} | {:.2} |",
+                per(c.nodes),
+                per(c.box_tests),
+                per(c.leaves),
+                per(c.triangles),
+                per(c.skipped)
+            );
+        }
+    }
+    println!();
+    println!(
+        "| scene | triangles | SAH ours (bench tree) | obvhs fast | obvhs high | Embree binned SAH (build) | Embree spatial splits (refs, build) |"
+    );
+    println!("|---|--:|--:|--:|--:|--:|--:|");
+    for (name, f) in &scenes {
+        let sah = |q: BuildQuality| TriangleBvh::build(&f.tris, q).expect("valid scene").0.sah_cost(1.0, 1.0);
+        #[cfg(feature = "peer-embree")]
+        let (binned, split) = {
+            let binned = embree::embree_tree(&f.tris, embree::BUILD_QUALITY_MEDIUM, 0.0, 3);
+            let split = embree::embree_tree(&f.tris, embree::BUILD_QUALITY_HIGH_SPLITS, 1.0, 3);
+            let ms = |t: &embree::BuiltTree| t.build.as_secs_f64() * 1e3;
+            (
+                format!("{:.1} ({:.0} ms)", binned.sah, ms(&binned)),
+                format!("{:.1} ({} refs, {:.0} ms)", split.sah, split.references, ms(&split)),
+            )
+        };
+        #[cfg(not(feature = "peer-embree"))]
+        let (binned, split) = ("-".to_string(), "-".to_string());
+        println!(
+            "| {name} | {} | {:.1} | {:.1} | {:.1} | {binned} | {split} |",
+            f.tris.len(),
+            f.bvh.sah_cost(1.0, 1.0),
+            sah(BuildQuality::Fast),
+            sah(BuildQuality::High)
+        );
+    }
+}
+
+criterion_group!(benches, traversal, trees, attribution);
 criterion_main!(benches);

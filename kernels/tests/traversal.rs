@@ -749,3 +749,40 @@ fn real_scene_bunny() {
 fn real_scene_sponza() {
     real_scene("sponza");
 }
+
+/// The counting traversal (for attribution) finds what the production one finds, and its
+/// counts follow closed forms on one triangle: a hit reads the root, enters its one leaf and
+/// tests its one triangle; a ray missing the box reads the root only.
+#[test]
+fn counted_traversal_agrees_and_counts() {
+    use stereotrace_kernels::traverse::TraversalCounts;
+    let tris = [[Vec3::new(0.0, 0.0, 5.0), Vec3::new(1.0, 0.0, 5.0), Vec3::new(0.0, 1.0, 5.0)]];
+    let (bvh, _) = TriangleBvh::build(&tris, BuildQuality::Medium).unwrap();
+    let mut c = TraversalCounts::default();
+    assert!(bvh.intersect_counted(&Ray::new(Vec3::new(0.25, 0.25, 0.0), Vec3::Z), &mut c).is_some());
+    assert_eq!((c.rays, c.nodes, c.box_tests, c.leaves, c.triangles), (1, 1, 1, 1, 1), "{c:?}");
+    let mut c = TraversalCounts::default();
+    assert!(!bvh.occluded_counted(&Ray::new(Vec3::new(3.0, 0.25, 0.0), Vec3::Z), &mut c));
+    assert_eq!((c.rays, c.nodes, c.leaves, c.triangles), (1, 1, 0, 0), "{c:?}");
+    // One leaf whose box is the root's: the SAH cost is one node and one triangle.
+    assert!((bvh.sah_cost(1.0, 1.0) - 2.0).abs() < 1e-9, "{}", bvh.sah_cost(1.0, 1.0));
+
+    let mut rng = Rng::new(77);
+    let tris = soup(&mut rng, 3000, 10.0, 1.5);
+    let (bvh, _) = TriangleBvh::build(&tris, BuildQuality::Medium).unwrap();
+    let rays = random_rays(&mut rng, &tris, 800, 10.0);
+    let mut counts = TraversalCounts::default();
+    for ray in &rays {
+        assert_eq!(bvh.intersect_counted(ray, &mut counts), bvh.intersect(ray));
+        assert_eq!(bvh.occluded_counted(ray, &mut counts), bvh.occluded(ray));
+    }
+    assert_eq!(counts.rays, 2 * rays.len() as u64);
+    // Every ray reads the root; no ray tests every triangle; leaves hold at most 3 triangles
+    // per child, and a node at most 8 children.
+    assert!(counts.nodes >= counts.rays && counts.triangles < counts.rays * 3000, "{counts:?}");
+    assert!(counts.triangles <= 3 * counts.leaves && counts.box_tests <= 8 * counts.nodes, "{counts:?}");
+    // A better tree costs less: the SAH cost of a high-quality build is below a fast one's.
+    let (fast, _) = TriangleBvh::build(&tris, BuildQuality::Fast).unwrap();
+    let (high, _) = TriangleBvh::build(&tris, BuildQuality::High).unwrap();
+    assert!(high.sah_cost(1.0, 1.0) <= fast.sah_cost(1.0, 1.0) * 1.02);
+}

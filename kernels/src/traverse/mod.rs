@@ -99,6 +99,38 @@ pub const ALL_LANES: u32 = (1 << LANES) - 1;
 
 const PACKET_STACK: usize = 7 * MAX_DEPTH + 1;
 
+/// What single-ray traversal did over some rays (`TriangleBvh::intersect_counted`,
+/// `occluded_counted`): the attribution of its cost. Divide by `rays` for per-ray figures.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TraversalCounts {
+    /// Rays traced.
+    pub rays: u64,
+    /// Nodes read (one 8-wide box test each).
+    pub nodes: u64,
+    /// Child boxes tested (the occupied slots of the nodes read).
+    pub box_tests: u64,
+    /// Leaf children hit (entered).
+    pub leaves: u64,
+    /// Inner children hit (before culling by a nearer hit).
+    pub inner_hits: u64,
+    /// Triangle tests.
+    pub triangles: u64,
+    /// Waiting children popped and skipped without reading their node.
+    pub skipped: u64,
+}
+
+impl std::ops::AddAssign for TraversalCounts {
+    fn add_assign(&mut self, o: Self) {
+        self.rays += o.rays;
+        self.nodes += o.nodes;
+        self.box_tests += o.box_tests;
+        self.leaves += o.leaves;
+        self.inner_hits += o.inner_hits;
+        self.triangles += o.triangles;
+        self.skipped += o.skipped;
+    }
+}
+
 /// Eight rays, structure of arrays. Lane `i` is the ray `origin[·][i] + t·dir[·][i]`,
 /// `t ∈ [tmin[i], tmax[i])`.
 #[derive(Clone, Copy, Debug)]

@@ -49,6 +49,45 @@ struct Entry {
 /// At most seven siblings wait per level of the tree (the nearest is visited at once).
 const SINGLE_STACK: usize = 7 * MAX_DEPTH + 1;
 
+/// What a traversal counts as it goes (the attribution of its cost, `BENCHMARKS.md`).
+/// Production traversal uses [`NoCounts`], whose methods are empty and compile away.
+pub(crate) trait Counter {
+    /// A node was read and its `children` occupied child boxes tested; `leaves` and `inner`
+    /// of them were hit.
+    fn node(&mut self, children: u32, leaves: u32, inner: u32);
+    /// `triangles` triangle tests ran (a block of lanes of a hit leaf run).
+    fn triangles(&mut self, triangles: u32);
+    /// A waiting child was popped and skipped: a hit found since put it out of reach.
+    fn skipped(&mut self);
+}
+
+/// No counting (production traversal).
+pub(crate) struct NoCounts;
+
+impl Counter for NoCounts {
+    #[inline(always)]
+    fn node(&mut self, _: u32, _: u32, _: u32) {}
+    #[inline(always)]
+    fn triangles(&mut self, _: u32) {}
+    #[inline(always)]
+    fn skipped(&mut self) {}
+}
+
+impl Counter for super::TraversalCounts {
+    fn node(&mut self, children: u32, leaves: u32, inner: u32) {
+        self.nodes += 1;
+        self.box_tests += u64::from(children);
+        self.leaves += u64::from(leaves);
+        self.inner_hits += u64::from(inner);
+    }
+    fn triangles(&mut self, triangles: u32) {
+        self.triangles += u64::from(triangles);
+    }
+    fn skipped(&mut self) {
+        self.skipped += 1;
+    }
+}
+
 /// What a single-ray search keeps: its far bound, and what a hit below it does.
 pub(crate) trait SingleSearch {
     /// The current far bound (exclusive): triangles and boxes at or beyond it are skipped.
@@ -109,16 +148,37 @@ impl TriangleBvh {
         let r = PreparedRay::new(ray)?;
         let mut best = Best::none(r.tmax);
         if !self.is_empty() {
-            self.traverse(&r, 0, &mut best);
+            self.traverse(&r, 0, &mut best, &mut NoCounts);
         }
         self.finish(&best)
+    }
+
+    /// [`TriangleBvh::intersect`] that adds what the traversal did to `counts` (the same
+    /// loop, counting: slower, for attribution only).
+    pub fn intersect_counted(&self, ray: &Ray, counts: &mut super::TraversalCounts) -> Option<Hit> {
+        counts.rays += 1;
+        let r = PreparedRay::new(ray)?;
+        let mut best = Best::none(r.tmax);
+        if !self.is_empty() {
+            self.traverse(&r, 0, &mut best, counts);
+        }
+        self.finish(&best)
+    }
+
+    /// [`TriangleBvh::occluded`] that adds what the traversal did to `counts`.
+    pub fn occluded_counted(&self, ray: &Ray, counts: &mut super::TraversalCounts) -> bool {
+        counts.rays += 1;
+        match PreparedRay::new(ray) {
+            Some(r) if !self.is_empty() => self.traverse(&r, 0, &mut AnyHit { tmax: r.tmax }, counts),
+            _ => false,
+        }
     }
 
     /// True if any triangle is hit with `tmin ≤ t < tmax` (false for an invalid ray).
     #[inline]
     pub fn occluded(&self, ray: &Ray) -> bool {
         match PreparedRay::new(ray) {
-            Some(r) if !self.is_empty() => self.traverse(&r, 0, &mut AnyHit { tmax: r.tmax }),
+            Some(r) if !self.is_empty() => self.traverse(&r, 0, &mut AnyHit { tmax: r.tmax }, &mut NoCounts),
             _ => false,
         }
     }
@@ -153,7 +213,13 @@ impl TriangleBvh {
     /// are visited nearest first, the others pushed with their entry distance, and a popped
     /// child whose entry lies beyond the far bound found since is skipped without reading
     /// its node (see the module notes for what this measured against obvhs's octant order).
-    pub(crate) fn traverse<S: SingleSearch>(&self, r: &PreparedRay, root: u32, search: &mut S) -> bool {
+    pub(crate) fn traverse<S: SingleSearch, C: Counter>(
+        &self,
+        r: &PreparedRay,
+        root: u32,
+        search: &mut S,
+        counter: &mut C,
+    ) -> bool {
         let nodes = self.wide_nodes();
         let origins = SlabOrigins::new(r, self.bounds());
         let mut found = false;
@@ -164,6 +230,7 @@ impl TriangleBvh {
             let (hits, tnear) = wide_node_hits(node, r, &origins, search.tfar());
             let imask = node.imask;
             let leaves = hits & !imask;
+            counter.node(node.occupied.count_ones(), leaves.count_ones(), (hits & imask).count_ones());
             if leaves != 0 {
                 // The hit leaves' triangles, as bits over the node's run of up to 24 slots,
                 // tested eight slots at a time.
@@ -173,6 +240,7 @@ impl TriangleBvh {
                     let first = node.primitive_base + chunk * LANES as u32;
                     let chunk_lanes = (lanes >> (chunk * LANES as u32)) & ALL_LANES;
                     lanes &= !(ALL_LANES << (chunk * LANES as u32));
+                    counter.triangles(chunk_lanes.count_ones());
                     let tested = intersect_triangles_lanes(r, self.leaf_block(node, chunk), chunk_lanes, search.tfar());
                     if let Some((lane, h)) = tested {
                         found = true;
@@ -208,7 +276,7 @@ impl TriangleBvh {
                         idx = e.node;
                         break;
                     }
-                    Some(_) => {}
+                    Some(_) => counter.skipped(),
                 }
             }
         }

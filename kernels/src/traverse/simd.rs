@@ -189,7 +189,7 @@ impl PacketSearch for LaneBest {
     #[inline(always)]
     fn single(&mut self, bvh: &TriangleBvh, l: &Lanes, i: usize, node: u32) {
         let mut b = self.lane(i);
-        if bvh.traverse(&l.lane(i), node, &mut b) {
+        if bvh.traverse(&l.lane(i), node, &mut b, &mut super::scalar::NoCounts) {
             self.set_lane(i, &b);
         }
     }
@@ -231,7 +231,7 @@ impl PacketSearch for LanesAlive {
     #[inline(always)]
     fn single(&mut self, bvh: &TriangleBvh, l: &Lanes, i: usize, node: u32) {
         let r = l.lane(i);
-        if bvh.traverse(&r, node, &mut AnyHit { tmax: r.tmax }) {
+        if bvh.traverse(&r, node, &mut AnyHit { tmax: r.tmax }, &mut super::scalar::NoCounts) {
             self.alive &= !(1 << i);
         }
     }
