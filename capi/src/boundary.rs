@@ -1,6 +1,16 @@
 //! What every exported function does at the language boundary: turn a Rust error into a
 //! status code plus a message the caller can read, and stop a panic before it unwinds into
 //! C (undefined behaviour) by reporting it as [`StStatus::Panic`].
+//!
+//! # The entry-point contract
+//! Every exported function's body is one `unsafe` block inside [`guard`], under one
+//! contract, which its `SAFETY` comment names: the raw pointers it reads are its own
+//! arguments, which the caller keeps valid as the function's `# Safety` section (and the
+//! header) states; each pointer is checked for null (`required`, `as_ref`) before it is
+//! read; and planes are only read or written through the views of `views.rs`, which check
+//! each plane's extent and stride and refuse any output that overlaps another buffer of the
+//! call. Nothing else in a body is unsafe. `clippy::undocumented_unsafe_blocks` is denied in
+//! this crate, so a new block without its reason does not build.
 
 use std::cell::RefCell;
 use std::ffi::{CString, c_char};

@@ -239,6 +239,8 @@ pub unsafe extern "C" fn stereotrace_reproject(
     params: *const StReprojectParams,
     counts: *mut StReasonCounts,
 ) -> StStatus {
+    // SAFETY: the entry-point contract (`boundary.rs`): the pointers read are this
+    // function's arguments, valid per its `# Safety`, null-checked first; planes via `views.rs`.
     guard(|| unsafe {
         let context = required(context, "context")?;
         let (target, source) = (required(target, "target")?, required(source, "source")?);
@@ -282,6 +284,8 @@ pub unsafe extern "C" fn stereotrace_reproject(
 /// # Safety
 /// As [`stereotrace_reproject`].
 unsafe fn full_gbuffer<'a>(g: &StGBuffer, what: [&'static str; 3], b: &mut Borrows) -> Result<GBuffer<'a>, Failure> {
+    // SAFETY: the planes are the caller's, valid as `stereotrace_reproject` requires;
+    // `view` checks each one's extent and stride.
     unsafe {
         let depth = g.depth.view(what[0], b)?;
         let position =
@@ -298,6 +302,7 @@ unsafe fn compact_gbuffer<'a>(
     what: [&'static str; 3],
     b: &mut Borrows,
 ) -> Result<CompactGBuffer<'a>, Failure> {
+    // SAFETY: as in `full_gbuffer`.
     unsafe {
         let depth = g.depth.view(what[0], b)?;
         let normal = g.normal_octahedral.view(what[1], b)?;
@@ -320,6 +325,8 @@ unsafe fn reproject_views<L: SurfaceLayout>(
     params: &ReprojectParams,
     b: &mut Borrows,
 ) -> Result<reproject::ReasonCounts, Failure> {
+    // SAFETY: the input planes are the caller's, as `stereotrace_reproject` requires, each
+    // checked by `view`; the output views are claimed in `b` after the inputs, so none aliases.
     unsafe {
         let kernel_input = ReprojectInput {
             target,
@@ -434,6 +441,8 @@ pub unsafe extern "C" fn stereotrace_ema(
     params: *const StEmaParams,
     stats: *mut StAccumulateStats,
 ) -> StStatus {
+    // SAFETY: the entry-point contract (`boundary.rs`): the pointers read are this
+    // function's arguments, valid per its `# Safety`, null-checked first; planes via `views.rs`.
     guard(|| unsafe {
         let context = required(context, "context")?;
         let params = match params.as_ref() {
@@ -481,6 +490,8 @@ pub unsafe extern "C" fn stereotrace_blend(
     band_rows: u32,
     stats: *mut StAccumulateStats,
 ) -> StStatus {
+    // SAFETY: the entry-point contract (`boundary.rs`): the pointers read are this
+    // function's arguments, valid per its `# Safety`, null-checked first; planes via `views.rs`.
     guard(|| unsafe {
         let context = required(context, "context")?;
         let params = BlendParams { own_weight, band_rows: if band_rows == 0 { 16 } else { band_rows as usize } };
@@ -540,6 +551,8 @@ pub unsafe extern "C" fn stereotrace_ssim(
     variant: u32,
     result: *mut StSsimResult,
 ) -> StStatus {
+    // SAFETY: the entry-point contract (`boundary.rs`): the pointers read are this
+    // function's arguments, valid per its `# Safety`, null-checked first; planes via `views.rs`.
     guard(|| unsafe {
         let context = required(context, "context")?;
         if result.is_null() {

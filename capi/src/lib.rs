@@ -16,6 +16,7 @@
 //!   says why. An output that overlaps another buffer of the call is refused.
 //! * No panic crosses the boundary: a bug inside is reported as `ST_STATUS_PANIC`.
 
+#![deny(clippy::undocumented_unsafe_blocks)]
 #![warn(missing_docs)]
 
 mod boundary;
@@ -163,6 +164,7 @@ mod tests {
     /// A context's destroy uses the guard every call on it takes; holding the guard here is
     /// a call in progress, deterministically (the C test can only race for it).
     #[test]
+    #[allow(clippy::undocumented_unsafe_blocks)] // each call gets the context it just made
     fn a_context_in_a_call_is_not_destroyed() {
         let mut context = std::ptr::null_mut();
         assert_eq!(unsafe { stereotrace_context_create(1, &mut context) }, StStatus::Ok);

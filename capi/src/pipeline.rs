@@ -519,10 +519,10 @@ impl FrameSource for CallbackSource {
             motion: g.motion.as_mut().map_or([NO_PLANE; 3], |m| m.each_mut().map(f32_plane)),
         };
         let (l, r) = (view(left, self.cameras[0]), view(right, self.cameras[1]));
-        // SAFETY: the views cover the pipeline's own buffers, alive and unaliased for the
-        // call; the callback's contract is the header's.
         let fill_gbuffers =
             self.callbacks.fill_gbuffers.ok_or(PipelineError::Source("no fill_gbuffers callback".into()))?;
+        // SAFETY: the views cover the pipeline's own buffers, alive and unaliased for the
+        // call; the callback's contract is the header's.
         let code = unsafe { fill_gbuffers(self.callbacks.user, self.frame, &l, &r) };
         if code != 0 {
             return Err(PipelineError::Source(format!(
@@ -667,6 +667,8 @@ pub unsafe extern "C" fn stereotrace_pipeline_create_scene(
     config: *const StPipelineConfig,
     out: *mut *mut StPipeline,
 ) -> StStatus {
+    // SAFETY: `scene`, `config` and `out` are this function's arguments, valid as its
+    // `# Safety` section states, and checked for null before they are read.
     guard(|| unsafe {
         if out.is_null() {
             return Err(Failure::null("out"));
@@ -706,6 +708,8 @@ pub unsafe extern "C" fn stereotrace_pipeline_create_callbacks(
     cameras: *const StCamera,
     out: *mut *mut StPipeline,
 ) -> StStatus {
+    // SAFETY: `callbacks`, `config`, `cameras` and `out` are this function's arguments,
+    // valid as its `# Safety` section states, and checked for null before they are read.
     guard(|| unsafe {
         if out.is_null() {
             return Err(Failure::null("out"));
@@ -761,6 +765,8 @@ pub unsafe extern "C" fn stereotrace_pipeline_render_frame(
     frame: u32,
     stats: *mut StFrameStats,
 ) -> StStatus {
+    // SAFETY: the entry-point contract (`boundary.rs`); the pipeline's state is taken
+    // through its busy guard, so no other call uses it meanwhile.
     guard(|| unsafe {
         let p = pipeline.as_ref().ok_or_else(|| Failure::null("pipeline"))?;
         let mut state = p.state.enter("stereotrace_pipeline_render_frame")?;
@@ -803,6 +809,8 @@ pub unsafe extern "C" fn stereotrace_pipeline_render_frame_at(
     cameras: *const StCamera,
     stats: *mut StFrameStats,
 ) -> StStatus {
+    // SAFETY: the entry-point contract (`boundary.rs`); the pipeline's state is taken
+    // through its busy guard, so no other call uses it meanwhile.
     guard(|| unsafe {
         let p = pipeline.as_ref().ok_or_else(|| Failure::null("pipeline"))?;
         let mut state = p.state.enter("stereotrace_pipeline_render_frame_at")?;
@@ -941,6 +949,9 @@ pub unsafe extern "C" fn stereotrace_pipeline_render_frame_lent(
     previous: *const StLentGBuffer,
     stats: *mut StFrameStats,
 ) -> StStatus {
+    // SAFETY: the entry-point contract (`boundary.rs`); the pipeline's state is taken
+    // through its busy guard, so no other call uses it meanwhile.
+    // The lent planes are checked by `StLentGBuffer::views`.
     guard(|| unsafe {
         let p = pipeline.as_ref().ok_or_else(|| Failure::null("pipeline"))?;
         let mut state = p.state.enter("stereotrace_pipeline_render_frame_lent")?;
@@ -980,6 +991,8 @@ pub unsafe extern "C" fn stereotrace_pipeline_render_frame_lent(
 /// `pipeline` null or a live pipeline.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn stereotrace_pipeline_set_jitter(pipeline: *mut StPipeline, x: f32, y: f32) -> StStatus {
+    // SAFETY: the entry-point contract (`boundary.rs`); the pipeline's state is taken
+    // through its busy guard, so no other call uses it meanwhile.
     guard(|| unsafe {
         let p = pipeline.as_ref().ok_or_else(|| Failure::null("pipeline"))?;
         let mut state = p.state.enter("stereotrace_pipeline_set_jitter")?;
@@ -999,6 +1012,8 @@ pub unsafe extern "C" fn stereotrace_pipeline_set_jitter(pipeline: *mut StPipeli
 /// `pipeline` null or a live pipeline.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn stereotrace_pipeline_reset(pipeline: *mut StPipeline) -> StStatus {
+    // SAFETY: the entry-point contract (`boundary.rs`); the pipeline's state is taken
+    // through its busy guard, so no other call uses it meanwhile.
     guard(|| unsafe {
         let p = pipeline.as_ref().ok_or_else(|| Failure::null("pipeline"))?;
         let mut state = p.state.enter("stereotrace_pipeline_reset")?;
@@ -1020,6 +1035,8 @@ pub unsafe extern "C" fn stereotrace_pipeline_reset(pipeline: *mut StPipeline) -
 /// `pipeline` null or a live pipeline.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn stereotrace_pipeline_resize(pipeline: *mut StPipeline, width: u32, height: u32) -> StStatus {
+    // SAFETY: the entry-point contract (`boundary.rs`); the pipeline's state is taken
+    // through its busy guard, so no other call uses it meanwhile.
     guard(|| unsafe {
         let p = pipeline.as_ref().ok_or_else(|| Failure::null("pipeline"))?;
         let mut state = p.state.enter("stereotrace_pipeline_resize")?;
@@ -1049,6 +1066,8 @@ pub unsafe extern "C" fn stereotrace_pipeline_pixels(
     what: u32,
     out: *const StPlaneMutU8,
 ) -> StStatus {
+    // SAFETY: the entry-point contract (`boundary.rs`); the pipeline's state is taken
+    // through its busy guard, so no other call uses it meanwhile.
     guard(|| unsafe {
         let p = pipeline.as_ref().ok_or_else(|| Failure::null("pipeline"))?;
         let state = p.state.enter("stereotrace_pipeline_pixels")?;
@@ -1118,6 +1137,8 @@ pub unsafe extern "C" fn stereotrace_pipeline_output_view(
     eye: u32,
     view: *mut StRgb,
 ) -> StStatus {
+    // SAFETY: the entry-point contract (`boundary.rs`); the pipeline's state is taken
+    // through its busy guard, so no other call uses it meanwhile.
     guard(|| unsafe {
         let p = pipeline.as_ref().ok_or_else(|| Failure::null("pipeline"))?;
         let state = p.state.enter("stereotrace_pipeline_output_view")?;
@@ -1144,6 +1165,8 @@ pub unsafe extern "C" fn stereotrace_pipeline_output(
     eye: u32,
     out: *const StRgbMut,
 ) -> StStatus {
+    // SAFETY: the entry-point contract (`boundary.rs`); the pipeline's state is taken
+    // through its busy guard, so no other call uses it meanwhile.
     guard(|| unsafe {
         let p = pipeline.as_ref().ok_or_else(|| Failure::null("pipeline"))?;
         let state = p.state.enter("stereotrace_pipeline_output")?;

@@ -218,6 +218,7 @@ impl StPlaneF32 {
     /// # Safety
     /// See [`plane`].
     pub(crate) unsafe fn view<'a>(&self, what: &'static str, b: &mut Borrows) -> Result<Plane<'a>, Failure> {
+        // SAFETY: this method's contract is `plane`'s, which it forwards.
         unsafe { plane(self.data, self.width, self.height, self.stride, what, b) }
     }
 }
@@ -226,6 +227,7 @@ impl StPlaneMutF32 {
     /// # Safety
     /// See [`plane_mut`].
     pub(crate) unsafe fn view<'a>(&self, what: &'static str, b: &mut Borrows) -> Result<PlaneMut<'a>, Failure> {
+        // SAFETY: this method's contract is `plane_mut`'s, which it forwards.
         unsafe { plane_mut(self.data, self.width, self.height, self.stride, what, b) }
     }
 }
@@ -234,6 +236,7 @@ impl StPlaneU8 {
     /// # Safety
     /// See [`plane`].
     pub(crate) unsafe fn view<'a>(&self, what: &'static str, b: &mut Borrows) -> Result<Plane<'a, u8>, Failure> {
+        // SAFETY: this method's contract is `plane`'s, which it forwards.
         unsafe { plane(self.data, self.width, self.height, self.stride, what, b) }
     }
 }
@@ -242,6 +245,7 @@ impl StPlaneMutU8 {
     /// # Safety
     /// See [`plane_mut`].
     pub(crate) unsafe fn view<'a>(&self, what: &'static str, b: &mut Borrows) -> Result<PlaneMut<'a, u8>, Failure> {
+        // SAFETY: this method's contract is `plane_mut`'s, which it forwards.
         unsafe { plane_mut(self.data, self.width, self.height, self.stride, what, b) }
     }
 }
@@ -250,6 +254,7 @@ impl StPlaneU32 {
     /// # Safety
     /// See [`plane`].
     pub(crate) unsafe fn view<'a>(&self, what: &'static str, b: &mut Borrows) -> Result<Plane<'a, u32>, Failure> {
+        // SAFETY: this method's contract is `plane`'s, which it forwards.
         unsafe { plane(self.data, self.width, self.height, self.stride, what, b) }
     }
 }
@@ -258,6 +263,7 @@ impl StRgb {
     /// # Safety
     /// See [`plane`], for each channel.
     pub(crate) unsafe fn view<'a>(&self, what: [&'static str; 3], b: &mut Borrows) -> Result<RgbPlanes<'a>, Failure> {
+        // SAFETY: each channel under this method's contract, `plane`'s.
         let (r, g, bl) = unsafe { (self.r.view(what[0], b)?, self.g.view(what[1], b)?, self.b.view(what[2], b)?) };
         RgbPlanes::new(r, g, bl).about(what[0])
     }
@@ -271,6 +277,7 @@ impl StRgbMut {
         what: [&'static str; 3],
         b: &mut Borrows,
     ) -> Result<RgbPlanesMut<'a>, Failure> {
+        // SAFETY: each channel under this method's contract, `plane_mut`'s.
         let (r, g, bl) = unsafe { (self.r.view(what[0], b)?, self.g.view(what[1], b)?, self.b.view(what[2], b)?) };
         RgbPlanesMut::new(r, g, bl).about(what[0])
     }
