@@ -181,13 +181,15 @@ fn consecutive_packets(rays: &[Ray]) -> Vec<Packet> {
         .collect()
 }
 
-/// Our tree's build quality from `STEREOTRACE_BENCH_BVH` (default: medium, as the renderer).
+/// Our tree's build quality from `STEREOTRACE_BENCH_BVH` (default: medium, as the renderer;
+/// also fast, high, sah).
 fn build_quality() -> BuildQuality {
     match std::env::var("STEREOTRACE_BENCH_BVH").as_deref() {
         Err(_) | Ok("medium") => BuildQuality::Medium,
         Ok("fast") => BuildQuality::Fast,
         Ok("high") => BuildQuality::High,
-        Ok(other) => panic!("STEREOTRACE_BENCH_BVH: expected fast, medium or high, got '{other}'"),
+        Ok("sah") => BuildQuality::Sah,
+        Ok(other) => panic!("STEREOTRACE_BENCH_BVH: expected fast, medium, high or sah, got '{other}'"),
     }
 }
 
@@ -699,9 +701,9 @@ fn attribution(_: &mut Criterion) {
     }
     println!();
     println!(
-        "| scene | triangles | SAH ours (bench tree) | obvhs fast | obvhs high | Embree binned SAH (build) | Embree spatial splits (refs, build) |"
+        "| scene | triangles | SAH ours (bench tree) | obvhs fast | obvhs high | our binned SAH | Embree binned SAH (build) | Embree spatial splits (refs, build) |"
     );
-    println!("|---|--:|--:|--:|--:|--:|--:|");
+    println!("|---|--:|--:|--:|--:|--:|--:|--:|");
     for (name, f) in &scenes {
         let sah = |q: BuildQuality| TriangleBvh::build(&f.tris, q).expect("valid scene").0.sah_cost(1.0, 1.0);
         #[cfg(feature = "peer-embree")]
@@ -717,11 +719,12 @@ fn attribution(_: &mut Criterion) {
         #[cfg(not(feature = "peer-embree"))]
         let (binned, split) = ("-".to_string(), "-".to_string());
         println!(
-            "| {name} | {} | {:.1} | {:.1} | {:.1} | {binned} | {split} |",
+            "| {name} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {binned} | {split} |",
             f.tris.len(),
             f.bvh.sah_cost(1.0, 1.0),
             sah(BuildQuality::Fast),
-            sah(BuildQuality::High)
+            sah(BuildQuality::High),
+            sah(BuildQuality::Sah)
         );
     }
 }

@@ -120,6 +120,10 @@ pub enum BuildQuality {
     /// `slow_build`: spatial pre-splits of large triangles, search distance 24, more
     /// reinsertion. A triangle may then appear in several leaves.
     High,
+    /// A top-down binned SAH build (ours, [`build_bvh2_binned_sah`]) instead of PLOC, then
+    /// the medium preset's reinsertion and obvhs's collapse to the 8-wide tree: slower to
+    /// build, a lower SAH cost (`BENCHMARKS.md`, the attribution table).
+    Sah,
 }
 
 impl BuildQuality {
@@ -130,6 +134,7 @@ impl BuildQuality {
             BuildQuality::Fast => BvhBuildParams::fast_build(),
             BuildQuality::Medium => BvhBuildParams::medium_build(),
             BuildQuality::High => BvhBuildParams::slow_build(),
+            BuildQuality::Sah => BvhBuildParams::medium_build(),
         }
     }
 }
@@ -856,7 +861,10 @@ impl TriangleBvh {
             CwBvh::default()
         } else {
             let t0 = Instant::now();
-            let bvh = build_cwbvh_ploc(tris, params);
+            let bvh = match quality {
+                Some(BuildQuality::Sah) => build_cwbvh_sah(tris, params),
+                _ => build_cwbvh_ploc(tris, params),
+            };
             obvhs_time = t0.elapsed();
             ploc_depth = cwbvh_depth(&bvh);
             if ploc_depth > MAX_DEPTH {
@@ -1039,6 +1047,14 @@ fn build_cwbvh_ploc(tris: &[Tri], config: &BvhBuildParams) -> CwBvh {
     bvh2_to_cwbvh(&bvh2, config.max_prims_per_leaf.clamp(1, 3), true, false)
 }
 
+/// The CWBVH of a binned SAH binary tree ([`build_bvh2_binned_sah`]), improved by
+/// `config`'s reinsertion and collapsed by obvhs as the PLOC tree is.
+fn build_cwbvh_sah(tris: &[Tri], config: &BvhBuildParams) -> CwBvh {
+    let mut bvh2 = build_bvh2_binned_sah(tris);
+    ReinsertionOptimizer::default().run(&mut bvh2, config.reinsertion_batch_ratio, None);
+    bvh2_to_cwbvh(&bvh2, config.max_prims_per_leaf.clamp(1, 3), true, false)
+}
+
 /// Depth of a CWBVH in levels. obvhs allocates children after their parent, so one forward
 /// pass over the nodes finds every depth.
 pub fn cwbvh_depth(bvh: &CwBvh) -> usize {
@@ -1067,9 +1083,91 @@ pub fn cwbvh_depth(bvh: &CwBvh) -> usize {
 /// per leaf (what obvhs's CWBVH converter expects). Depth ⌈log₂ n⌉ + 1 whatever the
 /// geometry, so coincident triangles cannot make it deep. Only used as the fallback.
 fn build_bvh2_median(tris: &[Tri]) -> Bvh2 {
+    build_bvh2_top_down(tris, |_, _, _| None)
+}
+
+/// Bins per axis of the binned SAH build.
+const SAH_BINS: usize = 32;
+
+/// A binary BVH by the surface-area heuristic, binned (Wald 2007, *On fast construction of
+/// SAH-based bounding volume hierarchies*): each node's triangles are split where, over
+/// [`SAH_BINS`] bins of centroid position on each axis, `area(left)·count(left) +
+/// area(right)·count(right)` is least; one triangle per leaf (obvhs's collapse to the 8-wide
+/// tree decides the leaves). Where every centroid coincides, or a split would leave a side
+/// empty, it splits at the median, so the depth stays bounded.
+pub fn build_bvh2_binned_sah(tris: &[Tri]) -> Bvh2 {
+    build_bvh2_top_down(tris, |prims, bounds, centroids| {
+        let mut cb = Aabb::empty();
+        for &p in prims.iter() {
+            cb.extend(centroids[p as usize]);
+        }
+        let extent = cb.diagonal();
+        let mut best: Option<(f32, usize, usize)> = None; // (cost, axis, last bin on the left)
+        for axis in 0..3 {
+            if !(extent[axis] > 0.0) {
+                continue;
+            }
+            let scale = SAH_BINS as f32 / extent[axis];
+            let bin = |p: u32| (((centroids[p as usize][axis] - cb.min[axis]) * scale) as usize).min(SAH_BINS - 1);
+            let mut counts = [0u32; SAH_BINS];
+            let mut boxes = [Aabb::empty(); SAH_BINS];
+            for &p in prims.iter() {
+                let b = bin(p);
+                counts[b] += 1;
+                boxes[b] = boxes[b].union(&bounds[p as usize]);
+            }
+            // Right-to-left sweep: the cost of everything right of each plane.
+            let mut right_cost = [0.0f32; SAH_BINS];
+            let (mut acc, mut n) = (Aabb::empty(), 0u32);
+            for b in (1..SAH_BINS).rev() {
+                acc = acc.union(&boxes[b]);
+                n += counts[b];
+                right_cost[b] = acc.half_area() * n as f32;
+            }
+            let (mut acc, mut n) = (Aabb::empty(), 0u32);
+            for b in 0..SAH_BINS - 1 {
+                acc = acc.union(&boxes[b]);
+                n += counts[b];
+                if n == 0 || n as usize == prims.len() {
+                    continue;
+                }
+                let cost = acc.half_area() * n as f32 + right_cost[b + 1];
+                if best.is_none_or(|(c, _, _)| cost < c) {
+                    best = Some((cost, axis, b));
+                }
+            }
+        }
+        let (_, axis, last) = best?;
+        let scale = SAH_BINS as f32 / extent[axis];
+        let left = |p: &u32| {
+            let b = (((centroids[*p as usize][axis] - cb.min[axis]) * scale) as usize).min(SAH_BINS - 1);
+            b <= last
+        };
+        let mid = partition_in_place(prims, left);
+        (mid > 0 && mid < prims.len()).then_some(mid)
+    })
+}
+
+/// Moves the elements of `v` for which `left` holds to the front; returns how many.
+fn partition_in_place(v: &mut [u32], left: impl Fn(&u32) -> bool) -> usize {
+    let mut i = 0;
+    for j in 0..v.len() {
+        if left(&v[j]) {
+            v.swap(i, j);
+            i += 1;
+        }
+    }
+    i
+}
+
+/// A binary BVH built top down, one triangle per leaf: `split` partitions a node's
+/// triangles in place and returns the size of the left part, or `None` for a median split
+/// along the widest centroid axis.
+fn build_bvh2_top_down(tris: &[Tri], split: impl Fn(&mut [u32], &[Aabb], &[Vec3A]) -> Option<usize>) -> Bvh2 {
     let n = tris.len();
     let bounds: Vec<Aabb> = tris.iter().map(|t| Aabb::from_points(&[t[0].into(), t[1].into(), t[2].into()])).collect();
-    let centroid = |i: u32| bounds[i as usize].center();
+    let centroids: Vec<Vec3A> = bounds.iter().map(Aabb::center).collect();
+    let centroid = |i: u32| centroids[i as usize];
     let mut prims: Vec<u32> = (0..n as u32).collect();
     let mut nodes = vec![Bvh2Node::default(); 2 * n - 1];
     let mut next = 1usize;
@@ -1084,13 +1182,20 @@ fn build_bvh2_median(tris: &[Tri]) -> Bvh2 {
             nodes[node] = Bvh2Node::new(aabb, 1, lo as u32);
             continue;
         }
-        let mut cb = Aabb::empty();
-        for &p in &prims[lo..hi] {
-            cb.extend(centroid(p));
-        }
-        let axis = cb.largest_axis();
-        let mid = lo + (hi - lo) / 2;
-        prims[lo..hi].select_nth_unstable_by(mid - lo, |&a, &b| centroid(a)[axis].total_cmp(&centroid(b)[axis]));
+        let mid = match split(&mut prims[lo..hi], &bounds, &centroids) {
+            Some(left) => lo + left,
+            None => {
+                let mut cb = Aabb::empty();
+                for &p in &prims[lo..hi] {
+                    cb.extend(centroid(p));
+                }
+                let axis = cb.largest_axis();
+                let mid = lo + (hi - lo) / 2;
+                prims[lo..hi]
+                    .select_nth_unstable_by(mid - lo, |&a, &b| centroid(a)[axis].total_cmp(&centroid(b)[axis]));
+                mid
+            }
+        };
         nodes[node] = Bvh2Node::new(aabb, 0, next as u32);
         work.push((next, lo, mid));
         work.push((next + 1, mid, hi));

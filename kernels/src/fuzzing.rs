@@ -670,10 +670,11 @@ pub fn bvh(data: &[u8]) {
     use crate::traverse::{PacketHits, RayPacket, intersect_brute_force};
 
     let mut bytes = Bytes(data);
-    let quality = match bytes.u8() % 3 {
+    let quality = match bytes.u8() % 4 {
         0 => BuildQuality::Fast,
         1 => BuildQuality::Medium,
-        _ => BuildQuality::High,
+        2 => BuildQuality::High,
+        _ => BuildQuality::Sah,
     };
     let n_tris = usize::from(bytes.u8() % 49);
     let n_rays = 1 + usize::from(bytes.u8() % 16);

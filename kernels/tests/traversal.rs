@@ -175,7 +175,7 @@ fn every_build_quality_agrees() {
     // Long thin triangles trigger the spatial pre-splits of the High preset.
     let mut tris = soup(&mut rng, 800, 10.0, 0.8);
     tris.extend(soup(&mut rng, 40, 10.0, 12.0));
-    for q in [BuildQuality::Fast, BuildQuality::Medium, BuildQuality::High] {
+    for q in [BuildQuality::Fast, BuildQuality::Medium, BuildQuality::High, BuildQuality::Sah] {
         let (bvh, stats) = TriangleBvh::build(&tris, q).unwrap();
         assert_eq!(stats.quality, Some(q));
         assert!(stats.references >= tris.len());
@@ -781,8 +781,16 @@ fn counted_traversal_agrees_and_counts() {
     // per child, and a node at most 8 children.
     assert!(counts.nodes >= counts.rays && counts.triangles < counts.rays * 3000, "{counts:?}");
     assert!(counts.triangles <= 3 * counts.leaves && counts.box_tests <= 8 * counts.nodes, "{counts:?}");
-    // A better tree costs less: the SAH cost of a high-quality build is below a fast one's.
+    // A better tree costs less: the SAH cost of a high-quality build is below a fast one's,
+    // and the binned SAH build, which minimises it, is below PLOC's.
     let (fast, _) = TriangleBvh::build(&tris, BuildQuality::Fast).unwrap();
     let (high, _) = TriangleBvh::build(&tris, BuildQuality::High).unwrap();
+    let (sah, _) = TriangleBvh::build(&tris, BuildQuality::Sah).unwrap();
     assert!(high.sah_cost(1.0, 1.0) <= fast.sah_cost(1.0, 1.0) * 1.02);
+    assert!(
+        sah.sah_cost(1.0, 1.0) < bvh.sah_cost(1.0, 1.0),
+        "{} vs {}",
+        sah.sah_cost(1.0, 1.0),
+        bvh.sah_cost(1.0, 1.0)
+    );
 }
