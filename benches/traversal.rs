@@ -181,11 +181,12 @@ fn consecutive_packets(rays: &[Ray]) -> Vec<Packet> {
         .collect()
 }
 
-/// Our tree's build quality from `STEREOTRACE_BENCH_BVH` (default: medium, as the renderer;
-/// also fast, high, sah).
+/// Our tree's build quality from `STEREOTRACE_BENCH_BVH` (default: the renderer's,
+/// `BuildQuality::default()`; or fast, medium, high, sah).
 fn build_quality() -> BuildQuality {
     match std::env::var("STEREOTRACE_BENCH_BVH").as_deref() {
-        Err(_) | Ok("medium") => BuildQuality::Medium,
+        Err(_) => BuildQuality::default(),
+        Ok("medium") => BuildQuality::Medium,
         Ok("fast") => BuildQuality::Fast,
         Ok("high") => BuildQuality::High,
         Ok("sah") => BuildQuality::Sah,
@@ -698,6 +699,20 @@ fn attribution(_: &mut Criterion) {
                 per(c.skipped)
             );
         }
+    }
+    println!();
+    println!("| scene | triangles | build ms, medium (PLOC) | build ms, sah (binned SAH) | sah ÷ medium |");
+    println!("|---|--:|--:|--:|--:|");
+    for (name, f) in &scenes {
+        let median_ms = |q: BuildQuality| {
+            let mut t: Vec<f64> = (0..3)
+                .map(|_| TriangleBvh::build(&f.tris, q).expect("valid scene").1.total_time.as_secs_f64() * 1e3)
+                .collect();
+            t.sort_by(f64::total_cmp);
+            t[1]
+        };
+        let (medium, sah) = (median_ms(BuildQuality::Medium), median_ms(BuildQuality::Sah));
+        println!("| {name} | {} | {medium:.1} | {sah:.1} | {:.2} |", f.tris.len(), sah / medium);
     }
     println!();
     println!(

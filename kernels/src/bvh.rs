@@ -2,8 +2,10 @@
 //! node test. Traversal (single rays and packets, closest and any hit) is in [`crate::traverse`].
 //!
 //! # What obvhs does and what this module does
-//! obvhs builds the tree (PLOC + reinsertion → compressed 8-wide BVH, 80-byte
-//! [`CwBvhNode`]s) and owns its layout; this module copies the triangles into BVH order
+//! The binary tree is ours by default (a binned SAH build, [`build_bvh2_binned_sah`]; its
+//! SAH cost is 6–30 % below obvhs's PLOC tree on the built-in scenes, `BENCHMARKS.md`) or
+//! obvhs's PLOC ([`BuildQuality::Fast`], `Medium`, `High`); obvhs then reinserts, collapses
+//! it to its compressed 8-wide BVH (80-byte [`CwBvhNode`]s) and owns that layout; this module copies the triangles into BVH order
 //! (one 36-byte record per `primitive_indices` slot, so a node's up-to-24 leaf triangles are
 //! one contiguous run) and traverses the nodes itself. Single rays read each node again in
 //! an uncompressed form with exact f32 child boxes ([`crate::bvh8`]: 256 bytes per node
@@ -94,8 +96,8 @@ pub const MAX_ORIGIN: f32 = 67_108_864.0;
 pub const MIN_DIR: f32 = 1.0 / 4_294_967_296.0;
 /// Largest accepted direction component magnitude (2³²).
 pub const MAX_DIR: f32 = 4_294_967_296.0;
-/// Deepest CWBVH (levels, root = 1) the traversal stacks are sized for. PLOC trees deeper than
-/// this are rebuilt by median split. Sponza's PLOC tree is 10 levels deep, the bench's 700k
+/// Deepest CWBVH (levels, root = 1) the traversal stacks are sized for. Trees deeper than
+/// this (PLOC's or the SAH build's) are rebuilt by median split. Sponza's PLOC tree is 10 levels deep, the bench's 700k
 /// procedural scene 12; 5000 coincident triangles give PLOC a chain 714 levels deep.
 pub const MAX_DEPTH: usize = 40;
 
@@ -113,16 +115,17 @@ pub type Tri = [Vec3; 3];
 pub enum BuildQuality {
     /// `fast_build`: PLOC search distance 6, little reinsertion.
     Fast,
-    /// `medium_build` (default): search distance 14, "about Embree's build time with faster
-    /// traversal" per obvhs.
-    #[default]
+    /// `medium_build`: search distance 14, "about Embree's build time with faster traversal"
+    /// per obvhs.
     Medium,
     /// `slow_build`: spatial pre-splits of large triangles, search distance 24, more
     /// reinsertion. A triangle may then appear in several leaves.
     High,
-    /// A top-down binned SAH build (ours, [`build_bvh2_binned_sah`]) instead of PLOC, then
-    /// the medium preset's reinsertion and obvhs's collapse to the 8-wide tree: slower to
-    /// build, a lower SAH cost (`BENCHMARKS.md`, the attribution table).
+    /// The default: a top-down binned SAH build (ours, [`build_bvh2_binned_sah`]) instead of
+    /// PLOC, then the medium preset's reinsertion and obvhs's collapse to the 8-wide tree.
+    /// It builds in about twice PLOC-medium's time and traces single rays 1.0–1.6× as fast
+    /// on the scenes measured (`BENCHMARKS.md`, the attribution table).
+    #[default]
     Sah,
 }
 
@@ -186,11 +189,13 @@ pub struct BuildStats {
     pub nodes: usize,
     /// CWBVH depth in levels (root = 1; 0 for an empty BVH).
     pub depth: usize,
-    /// Depth of obvhs's PLOC tree (equal to `depth` unless the median fallback replaced it).
+    /// Depth of the first tree built, PLOC's or the SAH build's (equal to `depth` unless the
+    /// median fallback replaced it).
     pub ploc_depth: usize,
     /// The preset used (`None` for parameters given to [`TriangleBvh::build_with`]).
     pub quality: Option<BuildQuality>,
-    /// True if PLOC's tree was deeper than [`MAX_DEPTH`] and the median-split fallback was used.
+    /// True if the first tree was deeper than [`MAX_DEPTH`] and the median-split fallback was
+    /// used.
     pub median_fallback: bool,
     /// Time in obvhs's builder (PLOC, reinsertion, CWBVH conversion), without the fallback.
     pub obvhs_time: Duration,
@@ -1087,7 +1092,7 @@ fn build_bvh2_median(tris: &[Tri]) -> Bvh2 {
 }
 
 /// Bins per axis of the binned SAH build.
-const SAH_BINS: usize = 32;
+pub const SAH_BINS: usize = 32;
 
 /// A binary BVH by the surface-area heuristic, binned (Wald 2007, *On fast construction of
 /// SAH-based bounding volume hierarchies*): each node's triangles are split where, over
