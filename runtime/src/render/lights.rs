@@ -104,6 +104,9 @@ pub struct FrameLights {
     cdf: Vec<f32>,
     pmf: Vec<f32>,
     moving_triangles: Vec<MovingTriangle>,
+    /// The distinct materials of `moving_triangles` (a handful), for finding the pixels that
+    /// may see moving geometry without scanning every triangle per pixel.
+    moving_materials: Vec<u32>,
     /// Bounding sphere (centre, radius²) of all moving triangles, for a cheap reject.
     moving_bound: (Vec3, f32),
     /// The frame of the last [`FrameLights::update`], from which moving lights' motion is
@@ -124,6 +127,7 @@ impl FrameLights {
     pub fn update(&mut self, scene: &Scene, frame: u32) {
         self.records.clear();
         self.moving_triangles.clear();
+        self.moving_materials.clear();
         let mesh = &scene.mesh;
         for &tri in &scene.lights.area.triangles {
             let emission = scene.materials[mesh.material[tri as usize] as usize].emission;
@@ -168,6 +172,11 @@ impl FrameLights {
         }
         if scene.lights.environment.is_some() {
             self.records.push(LightRecord::Environment);
+        }
+        for t in &self.moving_triangles {
+            if !self.moving_materials.contains(&t.material) {
+                self.moving_materials.push(t.material);
+            }
         }
         self.moving_bound = bound(&self.moving_triangles);
         self.build_distribution(scene);
@@ -223,9 +232,14 @@ impl FrameLights {
         self.records.is_empty()
     }
 
-    /// Triangles of moving area lights at this frame.
+    /// Triangles of moving area lights and moving objects at this frame.
     pub fn moving_triangles(&self) -> &[MovingTriangle] {
         &self.moving_triangles
+    }
+
+    /// The distinct materials the moving triangles carry ([`MovingTriangle::material`]).
+    pub fn moving_materials(&self) -> &[u32] {
+        &self.moving_materials
     }
 
     /// Whether a ray from `origin` along unit `dir` can reach the moving lights at all.

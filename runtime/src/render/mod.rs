@@ -289,8 +289,8 @@ impl Renderer {
         let camera = &out.camera;
         let width = out.material.extent().width();
         let depth = out.depth.as_slice();
-        let moving_material = |m: u32| triangles.iter().any(|t| t.material == m);
-        for (i, _) in out.material.as_slice().iter().enumerate().filter(|(_, m)| moving_material(**m)) {
+        let moving = lights.moving_materials();
+        for (i, _) in out.material.as_slice().iter().enumerate().filter(|(_, m)| moving.contains(m)) {
             let (x, y) = (i % width, i / width);
             let dir = Vec3::from(camera.ray(x as f32 + 0.5, y as f32 + 0.5));
             let Some(ray) = PreparedRay::new(&Ray::new(Vec3::from(camera.centre), dir)) else { continue };
