@@ -1107,17 +1107,20 @@ pub fn build_bvh2_binned_sah(tris: &[Tri]) -> Bvh2 {
             cb.extend(centroids[p as usize]);
         }
         let extent = cb.diagonal();
+        // The bin of triangle `p` on `axis` (the one rule both the sweep and the partition use).
+        let bin = |axis: usize, p: u32| {
+            let scale = SAH_BINS as f32 / extent[axis];
+            (((centroids[p as usize][axis] - cb.min[axis]) * scale) as usize).min(SAH_BINS - 1)
+        };
         let mut best: Option<(f32, usize, usize)> = None; // (cost, axis, last bin on the left)
         for axis in 0..3 {
             if !(extent[axis] > 0.0) {
                 continue;
             }
-            let scale = SAH_BINS as f32 / extent[axis];
-            let bin = |p: u32| (((centroids[p as usize][axis] - cb.min[axis]) * scale) as usize).min(SAH_BINS - 1);
             let mut counts = [0u32; SAH_BINS];
             let mut boxes = [Aabb::empty(); SAH_BINS];
             for &p in prims.iter() {
-                let b = bin(p);
+                let b = bin(axis, p);
                 counts[b] += 1;
                 boxes[b] = boxes[b].union(&bounds[p as usize]);
             }
@@ -1143,12 +1146,7 @@ pub fn build_bvh2_binned_sah(tris: &[Tri]) -> Bvh2 {
             }
         }
         let (_, axis, last) = best?;
-        let scale = SAH_BINS as f32 / extent[axis];
-        let left = |p: &u32| {
-            let b = (((centroids[*p as usize][axis] - cb.min[axis]) * scale) as usize).min(SAH_BINS - 1);
-            b <= last
-        };
-        let mid = partition_in_place(prims, left);
+        let mid = partition_in_place(prims, |p| bin(axis, *p) <= last);
         (mid > 0 && mid < prims.len()).then_some(mid)
     })
 }
