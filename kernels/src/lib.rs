@@ -18,7 +18,6 @@ pub mod accumulate;
 mod bands;
 pub mod bilinear;
 pub mod bvh;
-pub mod bvh8;
 pub mod camera;
 pub mod check;
 pub mod frame;

@@ -17,7 +17,7 @@
 //! layout has one traversal loop generic over the search (`SingleSearch` and `PacketSearch`,
 //! implemented by the closest-hit and any-hit states). The two layouts keep their own loops
 //! because their nodes and stacks differ where it costs: a single ray reads the uncompressed
-//! [`WideNode`](crate::bvh8::WideNode)s and keeps one 8-byte entry per waiting child (node,
+//! [`WideNode`](crate::bvh::wide::WideNode)s and keeps one 8-byte entry per waiting child (node,
 //! entry distance), while a packet reads the CWBVH, whose decoding it shares among eight rays,
 //! and needs each child's lane mask and per-lane entry distances (one 40-byte entry per
 //! child). Sharing one loop would give single rays, which are most of the diffuse and glossy

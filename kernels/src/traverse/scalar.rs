@@ -20,7 +20,7 @@
 //! | children ordered and culled by entry distance | 3.87 | 4.69 | 2.19 | 2.69 |
 //! | leaf triangles in per-node blocks of eight | 3.91 | 5.02 | 2.21 | 2.79 |
 //! | uncompressed nodes with exact boxes | 5.52 | 7.83 | 2.70 | 3.48 |
-//! | the same boxes widened by the position pad ([`crate::bvh8`]: a fuzz finding) | **5.07** | **6.60** | **2.27** | **2.86** |
+//! | the same boxes widened by the position pad ([`crate::bvh::wide`]: a fuzz finding) | **5.07** | **6.60** | **2.27** | **2.86** |
 //!
 //! (The last two rows come from a later alternated pair than the others: 5.67, 7.74, 2.62,
 //! 3.41 unpadded against the padded row.)
@@ -31,11 +31,11 @@
 
 use super::ALL_LANES;
 use super::{FixedStack, Search};
+use crate::bvh::wide::{SlabOrigins, WideNode, in_reach, wide_node_hits};
 use crate::bvh::{
     Hit, MAX_DEPTH, PreparedRay, Ray, Tri, TriHit, TriangleBvh, inner_child_index, intersect_triangle,
     intersect_triangles_lanes,
 };
-use crate::bvh8::{SlabOrigins, WideNode, in_reach, wide_node_hits};
 use crate::simd::LANES;
 
 /// A child waiting on the single-ray stack: its node and the distance at which the ray

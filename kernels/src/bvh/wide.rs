@@ -44,7 +44,9 @@
 
 use obvhs::cwbvh::node::CwBvhNode;
 
-use crate::bvh::{PreparedRay, TriVerts, leaf_meta, leaf_range, max1, min1, occupied_slots};
+use super::node::{leaf_meta, leaf_range, max1, min1, occupied_slots};
+use super::ray::PreparedRay;
+use super::triangle::TriVerts;
 use crate::simd::{F32s, LANES};
 
 /// The far end of every slab interval is multiplied by this (see the module notes).
