@@ -98,7 +98,7 @@ fn frames_one_pixel_wide_or_tall_render_and_run_every_mode() {
 fn the_brightest_accepted_light_renders_finite_images() {
     let dir = temp_dir("bright");
     let scene = dir.join("scene");
-    write_box_scene(&scene, "", stereotrace::scene::light::MAX_EMISSION);
+    write_box_scene(&scene, "", stereotrace::scene::material::MAX_EMISSION);
     let out = dir.join("out");
     let out = out.to_str().unwrap();
     succeeded(&stereotrace(&[

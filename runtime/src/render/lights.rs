@@ -13,7 +13,7 @@
 use glam::{Vec2, Vec3};
 
 use super::MOVING_LIGHT_MATERIAL;
-use super::spawn::barycentric_point;
+use super::spawn::{ShadowTarget, barycentric_point};
 use crate::scene::light::sample_triangle;
 use crate::scene::sampling::luminance;
 use crate::scene::{Environment, MovingShape, Scene, SunLight};
@@ -59,25 +59,6 @@ pub struct LightSample {
     pub pdf: f32,
     /// Where the shadow ray has to reach.
     pub target: ShadowTarget,
-}
-
-/// The end of a shadow ray (see [`super::spawn::shadow_ray`]).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum ShadowTarget {
-    /// The sun or the environment: an infinite ray.
-    Distant,
-    /// A point light's exact position.
-    Point(Vec3),
-    /// A point sampled on an emitting triangle, with its rounding-error bound and the
-    /// triangle's unit normal.
-    Surface {
-        /// The sampled point.
-        point: Vec3,
-        /// Per-axis bound on its rounding error.
-        error: Vec3,
-        /// The triangle's unit normal.
-        normal: Vec3,
-    },
 }
 
 /// A triangle placed for this frame (of a moving area light or a moving object), for ray

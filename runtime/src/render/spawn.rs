@@ -19,8 +19,26 @@
 
 use glam::Vec3;
 
-use super::lights::ShadowTarget;
 use crate::kernels::bvh::{Ray, gamma};
+
+/// The end of a shadow ray (see [`shadow_ray`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ShadowTarget {
+    /// The sun or the environment: an infinite ray.
+    Distant,
+    /// A point light's exact position.
+    Point(Vec3),
+    /// A point sampled on an emitting triangle, with its rounding-error bound and the
+    /// triangle's unit normal.
+    Surface {
+        /// The sampled point.
+        point: Vec3,
+        /// Per-axis bound on its rounding error.
+        error: Vec3,
+        /// The triangle's unit normal.
+        normal: Vec3,
+    },
+}
 
 /// How much shorter than the distance to the (offset) light point a shadow ray is. It covers
 /// the few-ulp rounding of that distance and of the light triangle's own `t`, relative to

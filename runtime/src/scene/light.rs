@@ -15,27 +15,10 @@ use std::f32::consts::PI;
 use glam::{Vec2, Vec3};
 
 use super::envmap::EnvMap;
-use super::material::Material;
+use super::material::{Material, check_emission};
 use super::mesh::Mesh;
 use super::path::TransformPath;
 use super::sampling::{Distribution1D, cone_solid_angle, luminance, uniform_cone, uniform_sphere};
-
-/// The largest emitted radiance a scene may contain, and likewise the largest point-light
-/// intensity and sun radiance. Far above anything physical (the sun's radiance is ~2e7
-/// W m⁻² sr⁻¹), and low enough that nothing downstream overflows f32: the estimator multiplies
-/// it by BSDF values and inverse densities (up to ~1e8 for a light almost touching a surface),
-/// and SSIM squares pixel values (f32 holds squares only up to ~1.8e19). Brighter lights are
-/// refused with a message naming the light, instead of rendering black or writing inf.
-pub const MAX_EMISSION: f32 = 1e15;
-
-/// `Err` naming `what` when `v` exceeds [`MAX_EMISSION`] in some channel.
-pub fn check_emission(what: &str, v: Vec3) -> Result<(), String> {
-    if v.max_element() > MAX_EMISSION {
-        Err(format!("{what} {v} exceeds the largest supported value {MAX_EMISSION:e}"))
-    } else {
-        Ok(())
-    }
-}
 
 /// An isotropic point light.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -18,6 +18,23 @@ use glam::{Vec2, Vec3};
 
 use super::texture::Texture;
 
+/// The largest emitted radiance a scene may contain, and likewise the largest point-light
+/// intensity and sun radiance. Far above anything physical (the sun's radiance is ~2e7
+/// W m⁻² sr⁻¹), and low enough that nothing downstream overflows f32: the estimator multiplies
+/// it by BSDF values and inverse densities (up to ~1e8 for a light almost touching a surface),
+/// and SSIM squares pixel values (f32 holds squares only up to ~1.8e19). Brighter lights are
+/// refused with a message naming the light, instead of rendering black or writing inf.
+pub const MAX_EMISSION: f32 = 1e15;
+
+/// `Err` naming `what` when `v` exceeds [`MAX_EMISSION`] in some channel.
+pub fn check_emission(what: &str, v: Vec3) -> Result<(), String> {
+    if v.max_element() > MAX_EMISSION {
+        Err(format!("{what} {v} exceeds the largest supported value {MAX_EMISSION:e}"))
+    } else {
+        Ok(())
+    }
+}
+
 /// Smallest roughness a glossy lobe keeps (`alpha = 0.01`): smoother lobes (smooth plastic,
 /// `Pr 0` with `illum 2`) would be delta lobes mixed with a diffuse base.
 pub const MIN_GLOSSY_ROUGHNESS: f32 = 0.1;
@@ -191,7 +208,7 @@ impl Material {
         if !(self.emission.is_finite() && self.emission.min_element() >= 0.0) {
             return Err(format!("material {:?}: emission {} is negative or not finite", self.name, self.emission));
         }
-        super::light::check_emission(&format!("material {:?}: emission (Ke)", self.name), self.emission)?;
+        check_emission(&format!("material {:?}: emission (Ke)", self.name), self.emission)?;
         if !(0.0..=1.0).contains(&self.roughness)
             || !(0.0..=1.0).contains(&self.opacity)
             || !(0.0..=1.0).contains(&self.texture_scale)
