@@ -90,10 +90,13 @@ impl CacheKey {
         k
     }
 
+    /// The canonical text (kind, format, scene, then the fields), stored in the entry and
+    /// compared on read.
     pub fn text(&self) -> &str {
         &self.text
     }
 
+    /// The kind (`reference`, `curve`, `config`, ...): the entry's top-level folder.
     pub fn kind(&self) -> &'static str {
         self.kind
     }
@@ -107,7 +110,9 @@ impl CacheKey {
 /// The result of a read.
 #[derive(Debug, PartialEq)]
 pub enum Lookup {
+    /// The entry verified; its payload.
     Hit(Vec<u8>),
+    /// No entry file.
     Miss,
     /// The file exists but failed verification; the reason names what was wrong.
     Corrupt(String),
@@ -134,6 +139,7 @@ impl Cache {
         Ok(cache)
     }
 
+    /// The cache folder, under which every entry's path lies.
     pub fn root(&self) -> &Path {
         &self.root
     }
@@ -269,10 +275,12 @@ pub struct Reader<'a> {
 }
 
 impl<'a> Reader<'a> {
+    /// A reader at the first byte of `bytes`.
     pub fn new(bytes: &'a [u8]) -> Self {
         Self { bytes, pos: 0 }
     }
 
+    /// The next `n` bytes; an error if fewer are left.
     pub fn take(&mut self, n: usize) -> Result<&'a [u8], String> {
         let end = self.pos.checked_add(n).filter(|&e| e <= self.bytes.len()).ok_or("truncated entry")?;
         let s = &self.bytes[self.pos..end];
@@ -280,24 +288,29 @@ impl<'a> Reader<'a> {
         Ok(s)
     }
 
+    /// The next 4 bytes as a little-endian `u32`.
     pub fn u32(&mut self) -> Result<u32, String> {
         Ok(u32::from_le_bytes(self.take(4)?.try_into().expect("4 bytes")))
     }
 
+    /// The next 8 bytes as a little-endian `u64`.
     pub fn u64(&mut self) -> Result<u64, String> {
         Ok(u64::from_le_bytes(self.take(8)?.try_into().expect("8 bytes")))
     }
 
+    /// The next `n` little-endian `f32` values.
     pub fn f32s(&mut self, n: usize) -> Result<Vec<f32>, String> {
         let bytes = self.take(n.checked_mul(4).ok_or("truncated entry")?)?;
         Ok(bytes.chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes"))).collect())
     }
 
+    /// The next `n` little-endian `f64` values.
     pub fn f64s(&mut self, n: usize) -> Result<Vec<f64>, String> {
         let bytes = self.take(n.checked_mul(8).ok_or("truncated entry")?)?;
         Ok(bytes.chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes"))).collect())
     }
 
+    /// Whether every byte has been read (decoders refuse trailing bytes).
     pub fn finished(&self) -> bool {
         self.pos == self.bytes.len()
     }

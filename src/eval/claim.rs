@@ -53,8 +53,11 @@ fn token() -> u64 {
 /// Who holds a claim, as its file says.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Holder {
+    /// Host name of the holder's machine (`?` when the claim file named no holder).
     pub host: String,
+    /// The holder's process id on that host (0 when unknown).
     pub pid: u32,
+    /// Random token unique to the claim: a takeover checks it renamed the claim it judged.
     pub token: u64,
 }
 
@@ -207,6 +210,7 @@ impl Claim {
         }
     }
 
+    /// The claim file (`<entry>.claim`).
     pub fn path(&self) -> &Path {
         &self.path
     }

@@ -1,9 +1,9 @@
 //! References and error curves, rendered progressively: one sample per pixel per pass.
 //!
-//! [`Progressive`] keeps a running f32 sum of passes that each trace exactly one sample
+//! [`Progressive`] keeps a running f64 sum of passes that each trace exactly one sample
 //! (`TraceRequest::first_sample` = the samples so far). Its mean after `m` passes is bit for
 //! bit the image one `m`-spp render gives (the renderer sums the samples of a pixel in the
-//! same order in f32 and multiplies by `1/m`; `tests/eval.rs` checks it). So an error curve
+//! same order in f64 and divides by `m`; `tests/eval.rs` checks it). So an error curve
 //! `E(1..=M)` costs `M` samples per pixel, the same as its last point alone, and a
 //! reference can be checkpointed and resumed at any sample count.
 
@@ -18,9 +18,13 @@ use crate::render::{PixelSelection, Renderer, TraceRequest, TraceStats};
 
 /// What the renderer needs to trace one frame of one eye.
 pub struct FrameView {
+    /// Frame on the scene's camera path.
     pub frame: u32,
+    /// The eye traced.
     pub eye: Eye,
+    /// That eye's camera at that frame; its extent is the image's.
     pub camera: CameraModel,
+    /// The scene's lights at that frame.
     pub lights: FrameLights,
 }
 
@@ -54,6 +58,7 @@ impl FrameView {
 /// in f64 too, so the mean of `n` one-sample passes is bit for bit an `n`-sample render.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SampleSums {
+    /// The image size the sums cover.
     pub extent: Extent,
     /// `3 · pixels` values: R, G, B of pixel 0, then pixel 1, ...
     pub rgb: Vec<f64>,
@@ -87,6 +92,7 @@ impl Progressive {
         Self { samples, sum, pass: RgbBuf::new(e, 0.0), mean: RgbBuf::new(e, 0.0) }
     }
 
+    /// Samples per pixel summed so far.
     pub fn samples(&self) -> u32 {
         self.samples
     }
@@ -132,7 +138,9 @@ impl Progressive {
 /// SSIM and RMSE of an image against a reference.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Measurement {
+    /// SSIM against the reference (1 = identical; NaN when nothing is usable).
     pub ssim: f64,
+    /// RMSE against the reference over the H·W·3 values (NaN when none is usable).
     pub rmse: f64,
 }
 
@@ -155,16 +163,23 @@ pub fn measure(image: &RgbBuf, reference: &RgbBuf, variant: SsimVariant) -> Resu
 /// One measured point of an error curve.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CurvePoint {
+    /// Samples per pixel of the path-traced image measured.
     pub spp: u32,
+    /// Its SSIM against the frame's reference.
     pub ssim: f64,
+    /// Its RMSE against the frame's reference.
     pub rmse: f64,
 }
 
 /// The measured curve of one frame and eye: both metrics at the grid's sample counts.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct FrameCurve {
+    /// The frame measured (left eye in the evaluation).
     pub frame: u32,
+    /// The grid of sample counts; it also decides the interpolation (linear when dense,
+    /// log–log otherwise).
     pub grid: Grid,
+    /// The measured points, ascending in spp from 1.
     pub points: Vec<CurvePoint>,
 }
 
@@ -182,6 +197,7 @@ impl FrameCurve {
         self.points.iter().find(|p| p.spp == spp).map(|p| p.ssim)
     }
 
+    /// The last sample count measured, `M` (0 for a curve without points).
     pub fn max_spp(&self) -> u32 {
         self.points.last().map_or(0, |p| p.spp)
     }

@@ -52,8 +52,10 @@ pub enum Metric {
 }
 
 impl Metric {
+    /// Both metrics, SSIM first (the order of tables and figures).
     pub const ALL: [Metric; 2] = [Metric::Ssim, Metric::Rmse];
 
+    /// Lower-case name for file names and JSON (`ssim`, `rmse`).
     pub fn name(self) -> &'static str {
         match self {
             Metric::Ssim => "ssim",
@@ -61,6 +63,7 @@ impl Metric {
         }
     }
 
+    /// Display name for tables, figure axes and messages (`SSIM`, `RMSE`).
     pub fn label(self) -> &'static str {
         match self {
             Metric::Ssim => "SSIM",
@@ -77,7 +80,11 @@ pub enum Grid {
     Dense,
     /// Every integer up to 8, then `steps_per_octave` points per doubling (rounded, distinct),
     /// always ending at `M`; log–log interpolation.
-    Geometric { steps_per_octave: u32 },
+    Geometric {
+        /// Points per doubling of `m` above 8 (at least 1; [`crate::eval::EvalSpec::validate`]
+        /// refuses 0).
+        steps_per_octave: u32,
+    },
 }
 
 impl Grid {
@@ -109,6 +116,8 @@ impl Grid {
         }
     }
 
+    /// How curves measured on this grid are interpolated: linear when dense, log–log when
+    /// geometric.
     pub fn interpolation(&self) -> Interpolation {
         match self {
             Grid::Dense => Interpolation::Linear,
@@ -150,7 +159,10 @@ pub enum EffectiveSpp {
     /// `e > E(1)`: worse than a single path-traced sample per pixel.
     BelowRange,
     /// `e < E(M)`: better than the curve's last point `max_spp`.
-    AboveRange { max_spp: u32 },
+    AboveRange {
+        /// The curve's last sample count `M`.
+        max_spp: u32,
+    },
     /// The error is NaN (nothing usable in the image).
     Undefined,
 }
@@ -184,16 +196,31 @@ impl std::fmt::Display for EffectiveSpp {
 /// Why a curve could not be built from the given points.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum CurveError {
+    /// No points at all.
     #[error("an error curve needs at least one point")]
     Empty,
+    /// The sample counts and the errors differ in number.
     #[error("an error curve has {spp} sample counts but {errors} errors")]
-    LengthMismatch { spp: usize, errors: usize },
+    LengthMismatch {
+        /// Number of sample counts given.
+        spp: usize,
+        /// Number of errors given.
+        errors: usize,
+    },
+    /// The first sample count (held) is not 1.
     #[error("an error curve must start at 1 spp, this one starts at {0}")]
     NotFromOne(u32),
+    /// A sample count (the first value) does not exceed the one before it (the second).
     #[error("the sample counts of an error curve must increase strictly ({0} follows {1})")]
     NotIncreasing(u32, u32),
+    /// An error is infinite or NaN.
     #[error("the error at {spp} spp is not finite ({error})")]
-    NonFinite { spp: u32, error: f64 },
+    NonFinite {
+        /// The sample count it was measured at.
+        spp: u32,
+        /// The offending value (±∞ or NaN).
+        error: f64,
+    },
 }
 
 /// `E(m)` at increasing sample counts `m`, starting at 1.
@@ -227,14 +254,17 @@ impl ErrorCurve {
         Ok(Self { spp, error, interpolation })
     }
 
+    /// The measured sample counts, strictly increasing from 1.
     pub fn spp(&self) -> &[u32] {
         &self.spp
     }
 
+    /// The errors `E(m)` at those sample counts.
     pub fn errors(&self) -> &[f64] {
         &self.error
     }
 
+    /// How the curve is interpolated between its points.
     pub fn interpolation(&self) -> Interpolation {
         self.interpolation
     }

@@ -26,6 +26,8 @@
 //! of the evaluated frames, whose path-traced pixels would otherwise be the curve's own
 //! samples.
 
+#![warn(missing_docs)]
+
 pub mod cache;
 pub mod claim;
 pub mod curve;
@@ -48,7 +50,9 @@ pub use run::{EvalOutcome, Reporter, WorkCounters, evaluate};
 /// One evaluated pipeline configuration family: a mode and, where it matters, the order.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub struct Variant {
+    /// The pipeline mode.
     pub mode: Mode,
+    /// Which reprojection comes first; always [`Order::Paper`] for modes without an order.
     pub order: Order,
 }
 
@@ -64,6 +68,7 @@ impl Variant {
         Variant { mode: Mode::SpatiotemporalBlend, order: Order::StereoFirst },
     ];
 
+    /// `mode` with `order`, the order reset to [`Order::Paper`] where the mode has none.
     pub fn new(mode: Mode, order: Order) -> Self {
         Self { mode, order: if mode.has_order() { order } else { Order::Paper } }
     }
@@ -126,8 +131,12 @@ impl std::fmt::Display for Variant {
 /// The independent random streams.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Seeds {
+    /// Seed of the pipelines' path tracing
+    /// ([`PipelineConfig::seed`](crate::pipeline::PipelineConfig::seed)).
     pub pipeline: u64,
+    /// Seed of the error curves' path-traced frames and of the figures' path-traced images.
     pub curve: u64,
+    /// Seed of the references.
     pub reference: u64,
 }
 
@@ -149,6 +158,7 @@ pub enum SsimChoice {
 }
 
 impl SsimChoice {
+    /// The SSIM kernel variant this choice runs.
     pub fn kernel(self) -> SsimVariant {
         match self {
             SsimChoice::Volume => SsimVariant::Volume,
@@ -178,29 +188,40 @@ pub struct FigureSpec {
 pub struct EvalSpec {
     /// The preset it started from (for reports).
     pub preset: String,
+    /// Scene specs, each a built-in name, a manifest or a folder, in report order.
     pub scenes: Vec<String>,
+    /// Pipeline variants to evaluate.
     pub variants: Vec<Variant>,
+    /// Input samples per pixel each variant runs at (each at least 1).
     pub input_spp: Vec<u32>,
+    /// Image width of each eye, in pixels.
     pub width: usize,
+    /// Image height of each eye, in pixels.
     pub height: usize,
     /// The pipeline renders frames `0..frames`.
     pub frames: u32,
     /// Frames `warmup..frames` are evaluated.
     pub warmup: u32,
+    /// Samples per pixel of each reference.
     pub reference_spp: u32,
     /// The error curves' last sample count `M`.
     pub curve_spp: u32,
+    /// The sample counts each error curve is measured at.
     pub grid: Grid,
+    /// Which SSIM every measurement uses.
     pub ssim: SsimChoice,
+    /// The random streams of the pipelines, the curves and the references.
     pub seeds: Seeds,
     /// References and curves are checkpointed every this many samples.
     pub checkpoint_spp: u32,
+    /// Distance between the eyes of the stereo rig, in metres.
     pub eye_separation: f32,
     /// How the pipelines make their G-buffers.
     pub gbuffer: crate::pipeline::GBufferPass,
     /// Whether the pipelines get the surfaces' motion vectors (older specs: off).
     #[serde(default)]
     pub motion_vectors: bool,
+    /// What the figures show.
     pub figures: FigureSpec,
 }
 
@@ -235,6 +256,7 @@ pub enum Preset {
 }
 
 impl Preset {
+    /// The preset's name (`paper`, `paper-lite`, `quick`), as the CLI and reports spell it.
     pub fn name(self) -> &'static str {
         match self {
             Preset::Paper => "paper",
@@ -243,6 +265,7 @@ impl Preset {
         }
     }
 
+    /// The preset's evaluation spec.
     pub fn spec(self) -> EvalSpec {
         let builtins = crate::scene::builtin_names().into_iter().map(str::to_owned);
         let figures = FigureSpec {
@@ -339,6 +362,7 @@ impl Preset {
 }
 
 impl EvalSpec {
+    /// `width` × `height` as an extent, or why it is not one.
     pub fn extent(&self) -> Result<Extent, String> {
         Extent::new(self.width, self.height).map_err(|e| e.to_string())
     }

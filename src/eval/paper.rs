@@ -14,15 +14,21 @@ pub fn embedded_csv() -> [(&'static str, &'static str); 2] {
 /// One published mean ± std.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PaperValue {
+    /// Mean effective spp: over one scene's evaluated frames, or over the scene means of
+    /// an average.
     pub avg: f64,
+    /// Standard deviation of the same values.
     pub std: f64,
 }
 
 /// One row of Table 4.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PaperDiscard {
+    /// Mean discarded share, percent of pixels.
     pub avg: f64,
+    /// Smallest discarded share, percent.
     pub min: f64,
+    /// Largest discarded share, percent.
     pub max: f64,
 }
 

@@ -228,6 +228,7 @@ fn out_of_range_note(what: &str, spp: u32, s: &Summary) -> String {
 /// Discard shares of one scene: per frame, percent of all pixels by reason.
 #[derive(Clone, Debug, Serialize)]
 pub struct DiscardStats {
+    /// Frames counted (frames without any counted pixel are left out).
     pub frames: usize,
     /// Discarded (depth/position + normal + out of frame + invalid) share per frame, percent.
     pub total: Vec<f64>,

@@ -114,10 +114,17 @@ pub struct Limits {
 /// Why a run stopped.
 #[derive(Debug, thiserror::Error)]
 pub enum EvalError {
+    /// The run cannot go on; the message says why.
     #[error("{0}")]
     Failed(String),
+    /// A [`Limits`] limit was reached; finished units are cached, so a rerun resumes.
     #[error("stopped after computing {computed} units (limit reached); run again to resume")]
-    Interrupted { computed: usize, counters: WorkCounters },
+    Interrupted {
+        /// Units computed before the stop.
+        computed: usize,
+        /// Work done before the stop.
+        counters: WorkCounters,
+    },
     /// A merge found entries missing from the cache (each named: kind, scene, what).
     #[error("the cache lacks {} of the run's entries (run the missing shards first):\n  {}", .0.len(), .0.join("\n  "))]
     Missing(Vec<String>),
@@ -132,24 +139,32 @@ impl From<String> for EvalError {
 /// Pixels of one frame per reason, indexed by the reason code.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct FrameReasons {
+    /// Frame index, from 0.
     pub frame: u32,
+    /// Left-eye pixels per reason code (Table 4's input), indexed as
+    /// [`Reason`](crate::kernels::reproject::Reason).
     pub counts: [u64; REASON_COUNT],
 }
 
 /// One measured frame of a configuration.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct FrameResult {
+    /// Frame index, from 0.
     pub frame: u32,
     /// Whether the frame is after the warm-up (only those are summarised).
     pub evaluated: bool,
+    /// SSIM of the left-eye output against the frame's reference.
     pub ssim: f64,
+    /// RMSE of the left-eye output against the frame's reference.
     pub rmse: f64,
     /// Effective spp (evaluated frames only).
     pub effective_ssim: Option<EffectiveSpp>,
+    /// Effective spp by RMSE (evaluated frames only).
     pub effective_rmse: Option<EffectiveSpp>,
 }
 
 impl FrameResult {
+    /// The effective spp by `metric` (`None` for a warm-up frame).
     pub fn effective(&self, metric: Metric) -> Option<EffectiveSpp> {
         match metric {
             Metric::Ssim => self.effective_ssim,
@@ -161,7 +176,9 @@ impl FrameResult {
 /// One (variant, input spp) of one scene.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ConfigResult {
+    /// The pipeline mode and order.
     pub variant: Variant,
+    /// Input samples per pixel.
     pub spp: u32,
     /// The frames with a reference (the evaluated ones; every frame for Figure 3's scene).
     pub frames: Vec<FrameResult>,
@@ -171,12 +188,14 @@ pub struct ConfigResult {
     pub temporal_reasons: Vec<FrameReasons>,
     /// Effective spp over the evaluated frames.
     pub ssim: Summary,
+    /// Effective spp by RMSE over the evaluated frames.
     pub rmse: Summary,
     /// Left-eye pixels path traced over all frames.
     pub traced_left_pixels: u64,
 }
 
 impl ConfigResult {
+    /// The effective spp summary by `metric`.
     pub fn summary(&self, metric: Metric) -> &Summary {
         match metric {
             Metric::Ssim => &self.ssim,
@@ -188,16 +207,22 @@ impl ConfigResult {
 /// Everything measured on one scene.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SceneResult {
+    /// The scene's own name (a manifest's `name`, a folder's name), keying its cache entries.
     pub name: String,
+    /// Human-readable name for tables and figures.
     pub display_name: String,
+    /// The paper scene it stands for (Figure 2 label); `None` for a scene the paper lacks.
     pub paper_scene: Option<String>,
+    /// [`Scene::fingerprint`](crate::scene::Scene::fingerprint) as 16 hex digits.
     pub fingerprint: String,
     /// The error curves of the frames with a reference.
     pub curves: Vec<FrameCurve>,
+    /// One result per (variant, input spp), variants outermost.
     pub configs: Vec<ConfigResult>,
 }
 
 impl SceneResult {
+    /// The result of `variant` at input `spp`, if the run has it.
     pub fn config(&self, variant: Variant, spp: u32) -> Option<&ConfigResult> {
         self.configs.iter().find(|c| c.variant == variant && c.spp == spp)
     }
@@ -206,48 +231,72 @@ impl SceneResult {
 /// The machine-readable result of a run.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct EvalResults {
+    /// The spec evaluated.
     pub spec: EvalSpec,
+    /// `<cache format>/<crate version>/<global probe>`, as in every cache key.
     pub code_version: String,
+    /// Per-scene results, in spec order.
     pub scenes: Vec<SceneResult>,
 }
 
 /// Figure 6's input: one eye's reason codes at one frame, over its reference.
 #[derive(Clone, Debug)]
 pub struct DiscardMap {
+    /// The scene's own name ([`SceneResult::name`]).
     pub scene: String,
+    /// The figure frame ([`EvalSpec::figure_frame`]).
     pub frame: u32,
     /// `stereo` or `temporal`.
     pub kind: &'static str,
+    /// The left eye's reason code per pixel.
     pub reasons: PlaneBuf<u8>,
+    /// The frame's left-eye reference, shown darkened under reprojected and background
+    /// pixels.
     pub background: RgbBuf,
 }
 
 /// One row of Figure 7.
 #[derive(Clone, Debug)]
 pub struct ComparisonRow {
+    /// The scene's own name ([`SceneResult::name`]).
     pub scene: String,
+    /// The figure frame ([`EvalSpec::figure_frame`]).
     pub frame: u32,
+    /// Input samples per pixel.
     pub spp: u32,
+    /// The frame path traced at `spp`.
     pub path_traced: RgbBuf,
+    /// The spatiotemporal pipeline's left-eye output at `spp` (paper order).
     pub reprojected: RgbBuf,
+    /// The reprojected image's effective spp by SSIM.
     pub effective: EffectiveSpp,
+    /// The effective spp rounded, at least 1 (`M` above the curve's range; 1 below it
+    /// or when undefined).
     pub comparison_spp: u32,
+    /// The frame path traced at `comparison_spp`.
     pub comparison: RgbBuf,
 }
 
 /// Images for the figures (kept out of the JSON).
 #[derive(Clone, Debug, Default)]
 pub struct Artifacts {
+    /// Figure 6's discard maps.
     pub discard_maps: Vec<DiscardMap>,
+    /// Figure 7's rows.
     pub comparisons: Vec<ComparisonRow>,
 }
 
 /// What [`evaluate`] returns.
 pub struct EvalOutcome {
+    /// The measured results (`results.json`).
     pub results: EvalResults,
+    /// Images for the figures.
     pub artifacts: Artifacts,
+    /// What this run computed rather than loaded.
     pub counters: WorkCounters,
+    /// Non-fatal problems, in the order they were reported.
     pub warnings: Vec<String>,
+    /// Wall time of the run, in seconds.
     pub seconds: f64,
 }
 
@@ -1258,13 +1307,17 @@ pub fn merge(spec: &EvalSpec, cache: &Cache, reporter: &dyn Reporter) -> Result<
 /// What one shard did.
 #[derive(Clone, Debug)]
 pub struct ShardOutcome {
+    /// The shard that ran.
     pub shard: Shard,
     /// Units dealt to this shard, and how many units the whole run has.
     pub units: usize,
+    /// Units of the whole run.
     pub total_units: usize,
     /// Everything computed (its own units, and dependencies nobody else had claimed).
     pub counters: WorkCounters,
+    /// Non-fatal problems, in the order they were reported.
     pub warnings: Vec<String>,
+    /// Wall time of the shard, in seconds.
     pub seconds: f64,
 }
 
@@ -1334,10 +1387,15 @@ fn seconds_per_sample(renderer: &Renderer, rig: &StereoRig, extent: Extent) -> R
 /// A scene's measuring stick under a spec: the renderer, and the reference and error curve
 /// of every evaluated frame (left eye), from the cache where they exist.
 pub struct SceneBasis {
+    /// The scene's renderer (scene and BVH built).
     pub renderer: Renderer,
+    /// Left-eye reference of each evaluated frame.
     pub references: BTreeMap<u32, RgbBuf>,
+    /// Error curve of each evaluated frame.
     pub curves: BTreeMap<u32, FrameCurve>,
+    /// What was computed rather than loaded.
     pub counters: WorkCounters,
+    /// Non-fatal problems, in the order they were reported.
     pub warnings: Vec<String>,
 }
 

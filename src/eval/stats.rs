@@ -42,6 +42,7 @@ impl Bound {
         }
     }
 
+    /// The sign shown before a value: `≥`, `≤` or nothing.
     pub fn prefix(self) -> &'static str {
         match self {
             Bound::Exact | Bound::Unknown => "",
@@ -75,14 +76,17 @@ pub struct Summary {
     pub mean: Option<f64>,
     /// The sample standard deviation of the same values.
     pub std: Option<f64>,
+    /// Whether `mean` is the mean itself or a bound on it.
     pub bound: Bound,
     /// Values summarised.
     pub count: usize,
-    /// Frames above / below the curve's range, undefined, and in range but ambiguous (in a
-    /// non-monotone stretch of the curve).
+    /// Frames above the curve's range (better than its last point).
     pub above: usize,
+    /// Frames below the curve's range (worse than 1 spp; counted as 1).
     pub below: usize,
+    /// Frames whose error is NaN (left out of the values).
     pub undefined: usize,
+    /// Frames in range whose first and last crossings differ.
     pub ambiguous: usize,
 }
 
@@ -174,6 +178,7 @@ impl Summary {
         }
     }
 
+    /// `std` with `digits` decimals, or `n/a`.
     pub fn std_text(&self, digits: usize) -> String {
         match self.std {
             Some(s) => format!("{s:.digits$}"),

@@ -24,14 +24,21 @@ use super::Variant;
 #[derive(Clone, Debug, PartialEq, Eq, Serialize)]
 #[serde(tag = "kind", rename_all = "kebab-case")]
 pub enum UnitKind {
+    /// The left-eye reference of one frame.
     Reference {
+        /// Frame index, from 0.
         frame: u32,
     },
+    /// The error curve of one frame (needs its reference).
     Curve {
+        /// Frame index, from 0.
         frame: u32,
     },
+    /// One configuration over all frames (needs every reference and curve of its scene).
     Config {
+        /// The pipeline mode and order.
         variant: Variant,
+        /// Input samples per pixel.
         spp: u32,
     },
     /// Figure 7's path-traced images of one scene.
@@ -49,6 +56,7 @@ impl UnitKind {
         }
     }
 
+    /// The kind's name in plans (`reference`, `curve`, `config`, `figures`).
     pub fn label(&self) -> &'static str {
         match self {
             UnitKind::Reference { .. } => "reference",
@@ -64,7 +72,9 @@ impl UnitKind {
 pub struct Unit {
     /// Index of its scene in the spec.
     pub scene: usize,
+    /// Its scene's own name (a manifest's `name`, a folder's name).
     pub scene_name: String,
+    /// What it computes.
     #[serde(flatten)]
     pub kind: UnitKind,
     /// Path-traced pixel samples it computes (the cost model's unit).
@@ -92,7 +102,9 @@ impl std::fmt::Display for Unit {
 /// Shard `index` of `count` (0-based).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Shard {
+    /// This shard's index, below `count`.
     pub index: usize,
+    /// Number of shards, at most [`MAX_SHARDS`].
     pub count: usize,
 }
 
@@ -115,6 +127,8 @@ impl Shard {
         Self::new(num(k, "index")?, num(n, "count")?)
     }
 
+    /// Shard `index` of `count`; refuses a count of 0 or above [`MAX_SHARDS`], and an
+    /// index not below the count.
     pub fn new(index: usize, count: usize) -> Result<Self, String> {
         if count == 0 || count > MAX_SHARDS {
             return Err(format!("shard count {count} must be in 1..={MAX_SHARDS}"));
@@ -179,12 +193,15 @@ pub fn assign(units: &[Unit], count: usize) -> Vec<Vec<usize>> {
 /// A run's units and what they cost.
 #[derive(Clone, Debug, Serialize)]
 pub struct Plan {
+    /// Every unit, in plan order (scene by scene: references, curves, configurations,
+    /// figures).
     pub units: Vec<Unit>,
     /// Measured CPU seconds per path-traced pixel sample, per scene.
     pub seconds_per_sample: Vec<(String, f64)>,
 }
 
 impl Plan {
+    /// Estimated CPU seconds of all units together.
     pub fn cpu_seconds(&self) -> f64 {
         self.units.iter().map(|u| u.cpu_seconds).sum()
     }
