@@ -952,8 +952,21 @@ fn bad_json_gives_line_and_column() {
          \"to_world\": [[1,0,0],[0,1,0],[0,0,1]]}\n]\n",
     );
     let e = load_folder(&dir.0, &FolderOptions::default()).unwrap_err().to_string();
-    assert!(e.contains("light 1 (type \"envmap\"), field \"filename\": invalid type: null"), "{e}");
+    // A Mitsuba scene converted without its environment image: the message says what is
+    // missing and what to do, not serde's type error.
+    assert!(e.contains("light 1: an \"envmap\" light has no image (\"filename\" is null"), "{e}");
+    assert!(e.contains("drop this entry") && !e.contains("invalid type"), "{e}");
     assert!(!e.contains("at line"), "position printed twice: {e}");
+    dir.write("lights.json", "[\n  {\"type\": \"point\", \"position\": null, \"intensity\": [1, 1, 1]}\n]\n");
+    let e = load_folder(&dir.0, &FolderOptions::default()).unwrap_err().to_string();
+    assert!(
+        e.contains("light 0 (type \"point\"), field \"position\" is null, but an array of length 3 is required"),
+        "{e}"
+    );
+    dir.write("lights.json", "[]");
+    dir.write("camera.json", r#"{"eye": [0, 1, 1.5], "target": [0, 1, -1], "vfov_deg": null}"#);
+    let e = load_folder(&dir.0, &FolderOptions::default()).unwrap_err().to_string();
+    assert!(e.contains("camera.json:1:") && e.contains("field \"vfov_deg\" is null, but f32 is required"), "{e}");
     dir.write("camera.json", r#"{"eye": [0, 1, 1.5], "target": [0, 1, -1], "vfov_deg": "wide"}"#);
     let e = load_folder(&dir.0, &FolderOptions::default()).unwrap_err().to_string();
     assert!(e.contains("camera.json:1:") && e.contains("expected f32") && !e.contains("at line"), "{e}");

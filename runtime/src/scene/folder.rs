@@ -139,8 +139,11 @@ pub enum LightJson {
     },
     /// A lat-long EXR environment map.
     Envmap {
-        /// File name relative to the folder.
-        filename: String,
+        /// File name relative to the folder. `null` or absent (what a converter writes when
+        /// the scene's environment image was not exported) is refused with a message that
+        /// says what to do, not a type error.
+        #[serde(default)]
+        filename: Option<String>,
         /// Radiance scale.
         #[serde(default = "one")]
         scale: f32,
@@ -208,11 +211,20 @@ fn sun_radius() -> f32 {
 }
 
 /// Reads and parses a JSON file; syntax errors carry line and column.
+/// A `null` refused by serde is explained, naming the field when the object has one null.
 pub(crate) fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, SceneError> {
     let text = std::fs::read_to_string(path).map_err(|e| SceneError::io(path, e))?;
-    serde_json::from_str(&text).map_err(|e| SceneError::Parse {
-        location: Location::at(path, e.line().max(1), e.column().max(1)),
-        message: json_message(&e),
+    serde_json::from_str(&text).map_err(|e| {
+        let value: Option<serde_json::Value> = e.is_data().then(|| serde_json::from_str(&text).ok()).flatten();
+        let mut nulls = value.iter().filter_map(|v| v.as_object()).flatten().filter(|(_, v)| v.is_null());
+        let field = match (nulls.next(), nulls.next()) {
+            (Some((key, _)), None) => Some(key.as_str()),
+            _ => None,
+        };
+        SceneError::Parse {
+            location: Location::at(path, e.line().max(1), e.column().max(1)),
+            message: explain_null(field, &json_message(&e)),
+        }
     })
 }
 
@@ -222,6 +234,18 @@ fn json_message(e: &serde_json::Error) -> String {
     let full = e.to_string();
     let suffix = format!(" at line {} column {}", e.line(), e.column());
     full.strip_suffix(&suffix).map_or(full.clone(), str::to_owned)
+}
+
+/// serde's `invalid type: null, expected X` as a sentence a scene author can act on: the
+/// field is null where a value is required (converters write null for what they could not
+/// translate). Other messages pass unchanged.
+fn explain_null(field: Option<&str>, message: &str) -> String {
+    match (message.strip_prefix("invalid type: null, expected "), field) {
+        (Some(expected), Some(f)) => format!("field {f:?} is null, but {expected} is required: give it a value"),
+        (Some(expected), None) => format!("a field is null, but {expected} is required: give it a value"),
+        (None, Some(f)) => format!("field {f:?}: {message}"),
+        (None, None) => message.to_owned(),
+    }
 }
 
 /// Reads `lights.json`. serde reports a wrong value inside an internally tagged entry
@@ -265,10 +289,8 @@ fn light_error(index: usize, entry: &serde_json::Value, e: &serde_json::Error) -
             (json_message(&refused) == message).then(|| key.clone())
         })
     });
-    match field {
-        Some(f) => format!("light {index}{kind}, field {f:?}: {message}"),
-        None => format!("light {index}{kind}: {message}"),
-    }
+    let separator = if field.is_some() { "," } else { ":" };
+    format!("light {index}{kind}{separator} {}", explain_null(field.as_deref(), &message))
 }
 
 /// The sun and sky of a Mitsuba `sunsky` entry (see the module notes for the numbers).
@@ -324,6 +346,15 @@ pub(crate) fn apply_light_json(
                 }
             }
             LightJson::Envmap { filename, scale: s, to_world } => {
+                let Some(filename) = filename else {
+                    return Err(bad(
+                        i,
+                        "an \"envmap\" light has no image (\"filename\" is null or missing): name a \
+                         lat-long EXR file in the scene folder, or drop this entry to render without \
+                         the environment"
+                            .into(),
+                    ));
+                };
                 let rows: Vec<&[f32]> = to_world.iter().map(|r| &r[..]).collect();
                 let ok = (rows.len() == 3 || rows.len() == 4) && rows.iter().all(|r| r.len() >= 3);
                 if !ok {
