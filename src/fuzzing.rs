@@ -15,8 +15,6 @@
 //! corpora through them. Loaders read files, so the file-based entries write the input into
 //! a per-process scratch folder first (under `/dev/shm` where it exists).
 
-#![warn(missing_docs)]
-
 use std::path::{Path, PathBuf};
 
 use glam::{DVec3, Mat3, Vec3};

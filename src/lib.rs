@@ -8,6 +8,8 @@
 //! are re-exported here under their own names). Imports flow one way:
 //! kernels ← runtime ← harness ← CLI.
 
+#![warn(missing_docs)]
+
 pub use stereotrace_runtime::{camera, cpu, image_io, kernels, pipeline, render, scene, source};
 
 pub mod commands;

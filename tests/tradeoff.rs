@@ -10,7 +10,6 @@ use stereotrace::commands::tradeoff::{TradeoffOptions, sweep};
 use stereotrace::eval::cache::Cache;
 use stereotrace::eval::run::{Limits, Quiet};
 use stereotrace::eval::{Variant, evaluate};
-use stereotrace::kernels::Extent;
 
 fn temp(tag: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("stereotrace-tradeoff-{tag}-{}", std::process::id()));
@@ -21,15 +20,19 @@ fn temp(tag: &str) -> PathBuf {
 #[test]
 fn the_sweep_measures_the_harness_images_and_marks_a_consistent_front() {
     let dir = temp("harness");
-    let mut opts = TradeoffOptions::new("cornell");
-    opts.extent = Extent::new(32, 18).unwrap();
-    (opts.frames, opts.warmup) = (4, 2);
-    opts.input_spp = vec![1];
-    (opts.reference_spp, opts.curve_spp) = (16, 8);
-    opts.budget_fractions = vec![0.5];
-    opts.budgets_ms = vec![50.0];
-    opts.cache = dir.join("cache");
-    opts.out = dir.join("out");
+    let (cache, out) = (dir.join("cache"), dir.join("out"));
+    let flags = [
+        "--res=32x18",
+        "--frames=4",
+        "--warmup=2",
+        "--spp=1",
+        "--reference-spp=16",
+        "--curve-spp=8",
+        "--budgets=0.5",
+        "--budgets-ms=50",
+    ];
+    let mut opts = TradeoffOptions::new("cornell", &flags).unwrap();
+    (opts.references.cache, opts.out) = (cache, out);
     let report = sweep(&opts, &Quiet).unwrap();
 
     let mut spec = opts.eval_spec();
@@ -37,7 +40,7 @@ fn the_sweep_measures_the_harness_images_and_marks_a_consistent_front() {
     spec.figures.framewise_scene = None;
     spec.figures.discard_scene = None;
     spec.figures.comparison_scenes.clear();
-    let outcome = evaluate(&spec, &Cache::open(&opts.cache).unwrap(), &Quiet, Limits::default()).unwrap();
+    let outcome = evaluate(&spec, &Cache::open(&opts.references.cache).unwrap(), &Quiet, Limits::default()).unwrap();
     assert_eq!(outcome.counters.references + outcome.counters.curves, 0, "the sweep left the basis in the cache");
     let scene = &outcome.results.scenes[0];
     for v in Variant::ALL {
@@ -91,13 +94,17 @@ fn the_sweep_measures_the_harness_images_and_marks_a_consistent_front() {
 
 #[test]
 fn bad_options_are_refused_with_a_message() {
-    let mut opts = TradeoffOptions::new("cornell");
-    opts.budget_fractions = vec![1.5];
-    assert!(sweep(&opts, &Quiet).unwrap_err().contains("budget fraction"));
-    let mut opts = TradeoffOptions::new("cornell");
-    opts.input_spp = vec![0];
-    assert!(sweep(&opts, &Quiet).unwrap_err().contains("--spp"));
-    let mut opts = TradeoffOptions::new("no-such-scene");
-    opts.cache = temp("bad").join("cache");
+    // Values are refused where they are parsed, naming the value and the rule.
+    let refused = |flags: &[&str]| TradeoffOptions::new("cornell", flags).unwrap_err();
+    assert!(refused(&["--budgets=1.5"]).contains("budget fraction 1.5 is not in (0, 1]"));
+    assert!(refused(&["--spp=0"]).contains("samples per pixel 0 must be in 1..="));
+    assert!(refused(&["--budgets-ms=0"]).contains("budget 0 ms must be finite, > 0"));
+    assert!(refused(&["--threads=0"]).contains("--threads"));
+    assert!(refused(&["--frames=0"]).contains("frame count 0"));
+    // And what only the sweep can know, when it runs.
+    let opts = TradeoffOptions::new("cornell", &["--frames=1"]).unwrap();
+    assert!(sweep(&opts, &Quiet).unwrap_err().contains("--frames must be at least 2"));
+    let mut opts = TradeoffOptions::new("no-such-scene", &[]).unwrap();
+    opts.references.cache = temp("bad").join("cache");
     assert!(sweep(&opts, &Quiet).is_err());
 }

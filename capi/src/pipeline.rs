@@ -13,6 +13,7 @@ use stereotrace_kernels::{CameraModel, Extent, PlaneBuf, RgbBuf};
 use stereotrace_runtime::camera::{Eye, StereoRig};
 use stereotrace_runtime::pipeline::{
     FrameStats, GBufferView, Layout, MAX_SPP, Mode, Order, Pipeline, PipelineConfig, PipelineError, budget_duration,
+    check_spp,
 };
 use stereotrace_runtime::render::raster::RasterPassStats;
 use stereotrace_runtime::render::{GBufferBuf, PixelSelection, Renderer, TraceRequest, TraceStats};
@@ -148,12 +149,9 @@ impl StPipelineConfig {
             5 => Mode::SpatiotemporalBlend,
             other => return Err(Failure::invalid(format!("config.mode {other} is not a StMode (0 ..= 5)"))),
         };
-        if !(1..=MAX_SPP).contains(&self.spp) {
-            return Err(Failure::invalid(format!(
-                "config.spp must be in 1 ..= STEREOTRACE_MAX_SPP ({MAX_SPP}), got {}",
-                self.spp
-            )));
-        }
+        // The pipeline's own rule, as the CLI's `--spp` applies it.
+        check_spp(self.spp)
+            .map_err(|e| Failure::invalid(format!("config.spp: {e} (STEREOTRACE_MAX_SPP ({MAX_SPP}) is the most)")))?;
         let mut c = PipelineConfig::paper(mode, self.spp, tolerances);
         c.order = match self.order {
             0 => Order::Paper,

@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::eval::cache::Cache;
@@ -12,6 +13,8 @@ use crate::eval::run::{EvalError, EvalOutcome, Limits, merge, plan, run_shard};
 use crate::eval::units::{Shard, hours_text};
 use crate::eval::{EvalSpec, Grid, Preset, Reporter, SsimChoice, Variant, evaluate, plots, report};
 use crate::kernels::Extent;
+
+use super::args::{ReferenceArgs, parse_frames, parse_resolution, parse_spp};
 
 /// How the error curves are sampled (CLI form of [`Grid`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -22,28 +25,69 @@ pub enum GridChoice {
     Geometric,
 }
 
-/// Options of the eval command; `None` keeps the preset's value.
-#[derive(Clone, Debug)]
+/// Options of `stereotrace eval`; a value not given keeps the preset's.
+#[derive(Args, Clone, Debug)]
 pub struct EvalOptions {
+    /// Starting point: `quick` (small, for CI) or `paper` (1280x720, days of CPU time).
+    #[arg(long, value_enum, default_value_t = Preset::Quick)]
     pub preset: Preset,
+    /// Scenes (comma-separated built-in names, manifests or folders); default: every built-in.
+    #[arg(long, value_delimiter = ',')]
     pub scenes: Option<Vec<String>>,
-    pub modes: Option<Vec<String>>,
+    /// Modes (comma-separated): stereo, temporal, spatiotemporal, spatiotemporal-stereo-first,
+    /// stereo-blend, spatiotemporal-blend, spatiotemporal-blend-stereo-first; default: all.
+    #[arg(long, value_delimiter = ',', value_parser = Variant::parse)]
+    pub modes: Option<Vec<Variant>>,
+    /// Input samples per pixel (comma-separated).
+    #[arg(long, value_delimiter = ',', value_parser = parse_spp)]
     pub spp: Option<Vec<u32>>,
-    pub extent: Option<Extent>,
+    /// Resolution per eye, WIDTHxHEIGHT.
+    #[arg(long, value_parser = parse_resolution)]
+    pub res: Option<Extent>,
+    /// Frames the pipeline renders (0..FRAMES).
+    #[arg(long, value_parser = parse_frames)]
     pub frames: Option<u32>,
+    /// Warm-up frames left out of the averages.
+    #[arg(long)]
     pub warmup: Option<u32>,
-    pub reference_spp: Option<u32>,
-    pub curve_spp: Option<u32>,
+    /// The references, the error curves and their cache.
+    #[command(flatten)]
+    pub references: ReferenceArgs,
+    /// How the error curves are sampled.
+    #[arg(long, value_enum)]
     pub grid: Option<GridChoice>,
+    /// SSIM flavour (the paper's is the 3-D volume).
+    #[arg(long, value_enum)]
     pub ssim: Option<SsimChoice>,
+    /// Output folder (default: `out/eval-<preset>`).
+    #[arg(long)]
     pub out: Option<PathBuf>,
-    pub cache: Option<PathBuf>,
+    /// Skip the figures (and the work only they need).
+    #[arg(long)]
     pub no_figures: bool,
+    /// Stop after computing this many units (references, curves, configurations); run again to
+    /// resume.
+    #[arg(long)]
     pub max_units: Option<usize>,
+    /// How the pipelines make their G-buffers (default: raster).
+    #[arg(long, value_enum)]
     pub gbuffer: Option<crate::pipeline::GBufferPass>,
-    /// Motion vectors on (the preset's setting otherwise).
+    /// Give the pipelines the surfaces' motion (moving area lights' own), which temporal
+    /// reprojection follows; without it every surface is taken as still.
+    #[arg(long)]
     pub motion_vectors: bool,
-    pub scope: Scope,
+    /// List the run's work units and their estimated CPU time (writes OUT/plan.tsv); compute
+    /// nothing.
+    #[arg(long, conflicts_with_all = ["shard", "merge"])]
+    pub plan: bool,
+    /// Compute only shard K of N (0-based) into the cache, e.g. 2/8; `env` reads a Slurm
+    /// array task or a Kubernetes Indexed Job. Shards may run at once on one cache.
+    #[arg(long, value_parser = Shard::parse, conflicts_with = "merge")]
+    pub shard: Option<Shard>,
+    /// Write the reports from the cache alone (after every shard); fails naming what is
+    /// missing.
+    #[arg(long)]
+    pub merge: bool,
 }
 
 /// What of the run this process does.
@@ -61,36 +105,20 @@ pub enum Scope {
 }
 
 impl EvalOptions {
-    /// The preset's options, nothing overridden.
-    pub fn preset(preset: Preset) -> Self {
-        Self {
-            preset,
-            scenes: None,
-            modes: None,
-            spp: None,
-            extent: None,
-            frames: None,
-            warmup: None,
-            reference_spp: None,
-            curve_spp: None,
-            grid: None,
-            ssim: None,
-            out: None,
-            cache: None,
-            no_figures: false,
-            max_units: None,
-            gbuffer: None,
-            motion_vectors: false,
-            scope: Scope::Whole,
+    /// What of the run this process does (`--plan`, `--shard` and `--merge` exclude each
+    /// other).
+    pub fn scope(&self) -> Scope {
+        match (self.plan, self.shard, self.merge) {
+            (true, ..) => Scope::Plan,
+            (_, Some(s), _) => Scope::Shard(s),
+            (_, _, true) => Scope::Merge,
+            _ => Scope::Whole,
         }
     }
 
+    /// The output folder.
     pub fn out_dir(&self) -> PathBuf {
         self.out.clone().unwrap_or_else(|| PathBuf::from(format!("out/eval-{}", self.preset.name())))
-    }
-
-    pub fn cache_dir(&self) -> PathBuf {
-        self.cache.clone().unwrap_or_else(|| PathBuf::from("out/eval-cache"))
     }
 }
 
@@ -102,7 +130,7 @@ pub fn build_spec(opts: &EvalOptions) -> Result<EvalSpec, String> {
         spec.scenes = scenes.clone();
     }
     if let Some(modes) = &opts.modes {
-        spec.variants = modes.iter().map(|m| Variant::parse(m)).collect::<Result<_, _>>()?;
+        spec.variants = modes.clone();
     }
     if let Some(spp) = &opts.spp {
         let mut spp = spp.clone();
@@ -110,7 +138,7 @@ pub fn build_spec(opts: &EvalOptions) -> Result<EvalSpec, String> {
         spp.dedup();
         spec.input_spp = spp;
     }
-    if let Some(e) = opts.extent {
+    if let Some(e) = opts.res {
         (spec.width, spec.height) = (e.width(), e.height());
     }
     if let Some(f) = opts.frames {
@@ -122,12 +150,7 @@ pub fn build_spec(opts: &EvalOptions) -> Result<EvalSpec, String> {
     if let Some(w) = opts.warmup {
         spec.warmup = w;
     }
-    if let Some(r) = opts.reference_spp {
-        spec.reference_spp = r;
-    }
-    if let Some(m) = opts.curve_spp {
-        spec.curve_spp = m;
-    }
+    opts.references.apply(&mut spec);
     if let Some(g) = opts.grid {
         spec.grid = match g {
             GridChoice::Dense => Grid::Dense,
@@ -228,10 +251,10 @@ impl Reporter for Bar {
 /// Runs the command; returns the report printed on stdout.
 pub fn run(opts: &EvalOptions) -> Result<String, String> {
     let spec = build_spec(opts)?;
-    let cache = Cache::open(&opts.cache_dir())?;
+    let cache = Cache::open(&opts.references.cache)?;
     let reporter = Bar::new();
     let limits = Limits { max_computed_units: opts.max_units, max_samples: None };
-    let result = match opts.scope {
+    let result = match opts.scope() {
         Scope::Whole => evaluate(&spec, &cache, &reporter, limits).map(|o| Done::Outcome(Box::new(o))),
         Scope::Merge => merge(&spec, &cache, &reporter).map(|o| Done::Outcome(Box::new(o))),
         Scope::Plan => plan(&spec, &cache, &reporter).map(|p| Done::Text(plan_text(&p, opts))),

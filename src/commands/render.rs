@@ -4,22 +4,29 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::camera::{Eye, StereoRig};
 use crate::image_io::{write_exr, write_png_preview};
-use crate::kernels::{Extent, RgbBuf};
+use crate::kernels::RgbBuf;
 use crate::render::{PixelSelection, Renderer, TraceRequest, TraceStats};
+
+use super::args::{SceneArgs, default, parse_exposure, parse_frames, parse_spp};
 
 /// Which eyes to render.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum EyeChoice {
+    /// The left eye alone.
     Left,
+    /// The right eye alone.
     Right,
+    /// Both eyes.
     Both,
 }
 
 impl EyeChoice {
+    /// The eyes rendered, left first.
     pub fn eyes(self) -> &'static [Eye] {
         match self {
             EyeChoice::Left => &[Eye::Left],
@@ -29,39 +36,51 @@ impl EyeChoice {
     }
 }
 
-/// Options of the render command.
-#[derive(Clone, Debug)]
+/// Options of `stereotrace render`.
+#[derive(Args, Clone, Debug)]
+#[command(mut_arg("scene", default("cornell")), mut_arg("res", default("640x360")))]
 pub struct RenderOptions {
-    pub scene: String,
+    /// The scene and the resolution per eye.
+    #[command(flatten)]
+    pub input: SceneArgs,
+    /// Number of frames of the camera path to render.
+    #[arg(long, default_value_t = 1, value_parser = parse_frames)]
     pub frames: u32,
+    /// First frame to render.
+    #[arg(long, default_value_t = 0)]
     pub first_frame: u32,
+    /// Samples per pixel.
+    #[arg(long, default_value_t = 16, value_parser = parse_spp)]
     pub spp: u32,
-    pub extent: Extent,
-    pub eyes: EyeChoice,
+    /// Which eye(s) to render.
+    #[arg(long, value_enum, default_value_t = EyeChoice::Both)]
+    pub eye: EyeChoice,
+    /// Output folder (a subfolder per scene is created).
+    #[arg(long, default_value = "out")]
     pub out: PathBuf,
-    pub separation: f32,
+    /// Distance between the eyes in metres (0 renders a mono pair).
+    #[arg(long, default_value_t = crate::camera::DEFAULT_EYE_SEPARATION)]
+    pub eye_separation: f32,
+    /// Seed of the random numbers.
+    #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Exposure multiplier for the PNG previews (finite, > 0).
+    #[arg(long, default_value_t = 1.0, value_parser = parse_exposure)]
     pub exposure: f32,
     /// Use the general integrator instead of the one specialised for the scene's effects.
+    #[arg(long)]
     pub general: bool,
-    /// Bounces of the estimator (see [`Renderer::set_bounces`]).
+    /// Bounces of the estimator: 1 is the paper's (direct light at the primary and the
+    /// secondary hit), 0 direct lighting only (see [`Renderer::set_bounces`]).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(0..=1))]
     pub bounces: u32,
 }
 
 /// Runs the command; returns a one-line summary.
 pub fn run(opts: &RenderOptions) -> Result<String, String> {
-    let rig = StereoRig::new(opts.separation)?;
-    if opts.spp == 0 {
-        return Err("--spp must be at least 1".into());
-    }
-    if opts.frames == 0 {
-        return Err("--frames must be at least 1 (0 would write nothing)".into());
-    }
-    if !(opts.exposure.is_finite() && opts.exposure > 0.0) {
-        return Err(format!("--exposure {} must be finite and > 0", opts.exposure));
-    }
+    let rig = StereoRig::new(opts.eye_separation)?;
     let load = Instant::now();
-    let scene = crate::scene::resolve(&opts.scene).map_err(|e| e.to_string())?;
+    let scene = crate::scene::resolve(&opts.input.scene).map_err(|e| e.to_string())?;
     for w in &scene.warnings {
         eprintln!("warning: {w}");
     }
@@ -74,11 +93,11 @@ pub fn run(opts: &RenderOptions) -> Result<String, String> {
         )
     })?;
     let diagonal = scene.bounds().extent().length();
-    if opts.separation > diagonal {
+    if opts.eye_separation > diagonal {
         eprintln!(
             "warning: the eye separation of {} m is wider than the scene ({diagonal:.3} m across): the eyes may see \
              little or nothing of it",
-            opts.separation
+            opts.eye_separation
         );
     }
     let name = scene.name.clone();
@@ -94,20 +113,20 @@ pub fn run(opts: &RenderOptions) -> Result<String, String> {
     let dir = opts.out.join(&name);
     std::fs::create_dir_all(&dir).map_err(|e| format!("{}: cannot create output folder: {e}", dir.display()))?;
 
-    let jobs = u64::from(opts.frames) * opts.eyes.eyes().len() as u64;
+    let jobs = u64::from(opts.frames) * opts.eye.eyes().len() as u64;
     let bar = ProgressBar::new(jobs).with_style(
         ProgressStyle::with_template("{bar:30} {pos}/{len} images  {elapsed_precise} elapsed, ETA {eta}  {msg}")
             .expect("valid template"),
     );
-    let mut image = RgbBuf::new(opts.extent, 0.0);
+    let mut image = RgbBuf::new(opts.input.res, 0.0);
     let mut stats = TraceStats::default();
     let start = Instant::now();
     let mut lights = renderer.frame_lights(opts.first_frame);
     for frame in opts.first_frame..last {
         lights.update(renderer.scene(), frame);
         let head = renderer.scene().camera.pose_at(frame as f32);
-        for &eye in opts.eyes.eyes() {
-            let camera = rig.eye_camera(&head, eye, opts.extent).map_err(|e| format!("frame {frame}: {e}"))?;
+        for &eye in opts.eye.eyes() {
+            let camera = rig.eye_camera(&head, eye, opts.input.res).map_err(|e| format!("frame {frame}: {e}"))?;
             let request = TraceRequest { eye, frame, spp: opts.spp, seed: opts.seed, first_sample: 0 };
             stats = stats
                 + renderer
@@ -127,8 +146,8 @@ pub fn run(opts: &RenderOptions) -> Result<String, String> {
     Ok(format!(
         "wrote {jobs} image{} ({}x{}, {} spp) to {} in {secs:.2} s ({:.2} Mrays/s)",
         if jobs == 1 { "" } else { "s" },
-        opts.extent.width(),
-        opts.extent.height(),
+        opts.input.res.width(),
+        opts.input.res.height(),
         opts.spp,
         dir.display(),
         stats.rays as f64 / secs / 1e6

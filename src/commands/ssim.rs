@@ -2,7 +2,9 @@
 //! variant) and RMSE of two linear HDR images.
 
 use std::fmt::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+use clap::Args;
 
 use crate::image_io::read_exr;
 use crate::kernels::ssim::{SsimParams, SsimVariant, ssim};
@@ -16,6 +18,23 @@ fn six_digits(v: f64) -> String {
     } else {
         format!("{v:.5e}")
     }
+}
+
+/// Options of `stereotrace ssim`.
+#[derive(Args, Clone, Debug)]
+pub struct SsimOptions {
+    /// First image (EXR).
+    pub a: PathBuf,
+    /// Second image (EXR).
+    pub b: PathBuf,
+    /// Leave non-finite and out-of-range samples out instead of failing.
+    #[arg(long)]
+    pub exclude_nonfinite: bool,
+}
+
+/// `stereotrace ssim`: compares the two images of `opts`.
+pub fn run_command(opts: &SsimOptions) -> Result<String, String> {
+    run(&opts.a, &opts.b, opts.exclude_nonfinite)
 }
 
 /// Compares two EXR files; returns the report. Every error names the file at fault. Samples

@@ -15,38 +15,65 @@
 
 use std::time::Duration;
 
+use clap::Args;
 use serde::Serialize;
 
 use crate::camera::{Eye, StereoRig};
 use crate::kernels::Extent;
-use crate::pipeline::{
-    CameraWalk, FrameStats, GBufferPass, Layout, Mode, Order, Pipeline, PipelineConfig, Session, View,
-};
+use crate::pipeline::{CameraWalk, FrameStats, Layout, Mode, Order, Pipeline, PipelineConfig, Session, View};
 use crate::render::Renderer;
 
-/// Options of the throughput command.
-#[derive(Clone, Debug)]
+use super::args::{GBufferArg, SceneArgs, ThreadsArg, default, parse_budget_ms, parse_frames, parse_spp};
+
+/// Options of `stereotrace throughput`.
+#[derive(Args, Clone, Debug)]
+#[command(mut_arg("scene", default("atrium")), mut_arg("res", default("1280x720")))]
 pub struct ThroughputOptions {
-    pub scene: String,
-    pub extent: Extent,
-    pub threads: usize,
+    /// The scene and the resolution per eye.
+    #[command(flatten)]
+    pub input: SceneArgs,
+    /// Worker threads.
+    #[command(flatten)]
+    pub threads: ThreadsArg,
+    /// Frames to measure (after one warm-up frame).
+    #[arg(long, default_value_t = 20, value_parser = parse_frames)]
     pub frames: u32,
+    /// Samples per traced pixel.
+    #[arg(long, default_value_t = 1, value_parser = parse_spp)]
     pub spp: u32,
+    /// Pipeline mode.
+    #[arg(long, value_enum, default_value_t = Mode::Spatiotemporal)]
     pub mode: Mode,
+    /// Order of stereo and temporal reprojection (spatiotemporal modes).
+    #[arg(long, value_enum, default_value_t = Order::Paper)]
     pub order: Order,
+    /// G-buffer layout the reprojection reads.
+    #[arg(long, value_enum, default_value_t = Layout::Compact)]
     pub layout: Layout,
-    pub gbuffer: GBufferPass,
+    /// How the G-buffers are made.
+    #[command(flatten)]
+    pub gbuffer: GBufferArg,
+    /// Per-frame time budget in milliseconds (tracing stops when it is spent).
+    #[arg(long, value_parser = parse_budget_ms)]
     pub budget_ms: Option<f64>,
-    /// Also measure full stereo path tracing (for the speed-up) and mono frames (for the
-    /// cost of stereo): about doubles the run time.
+    /// Skip the baseline runs: full stereo path tracing (for the speed-up) and mono frames
+    /// (for the cost of stereo), with the same settings and budget as the measured run. They
+    /// about double the run time. (The field is true when they run.)
+    #[arg(long = "no-baseline", action = clap::ArgAction::SetFalse)]
     pub baseline: bool,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Median and 95th percentile of a series, in milliseconds.
 #[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
 pub struct Spread {
+    /// The median.
     pub median_ms: f64,
+    /// The 95th percentile (nearest rank).
     pub p95_ms: f64,
+    /// The largest value.
     pub max_ms: f64,
 }
 
@@ -65,24 +92,41 @@ impl Spread {
 /// Everything the driver measured (the `--json` object).
 #[derive(Clone, Debug, Serialize)]
 pub struct ThroughputReport {
+    /// The scene's name.
     pub scene: String,
+    /// Width per eye, in pixels.
     pub width: usize,
+    /// Height per eye, in pixels.
     pub height: usize,
+    /// Worker threads.
     pub threads: usize,
+    /// The pipeline mode measured (`--mode`).
     pub mode: String,
+    /// Order of stereo and temporal reprojection.
     pub order: String,
+    /// G-buffer layout the reprojection read (`compact` or `full`).
     pub layout: String,
     /// How the G-buffers were made (`raster` or `traced`).
     pub gbuffer_pass: String,
+    /// Samples per traced pixel.
     pub spp: u32,
+    /// Frames measured (the warm-up frame left out).
     pub frames_measured: usize,
+    /// The kernel bodies the CPU ran (for example `x86-64-v3 (AVX2+FMA)`).
     pub simd_level: String,
+    /// Stereo frames per second: frames measured over their total time.
     pub stereo_fps: f64,
+    /// Whole-frame times.
     pub frame: Spread,
+    /// Both eyes' G-buffer pass.
     pub gbuffer: Spread,
+    /// Stereo and temporal reprojection.
     pub reprojection: Spread,
+    /// Path tracing.
     pub tracing: Spread,
+    /// EMA accumulation and stereo blending.
     pub accumulation: Spread,
+    /// Rays traced per second of tracing time, in millions.
     pub mrays_per_s: f64,
     /// Share of left-eye pixels path traced (median over frames).
     pub left_traced_share: f64,
@@ -105,7 +149,9 @@ pub struct ThroughputReport {
     /// same for all): what each schedule traced and how long its frames took. Under a budget
     /// this is the comparison, in pixels and samples, not in time.
     pub schedules: Vec<ScheduleRun>,
+    /// The per-frame budget (`--budget-ms`), if any.
     pub budget_ms: Option<f64>,
+    /// Frames over the budget.
     pub budget_misses: usize,
     /// Frames over the budget by more than 1 ms (the real-time target is none).
     pub budget_misses_over_1ms: usize,
@@ -200,44 +246,41 @@ fn run_frames(
     Ok(stats)
 }
 
+/// `stereotrace throughput`: runs the driver and returns its report as text or JSON.
+pub fn run_command(opts: &ThroughputOptions) -> Result<String, String> {
+    let report = run(opts)?;
+    if opts.json { serde_json::to_string_pretty(&report).map_err(|e| e.to_string()) } else { Ok(report.text()) }
+}
+
 /// Runs the driver.
 pub fn run(opts: &ThroughputOptions) -> Result<ThroughputReport, String> {
-    if opts.frames == 0 {
-        return Err("--frames must be at least 1".into());
-    }
-    if opts.threads == 0 {
-        return Err("--threads must be at least 1".into());
-    }
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(opts.threads)
-        .build()
-        .map_err(|e| format!("cannot start {} threads: {e}", opts.threads))?;
-    let scene = crate::scene::resolve(&opts.scene).map_err(|e| e.to_string())?;
+    let pool = opts.threads.pool()?;
+    let scene = crate::scene::resolve(&opts.input.scene).map_err(|e| e.to_string())?;
     let name = scene.name.clone();
     let renderer = Renderer::new(scene).map_err(|e| e.to_string())?;
-    let tolerances = renderer.scene().tolerances.at_height(opts.extent.height());
+    let tolerances = renderer.scene().tolerances.at_height(opts.input.res.height());
     let mut config = PipelineConfig::paper(opts.mode, opts.spp, tolerances);
     config.order = opts.order;
     config.layout = opts.layout;
-    config.gbuffer = opts.gbuffer;
-    config.budget = opts.budget_ms.map(super::budget_duration).transpose()?;
-    let stats = pool.install(|| run_frames(&renderer, config, opts.extent, opts.frames, false))?;
+    config.gbuffer = opts.gbuffer.gbuffer;
+    config.budget = opts.budget_ms.map(crate::pipeline::budget_duration).transpose()?;
+    let stats = pool.install(|| run_frames(&renderer, config, opts.input.res, opts.frames, false))?;
     // Every run below shares `config`, the budget included: only the schedule differs.
     let schedule = |name: &str, stats: &[FrameStats], eyes: [bool; 2]| {
-        ScheduleRun::of(name, stats, opts.extent, opts.spp, opts.budget_ms, eyes)
+        ScheduleRun::of(name, stats, opts.input.res, opts.spp, opts.budget_ms, eyes)
     };
     let this_run = schedule(opts.mode.name(), &stats, [true, true]);
     let full_stereo = if opts.mode == Mode::PathTraced {
         Some(this_run.clone())
     } else if opts.baseline {
         let full = PipelineConfig { mode: Mode::PathTraced, ..config };
-        let full_stats = pool.install(|| run_frames(&renderer, full, opts.extent, opts.frames, false))?;
+        let full_stats = pool.install(|| run_frames(&renderer, full, opts.input.res, opts.frames, false))?;
         Some(schedule("full stereo", &full_stats, [true, true]))
     } else {
         None
     };
     let mono = if opts.baseline {
-        let mono_stats = pool.install(|| run_frames(&renderer, config, opts.extent, opts.frames, true))?;
+        let mono_stats = pool.install(|| run_frames(&renderer, config, opts.input.res, opts.frames, true))?;
         Some(schedule("mono", &mono_stats, [false, true]))
     } else {
         None
@@ -248,7 +291,7 @@ pub fn run(opts: &ThroughputOptions) -> Result<ThroughputReport, String> {
 
     let series = |f: fn(&FrameStats) -> Duration| Spread::of(stats.iter().map(|s| ms(f(s))).collect());
     let frame = series(|s| s.times.total);
-    let pixels = opts.extent.pixels() as f64;
+    let pixels = opts.input.res.pixels() as f64;
     let share = |eye: Eye| {
         let mut v: Vec<f64> = stats.iter().map(|s| s.traced_pixels[eye as usize] as f64 / pixels).collect();
         v.sort_by(f64::total_cmp);
@@ -266,13 +309,13 @@ pub fn run(opts: &ThroughputOptions) -> Result<ThroughputReport, String> {
     };
     Ok(ThroughputReport {
         scene: name,
-        width: opts.extent.width(),
-        height: opts.extent.height(),
-        threads: opts.threads,
+        width: opts.input.res.width(),
+        height: opts.input.res.height(),
+        threads: usize::from(opts.threads.threads),
         mode: opts.mode.name().into(),
         order: opts.order.name().into(),
         layout: format!("{:?}", opts.layout).to_lowercase(),
-        gbuffer_pass: opts.gbuffer.name().into(),
+        gbuffer_pass: opts.gbuffer.gbuffer.name().into(),
         spp: opts.spp,
         frames_measured: stats.len(),
         simd_level: crate::cpu::simd_level(),

@@ -12,6 +12,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
+use clap::Args;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use serde::Serialize;
@@ -28,75 +29,83 @@ use crate::kernels::Extent;
 use crate::kernels::reproject::TapPolicy;
 use crate::pipeline::{CameraWalk, GBufferPass, Layout, Mode, Order, Pipeline, Session};
 
-/// Options of the trade-off sweep.
-#[derive(Clone, Debug)]
+use super::args::{
+    GBufferArg, ReferenceArgs, SceneArgs, ThreadsArg, default, parse_budget_ms, parse_frames, parse_spp,
+};
+
+/// Options of `stereotrace tradeoff`.
+#[derive(Args, Clone, Debug)]
+#[command(mut_arg("scene", default("atrium")), mut_arg("res", default("256x144")))]
 pub struct TradeoffOptions {
-    pub scene: String,
-    pub extent: Extent,
-    pub threads: usize,
-    /// The pipeline renders frames `0..frames`; `warmup..frames` are measured for quality.
+    /// The scene and the resolution per eye (time and quality are both measured at it).
+    #[command(flatten)]
+    pub input: SceneArgs,
+    /// Worker threads.
+    #[command(flatten)]
+    pub threads: ThreadsArg,
+    /// Frames the pipeline renders (0..FRAMES); frame 0 is not timed, and at least 2 are
+    /// needed.
+    #[arg(long, default_value_t = 14, value_parser = parse_frames)]
     pub frames: u32,
+    /// Warm-up frames left out of the quality measurement.
+    #[arg(long, default_value_t = 10)]
     pub warmup: u32,
-    pub input_spp: Vec<u32>,
-    pub reference_spp: u32,
-    pub curve_spp: u32,
-    /// Budgets as fractions of the unbudgeted spatiotemporal frame time at the same spp.
-    pub budget_fractions: Vec<f64>,
-    /// Budgets in milliseconds per stereo frame (what a real-time user sets: 33, 50, 100).
+    /// Input samples per pixel (comma-separated).
+    #[arg(long, value_delimiter = ',', default_value = "1,2,4", value_parser = parse_spp)]
+    pub spp: Vec<u32>,
+    /// The references, the error curves and their cache (shared with `eval`; the quick
+    /// preset's by default).
+    #[command(flatten)]
+    pub references: ReferenceArgs,
+    /// Budgets as fractions of the unbudgeted spatiotemporal frame time at the same spp
+    /// (comma-separated, each in (0, 1]).
+    #[arg(long, value_delimiter = ',', default_value = "0.75,0.5,0.25", value_parser = parse_fraction)]
+    pub budgets: Vec<f64>,
+    /// Budgets in milliseconds per stereo frame (comma-separated, e.g. 33,50,100).
+    #[arg(long, value_delimiter = ',', value_parser = parse_budget_ms)]
     pub budgets_ms: Vec<f64>,
     /// How the G-buffers are made (the sweep adds one row with the other pass).
-    pub gbuffer: GBufferPass,
+    #[command(flatten)]
+    pub gbuffer: GBufferArg,
+    /// Output folder.
+    #[arg(long, default_value = "out/tradeoff")]
     pub out: PathBuf,
-    pub cache: PathBuf,
+}
+
+/// Parses a budget fraction in (0, 1].
+fn parse_fraction(s: &str) -> Result<f64, String> {
+    let f: f64 = s.trim().parse().map_err(|_| format!("budget fraction '{s}' is not a number"))?;
+    if f > 0.0 && f <= 1.0 { Ok(f) } else { Err(format!("budget fraction {s} is not in (0, 1]")) }
 }
 
 impl TradeoffOptions {
-    /// The defaults: the quick preset's quality setup at 256×144 on `scene`.
-    pub fn new(scene: &str) -> Self {
-        Self {
-            scene: scene.to_owned(),
-            extent: Extent::new(256, 144).expect("a valid constant extent"),
-            threads: 2,
-            frames: 14,
-            warmup: 10,
-            input_spp: vec![1, 2, 4],
-            reference_spp: 256,
-            curve_spp: 128,
-            budget_fractions: vec![0.75, 0.5, 0.25],
-            budgets_ms: Vec::new(),
-            gbuffer: GBufferPass::Raster,
-            out: PathBuf::from("out/tradeoff"),
-            cache: PathBuf::from("out/eval-cache"),
-        }
+    /// The command's defaults on `scene`, with `flags` as on the command line (for example
+    /// `["--frames", "4"]`).
+    pub fn new(scene: &str, flags: &[&str]) -> Result<Self, String> {
+        use clap::FromArgMatches;
+        let command = Self::augment_args(clap::Command::new("tradeoff").no_binary_name(true));
+        let matches =
+            command.try_get_matches_from(["--scene", scene].iter().chain(flags)).map_err(|e| e.to_string())?;
+        Self::from_arg_matches(&matches).map_err(|e| e.to_string())
     }
 
     /// The evaluation spec whose references and curves the sweep measures against.
     pub fn eval_spec(&self) -> EvalSpec {
         let mut spec = Preset::Quick.spec();
         spec.preset = "tradeoff".into();
-        spec.scenes = vec![self.scene.clone()];
-        (spec.width, spec.height) = (self.extent.width(), self.extent.height());
+        spec.scenes = vec![self.input.scene.clone()];
+        (spec.width, spec.height) = (self.input.res.width(), self.input.res.height());
         spec.frames = self.frames;
         spec.warmup = self.warmup;
-        spec.input_spp = self.input_spp.clone();
-        spec.reference_spp = self.reference_spp;
-        spec.curve_spp = self.curve_spp;
-        spec.gbuffer = self.gbuffer;
+        spec.input_spp = self.spp.clone();
+        self.references.apply(&mut spec);
+        spec.gbuffer = self.gbuffer.gbuffer;
         spec
     }
 
     fn validate(&self) -> Result<(), String> {
-        if self.threads == 0 {
-            return Err("--threads must be at least 1".into());
-        }
-        if self.input_spp.is_empty() || self.input_spp.contains(&0) {
-            return Err("--spp must be a non-empty list of values >= 1".into());
-        }
-        if let Some(f) = self.budget_fractions.iter().find(|f| !(**f > 0.0 && **f <= 1.0)) {
-            return Err(format!("budget fraction {f} is not in (0, 1]"));
-        }
-        if let Some(b) = self.budgets_ms.iter().find(|b| !(**b > 0.0 && b.is_finite())) {
-            return Err(format!("budget {b} ms is not a finite number > 0"));
+        if self.spp.is_empty() {
+            return Err("--spp must be a non-empty list".into());
         }
         if self.frames < 2 {
             return Err("--frames must be at least 2 (frame 0 has no history and is not timed)".into());
@@ -108,12 +117,19 @@ impl TradeoffOptions {
 /// One point of the sweep: a pipeline configuration.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Setting {
+    /// The pipeline mode.
     pub mode: Mode,
+    /// Order of stereo and temporal reprojection.
     pub order: Order,
+    /// Samples per traced pixel.
     pub spp: u32,
+    /// What reprojection does with a pixel some of whose taps failed.
     pub policy: TapPolicy,
+    /// The EMA's α ramp over a pixel's history length.
     pub ramp: bool,
+    /// The G-buffer layout reprojection reads.
     pub layout: Layout,
+    /// How the G-buffers are made.
     pub gbuffer: GBufferPass,
     /// A fraction of the unbudgeted spatiotemporal (paper order) time at the same spp.
     pub budget_fraction: Option<f64>,
@@ -181,12 +197,12 @@ impl Setting {
 /// comes before its budgeted ones.
 pub fn settings(opts: &TradeoffOptions) -> Vec<Setting> {
     let mut out = Vec::new();
-    let other_pass = match opts.gbuffer {
+    let other_pass = match opts.gbuffer.gbuffer {
         GBufferPass::Raster | GBufferPass::Fixed => GBufferPass::Traced,
         GBufferPass::Traced => GBufferPass::Raster,
     };
-    for &spp in &opts.input_spp {
-        let paper = |mode, order| Setting::paper(mode, order, spp, opts.gbuffer);
+    for &spp in &opts.spp {
+        let paper = |mode, order| Setting::paper(mode, order, spp, opts.gbuffer.gbuffer);
         out.push(paper(Mode::PathTraced, Order::Paper));
         for v in Variant::ALL {
             out.push(paper(v.mode, v.order));
@@ -196,7 +212,7 @@ pub fn settings(opts: &TradeoffOptions) -> Vec<Setting> {
         out.push(Setting { ramp: true, ..base });
         out.push(Setting { layout: Layout::Full, ..base });
         out.push(Setting { gbuffer: other_pass, ..base });
-        for &f in &opts.budget_fractions {
+        for &f in &opts.budgets {
             out.push(Setting { budget_fraction: Some(f), ..base });
         }
         for &b in &opts.budgets_ms {
@@ -209,19 +225,27 @@ pub fn settings(opts: &TradeoffOptions) -> Vec<Setting> {
 /// One measured setting.
 #[derive(Clone, Debug, Serialize)]
 pub struct TradeoffRow {
+    /// The mode, with its order where it has one.
     pub mode: String,
+    /// What differs from the paper's settings (`paper` for none, else a list such as `strict taps, budget 50%`).
     pub change: String,
+    /// Samples per traced pixel.
     pub spp: u32,
+    /// The per-frame budget the setting ran under, if any.
     pub budget_ms: Option<f64>,
     /// Time per stereo frame over frames `1..frames`.
     pub frame: Spread,
     /// Left-eye pixels path traced (mean share over the timed frames).
     pub left_traced_share: f64,
+    /// Right-eye pixels path traced (mean share over the timed frames).
     pub right_traced_share: f64,
+    /// Timed frames over the budget.
     pub budget_misses: usize,
+    /// Worst overrun beyond the budget.
     pub worst_overrun_ms: f64,
     /// Effective spp of the left eye on the evaluated frames.
     pub effective_ssim: Summary,
+    /// Effective spp of the left eye by RMSE on the same frames.
     pub effective_rmse: Summary,
     /// Mean SSIM of the left eye on the evaluated frames.
     pub mean_ssim: f64,
@@ -232,16 +256,27 @@ pub struct TradeoffRow {
 /// Everything the sweep measured (the JSON file).
 #[derive(Clone, Debug, Serialize)]
 pub struct TradeoffReport {
+    /// The scene's spec as given.
     pub scene: String,
+    /// Width per eye, in pixels.
     pub width: usize,
+    /// Height per eye, in pixels.
     pub height: usize,
+    /// Worker threads.
     pub threads: usize,
+    /// Frames rendered per setting (`0..frames`).
     pub frames: u32,
+    /// Warm-up frames left out of the quality measurement.
     pub warmup: u32,
+    /// Samples per pixel of the references.
     pub reference_spp: u32,
+    /// Last spp of the error curves.
     pub curve_spp: u32,
+    /// The kernel bodies the CPU ran.
     pub simd_level: String,
+    /// One row per setting, in sweep order.
     pub rows: Vec<TradeoffRow>,
+    /// Non-fatal problems of the references and curves, in the order they were reported.
     pub warnings: Vec<String>,
 }
 
@@ -266,7 +301,7 @@ fn measure_setting(
     config.ramp = setting.ramp;
     config.layout = setting.layout;
     config.gbuffer = setting.gbuffer;
-    config.budget = budget_ms.map(super::budget_duration).transpose()?;
+    config.budget = budget_ms.map(crate::pipeline::budget_duration).transpose()?;
     let rig = StereoRig::new(spec.eye_separation)?;
     let pipeline = Pipeline::new(renderer, config, rig, extent).map_err(|e| e.to_string())?;
     let mut session = Session::new(pipeline, CameraWalk::Path);
@@ -347,13 +382,10 @@ pub fn sweep(opts: &TradeoffOptions, reporter: &dyn Reporter) -> Result<Tradeoff
     opts.validate()?;
     let spec = opts.eval_spec();
     spec.validate()?;
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(opts.threads)
-        .build()
-        .map_err(|e| format!("cannot start {} threads: {e}", opts.threads))?;
-    let cache = Cache::open(&opts.cache)?;
-    reporter.status(&format!("{}: references and error curves", opts.scene));
-    let basis = pool.install(|| scene_basis(&spec, &opts.scene, &cache, reporter)).map_err(|e| e.to_string())?;
+    let pool = opts.threads.pool()?;
+    let cache = Cache::open(&opts.references.cache)?;
+    reporter.status(&format!("{}: references and error curves", opts.input.scene));
+    let basis = pool.install(|| scene_basis(&spec, &opts.input.scene, &cache, reporter)).map_err(|e| e.to_string())?;
     let settings = settings(opts);
     let mut rows: Vec<TradeoffRow> = Vec::with_capacity(settings.len());
     // Unbudgeted spatiotemporal time per spp, the unit of the budgets.
@@ -368,7 +400,7 @@ pub fn sweep(opts: &TradeoffOptions, reporter: &dyn Reporter) -> Result<Tradeoff
             }
         };
         reporter.status(&format!("[{}/{}] {} at {} spp ({})", i + 1, settings.len(), s.mode_name(), s.spp, s.change()));
-        let row = pool.install(|| measure_setting(&basis, &spec, s, budget_ms, opts.extent))?;
+        let row = pool.install(|| measure_setting(&basis, &spec, s, budget_ms, opts.input.res))?;
         if s.is_spatiotemporal_paper() && s.change() == "paper" {
             unbudgeted_ms.push((s.spp, row.frame.median_ms));
         }
@@ -377,14 +409,14 @@ pub fn sweep(opts: &TradeoffOptions, reporter: &dyn Reporter) -> Result<Tradeoff
     }
     mark_pareto(&mut rows);
     Ok(TradeoffReport {
-        scene: opts.scene.clone(),
-        width: opts.extent.width(),
-        height: opts.extent.height(),
-        threads: opts.threads,
+        scene: opts.input.scene.clone(),
+        width: opts.input.res.width(),
+        height: opts.input.res.height(),
+        threads: usize::from(opts.threads.threads),
         frames: opts.frames,
         warmup: opts.warmup,
-        reference_spp: opts.reference_spp,
-        curve_spp: opts.curve_spp,
+        reference_spp: spec.reference_spp,
+        curve_spp: spec.curve_spp,
         simd_level: crate::cpu::simd_level(),
         rows,
         warnings: basis.warnings,

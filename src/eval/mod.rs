@@ -26,8 +26,6 @@
 //! of the evaluated frames, whose path-traced pixels would otherwise be the curve's own
 //! samples.
 
-#![warn(missing_docs)]
-
 pub mod cache;
 pub mod claim;
 pub mod curve;

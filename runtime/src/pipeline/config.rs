@@ -9,8 +9,18 @@ use crate::render::RenderError;
 
 /// The most samples per pixel a command or an embedder's configuration accepts (2²⁰: above
 /// the paper's 4096-spp references by far; a larger count is a typo that would run for days,
-/// or a wrapped negative number). The CLI and the C ABI check it.
+/// or a wrapped negative number). [`check_spp`] is the one check of it.
 pub const MAX_SPP: u32 = 1 << 20;
+
+/// `spp` if it is in 1 ..= [`MAX_SPP`]: the one rule for a sample count, which
+/// [`PipelineConfig::validate`], the CLI's parsers and the C ABI all apply.
+pub fn check_spp(spp: u32) -> Result<u32, String> {
+    if (1..=MAX_SPP).contains(&spp) {
+        Ok(spp)
+    } else {
+        Err(format!("samples per pixel {spp} must be in 1..={MAX_SPP}"))
+    }
+}
 
 /// The largest per-frame budget accepted, in milliseconds (1000 s).
 pub const MAX_BUDGET_MS: f64 = 1e6;
@@ -223,9 +233,15 @@ impl PipelineConfig {
         }
     }
 
-    pub(super) fn validate(&self) -> Result<(), String> {
-        if self.spp == 0 {
-            return Err("samples per pixel must be at least 1".into());
+    /// Refuses what no pipeline can run: a sample count outside [`check_spp`], a budget
+    /// outside [`budget_duration`]'s range, an EMA weight outside (0, 1], a blend weight
+    /// outside [0, 1], no rows per tile, or invalid tolerances. [`super::Pipeline`] calls it
+    /// on construction; a command or an engine may call it first to report every field at
+    /// its own boundary.
+    pub fn validate(&self) -> Result<(), String> {
+        check_spp(self.spp)?;
+        if let Some(budget) = self.budget {
+            budget_duration(budget.as_secs_f64() * 1e3)?;
         }
         if !(self.alpha > 0.0 && self.alpha <= 1.0) {
             return Err(format!("EMA alpha must be in (0, 1], got {}", self.alpha));

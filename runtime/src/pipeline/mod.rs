@@ -70,7 +70,8 @@ mod stats;
 
 use budget::BudgetPlanner;
 pub use config::{
-    GBufferPass, Layout, MAX_BUDGET_MS, MAX_SPP, Mode, Order, PipelineConfig, PipelineError, budget_duration, readable,
+    GBufferPass, Layout, MAX_BUDGET_MS, MAX_SPP, Mode, Order, PipelineConfig, PipelineError, budget_duration,
+    check_spp, readable,
 };
 pub use lent::GBufferView;
 use lent::Lent;
