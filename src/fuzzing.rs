@@ -11,7 +11,7 @@
 //! * a cache payload decodes to what encodes back to the same bytes.
 //!
 //! The cargo-fuzz targets in `fuzz/` are one-line shims over these (the kernel-level ones
-//! are in `stereotrace_kernels::fuzzing`), and `tests/fuzz_corpus.rs` replays the committed
+//! are in `stereotrace_kernels::fuzzing`), and `tests/fuzz_corpus_above_kernels.rs` replays the committed
 //! corpora through them. Loaders read files, so the file-based entries write the input into
 //! a per-process scratch folder first (under `/dev/shm` where it exists).
 

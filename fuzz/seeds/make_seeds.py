@@ -164,7 +164,7 @@ def cache_seeds(rng):
 def main():
     rng = random.Random(2026)
     random_seeds("ssim", rng, 12, [0, 8, 30, 120, 600])
-    random_seeds("bvh", rng, 12, [3, 40, 200, 800])
+    random_seeds("traverse", rng, 12, [3, 40, 200, 800])
     random_seeds("raster", rng, 12, [8, 60, 250, 900])
     for lights in LIGHTS:
         put("scene_folder", SEP.join([OBJ, MTL, CAMERA, lights]))

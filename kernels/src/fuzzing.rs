@@ -665,7 +665,7 @@ fn coordinate(bytes: &mut Bytes<'_>) -> f32 {
 /// are hit at exactly that `t`), occlusion against the closest hit, and every lane of a
 /// packet (at single-ray thresholds 0, 2 and 8) against its single ray. Builds that refuse
 /// (non-finite or huge vertices) must say so with a `BvhError`.
-pub fn bvh(data: &[u8]) {
+pub fn traverse(data: &[u8]) {
     use crate::bvh::{BuildQuality, Hit, Ray, TriangleBvh};
     use crate::traverse::{PacketHits, RayPacket, intersect_brute_force};
 

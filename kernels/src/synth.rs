@@ -265,3 +265,20 @@ pub fn camera_at(eye: Vec3, extent: Extent, vfov_deg: f32) -> CameraModel {
 pub fn focal_pixels(extent: Extent, vfov_deg: f32) -> f64 {
     extent.height() as f64 * 0.5 / (f64::from(vfov_deg).to_radians() * 0.5).tan()
 }
+
+/// An RGB image of values in [0, 4), with a share `edge_share` of [`EDGE_VALUES`].
+pub fn random_rgb(e: Extent, rng: &mut Rng, edge_share: f32) -> RgbBuf {
+    random_rgb_in(e, rng, edge_share, (0.0, 4.0))
+}
+
+/// An RGB image of values in `range`, with a share `edge_share` of [`EDGE_VALUES`].
+pub fn random_rgb_in(e: Extent, rng: &mut Rng, edge_share: f32, (lo, hi): (f32, f32)) -> RgbBuf {
+    let mut img = RgbBuf::new(e, 0.0);
+    for p in img.slices_mut() {
+        for v in p {
+            *v =
+                if rng.next_f32() < edge_share { EDGE_VALUES[rng.below(EDGE_VALUES.len())] } else { rng.range(lo, hi) };
+        }
+    }
+    img
+}

@@ -33,5 +33,5 @@ fn ssim_corpus() {
 
 #[test]
 fn bvh_corpus() {
-    replay("bvh", stereotrace_kernels::fuzzing::bvh);
+    replay("traverse", stereotrace_kernels::fuzzing::traverse);
 }

@@ -8,15 +8,15 @@
 //!   with a sharp edge, fireflies up to 10⁶) against a noisier copy. Some tiles need
 //!   refinement passes here; the setup prints how many voxels.
 //!
-//! Run: `cargo bench --bench ssim` (add `-- <filter>` to pick a case).
+//! Run: `cargo bench -p stereotrace-kernels --bench ssim` (add `-- <filter>` to pick a case).
 
 use std::hint::black_box;
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use rayon::ThreadPool;
-use stereotrace::kernels::frame::{Extent, RgbBuf};
-use stereotrace::kernels::isa::Isa;
-use stereotrace::kernels::ssim::{self, SsimParams, SsimVariant};
+use stereotrace_kernels::frame::{Extent, RgbBuf};
+use stereotrace_kernels::isa::Isa;
+use stereotrace_kernels::ssim::{self, SsimParams, SsimVariant};
 
 const WIDTH: usize = 1280;
 const HEIGHT: usize = 720;

@@ -1,0 +1,71 @@
+//! Stereo and temporal reprojection at 1280×720 in both G-buffer layouts (and with motion
+//! planes), the scalar reference beside the SIMD body, on 1 and 2 threads, throughput in
+//! pixels; the band height sweep; the memory triad of the same run for the roofline.
+//!
+//! Run: `cargo bench -p stereotrace-kernels --bench reproject` (add `-- <filter>`).
+
+mod common;
+
+use common::{Fixture, Outputs, pool, run_reprojection};
+use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use stereotrace_kernels::frame::PlaneBuf;
+use stereotrace_kernels::reproject::ReprojectParams;
+
+fn reprojection(c: &mut Criterion) {
+    let f = Fixture::new();
+    let mut out = Outputs::new(f.extent());
+    for (group_name, target, source) in
+        [("reproject_stereo", &f.left, &f.right), ("reproject_temporal", &f.left, &f.left_prev)]
+    {
+        let mut group = c.benchmark_group(group_name);
+        group.throughput(Throughput::Elements(f.extent().pixels() as u64));
+        for threads in [1, 2] {
+            let pool = pool(threads);
+            for simd in [true, false] {
+                let body = if simd { "simd" } else { "scalar" };
+                group.bench_function(BenchmarkId::new(format!("{body}/compact"), threads), |b| {
+                    let (t, s) = (target.compact(), source.compact());
+                    b.iter(|| pool.install(|| run_reprojection(&t, &s, source, &f.params, &mut out, simd, None)))
+                });
+                group.bench_function(BenchmarkId::new(format!("{body}/full"), threads), |b| {
+                    let (t, s) = (target.gbuffer(), source.gbuffer());
+                    b.iter(|| pool.install(|| run_reprojection(&t, &s, source, &f.params, &mut out, simd, None)))
+                });
+                if group_name == "reproject_temporal" {
+                    // Zero motion vectors: the same result, so this prices reading them.
+                    let still = [0; 3].map(|_| PlaneBuf::new(f.extent(), 0.0f32));
+                    group.bench_function(BenchmarkId::new(format!("{body}/compact+motion"), threads), |b| {
+                        let (t, s) = (target.compact(), source.compact());
+                        b.iter(|| {
+                            pool.install(|| run_reprojection(&t, &s, source, &f.params, &mut out, simd, Some(&still)))
+                        })
+                    });
+                }
+            }
+        }
+        group.finish();
+    }
+}
+/// Band height sweep for the stereo reprojection (SIMD, compact, 2 threads).
+fn band_rows(c: &mut Criterion) {
+    let f = Fixture::new();
+    let mut out = Outputs::new(f.extent());
+    let mut group = c.benchmark_group("reproject_band_rows");
+    group.throughput(Throughput::Elements(f.extent().pixels() as u64));
+    let pool = pool(2);
+    for rows in [2, 4, 8, 16, 32, 64] {
+        let params = ReprojectParams { band_rows: rows, ..f.params };
+        group.bench_function(BenchmarkId::from_parameter(rows), |b| {
+            let (t, s) = (f.left.compact(), f.right.compact());
+            b.iter(|| pool.install(|| run_reprojection(&t, &s, &f.right, &params, &mut out, true, None)))
+        });
+    }
+    group.finish();
+}
+
+criterion_group! {
+    name = benches;
+    config = common::criterion();
+    targets = reprojection, band_rows, common::triad
+}
+criterion_main!(benches);

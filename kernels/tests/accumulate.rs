@@ -1,0 +1,218 @@
+//! EMA accumulation and the stereo blend: the SIMD bodies against the scalar references on
+//! edge values, and the closed forms (a constant stays constant, the EMA converges to the
+//! mean, history resets where it was discarded, a 50/50 mix where valid).
+
+use stereotrace_kernels::accumulate::{self, AccumulateStats, BlendParams, EmaInput, EmaParams, EmaState};
+use stereotrace_kernels::check::assert_planes_equal;
+use stereotrace_kernels::frame::{Extent, PlaneBuf, RgbBuf};
+use stereotrace_kernels::reproject::Reason;
+use stereotrace_kernels::synth::{Rng, random_rgb};
+
+fn extent(w: usize, h: usize) -> Extent {
+    Extent::new(w, h).unwrap()
+}
+
+fn assert_same_planes(what: &str, a: &PlaneBuf, b: &PlaneBuf) {
+    assert_planes_equal(what, 0, &a.view(), &b.view());
+}
+
+fn random_reasons(e: Extent, rng: &mut Rng) -> PlaneBuf<u8> {
+    PlaneBuf::from_vec((0..e.pixels()).map(|_| if rng.next_f32() < 0.7 { 0 } else { rng.below(6) as u8 }).collect(), e)
+        .unwrap()
+}
+
+#[test]
+fn ema_simd_equals_scalar_on_edge_values() {
+    let mut rng = Rng::new(5);
+    for case in 0..60 {
+        let e = extent([1, 7, 8, 9, 17, 40][case % 6], 1 + rng.below(5));
+        let new = random_rgb(e, &mut rng, 0.3);
+        let history = random_rgb(e, &mut rng, 0.1);
+        let len = PlaneBuf::from_vec((0..e.pixels()).map(|_| rng.below(40) as f32).collect(), e).unwrap();
+        let reason = random_reasons(e, &mut rng);
+        let has_new = PlaneBuf::from_vec((0..e.pixels()).map(|_| (rng.next_f32() < 0.8) as u8).collect(), e).unwrap();
+        // A history confidence in half the cases: 0, 1, and values between.
+        let confidence =
+            PlaneBuf::from_vec((0..e.pixels()).map(|_| [0.0, 1.0, rng.next_f32(), 1e-30][rng.below(4)]).collect(), e)
+                .unwrap();
+        let params =
+            EmaParams { alpha: [0.2, 1.0, 0.05, 1e-6][case % 4], ramp: case % 2 == 0, band_rows: 1 + rng.below(3) };
+        let input = EmaInput {
+            new: new.view(),
+            reason: reason.view(),
+            has_new: (case % 3 != 0).then(|| has_new.view()),
+            confidence: (case % 4 < 2).then(|| confidence.view()),
+        };
+        let run = |simd: bool| {
+            let (mut acc, mut n) = (history.clone(), len.clone());
+            let state = EmaState { accum: acc.view_mut(), history_len: Some(n.view_mut()) };
+            let stats = if simd {
+                accumulate::ema(&input, state, &params)
+            } else {
+                accumulate::ema_scalar(&input, state, &params)
+            };
+            (stats.unwrap(), acc, n)
+        };
+        let (sa, aa, na) = run(true);
+        let (sb, ab, nb) = run(false);
+        assert_eq!(sa, sb);
+        for (a, b) in [(aa.r(), ab.r()), (aa.g(), ab.g()), (aa.b(), ab.b()), (&na, &nb)] {
+            assert_same_planes("ema", a, b);
+        }
+        // Nothing non-finite enters the history unless it was already there.
+        for (i, v) in aa.r().as_slice().iter().enumerate() {
+            if history.r().as_slice()[i].is_finite() {
+                assert!(v.is_finite(), "{v}");
+            }
+            assert!(v.is_nan() || *v == 0.0 || v.abs() >= f32::MIN_POSITIVE, "subnormal {v}");
+        }
+    }
+}
+
+/// The history confidence against its closed form, and at its ends: 1 is the plain EMA bit
+/// for bit, 0 the new sample; values outside [0, 1] are refused.
+#[test]
+fn history_confidence_scales_the_historys_weight() {
+    let e = extent(19, 2);
+    let reason = PlaneBuf::new(e, Reason::Reprojected as u8);
+    let new = RgbBuf::new(e, 0.0);
+    let run = |c: f32, ramp: bool| {
+        let mut acc = RgbBuf::new(e, 1.0);
+        let mut len = PlaneBuf::new(e, 4.0);
+        let conf = PlaneBuf::new(e, c);
+        let input = EmaInput { new: new.view(), reason: reason.view(), has_new: None, confidence: Some(conf.view()) };
+        let params = EmaParams { alpha: 0.2, ramp, band_rows: 4 };
+        accumulate::ema(&input, EmaState { accum: acc.view_mut(), history_len: Some(len.view_mut()) }, &params)
+            .unwrap();
+        (acc.get(18, 1)[0], len.as_slice()[37])
+    };
+    // α' = 0.2 + 0.8·(1 − 0.5) = 0.6: 1 + 0.6·(0 − 1) = 0.4; the length 4·0.5 + 1.
+    assert!((run(0.5, false).0 - 0.4).abs() < 1e-6 && run(0.5, false).1 == 3.0);
+    assert_eq!(run(0.0, false), (0.0, 1.0));
+    // The ramp counts the history as c·n samples: n = 4·0.25 = 1, α = max(0.2, 1/2) = 0.5,
+    // α' = 0.5 + 0.5·0.75 = 0.875.
+    assert!((run(0.25, true).0 - 0.125).abs() < 1e-6);
+    let plain = {
+        let mut acc = RgbBuf::new(e, 1.0);
+        let mut len = PlaneBuf::new(e, 4.0);
+        let input = EmaInput { new: new.view(), reason: reason.view(), has_new: None, confidence: None };
+        let params = EmaParams { alpha: 0.2, ramp: true, band_rows: 4 };
+        accumulate::ema(&input, EmaState { accum: acc.view_mut(), history_len: Some(len.view_mut()) }, &params)
+            .unwrap();
+        (acc.get(18, 1)[0], len.as_slice()[37])
+    };
+    assert_eq!(run(1.0, true).0.to_bits(), plain.0.to_bits());
+    assert_eq!(run(1.0, true).1, plain.1);
+    for bad in [-0.01, 1.01, f32::NAN] {
+        let mut acc = RgbBuf::new(e, 1.0);
+        let conf = PlaneBuf::from_vec((0..e.pixels()).map(|i| if i == 25 { bad } else { 0.5 }).collect(), e).unwrap();
+        let input = EmaInput { new: new.view(), reason: reason.view(), has_new: None, confidence: Some(conf.view()) };
+        let err = accumulate::ema(&input, EmaState { accum: acc.view_mut(), history_len: None }, &EmaParams::default())
+            .unwrap_err();
+        assert!(
+            err.to_string().contains("history confidence plane holds") && err.to_string().contains("(6, 1)"),
+            "{err}"
+        );
+        assert!(acc.r().as_slice().iter().all(|&v| v == 1.0), "a refused call wrote");
+    }
+}
+
+fn ema_step(acc: &mut RgbBuf, new: &RgbBuf, reason: &PlaneBuf<u8>, params: &EmaParams) -> AccumulateStats {
+    let input = EmaInput { new: new.view(), reason: reason.view(), has_new: None, confidence: None };
+    accumulate::ema(&input, EmaState { accum: acc.view_mut(), history_len: None }, params).unwrap()
+}
+
+#[test]
+fn ema_of_a_constant_is_that_constant_and_alpha_one_returns_the_new_sample() {
+    let e = extent(21, 3);
+    let reason = PlaneBuf::new(e, Reason::Reprojected as u8);
+    for c in [0.1f32, 0.7, 3.3, 1e-3, 12345.678, 1e30] {
+        let constant = RgbBuf::new(e, c);
+        let mut acc = constant.clone();
+        for _ in 0..50 {
+            ema_step(&mut acc, &constant, &reason, &EmaParams::default());
+        }
+        assert_eq!(acc, constant, "constant {c}");
+    }
+    let mut rng = Rng::new(9);
+    let new = random_rgb(e, &mut rng, 0.0);
+    let mut acc = random_rgb(e, &mut rng, 0.0);
+    ema_step(&mut acc, &new, &reason, &EmaParams { alpha: 1.0, ..EmaParams::default() });
+    assert_eq!(acc, new);
+}
+
+#[test]
+fn ema_converges_to_the_mean_and_resets_where_history_was_discarded() {
+    let e = extent(9, 1);
+    let mut acc = RgbBuf::new(e, 0.0);
+    let mut reason = PlaneBuf::new(e, Reason::Reprojected as u8);
+    reason.as_mut_slice()[4] = Reason::DepthOrPosition as u8;
+    let mut rng = Rng::new(1);
+    let mut mean = 0.0f64;
+    let frames = 400;
+    for _ in 0..frames {
+        let v = rng.range(0.0, 2.0);
+        mean += f64::from(v) / frames as f64;
+        let stats = ema_step(&mut acc, &RgbBuf::new(e, v), &reason, &EmaParams::default());
+        assert_eq!(stats.resets, 1);
+        assert_eq!(acc.r().as_slice()[4], v, "discarded history resets to the new sample");
+    }
+    assert!((f64::from(acc.r().as_slice()[0]) - mean).abs() < 0.5, "{} vs {mean}", acc.r().as_slice()[0]);
+}
+
+#[test]
+fn non_finite_samples_fall_back_to_history_or_become_holes() {
+    let e = extent(10, 1);
+    let mut new = RgbBuf::new(e, 1.0);
+    new.g_mut()[1] = f32::NAN;
+    new.b_mut()[2] = f32::INFINITY;
+    new.r_mut()[9] = f32::NEG_INFINITY;
+    let mut reason = PlaneBuf::new(e, Reason::Reprojected as u8);
+    reason.as_mut_slice()[2] = Reason::OutOfFrame as u8;
+    let mut acc = RgbBuf::new(e, 5.0);
+    let mut len = PlaneBuf::new(e, 3.0f32);
+    let input = EmaInput { new: new.view(), reason: reason.view(), has_new: None, confidence: None };
+    let stats = accumulate::ema(
+        &input,
+        EmaState { accum: acc.view_mut(), history_len: Some(len.view_mut()) },
+        &EmaParams::default(),
+    )
+    .unwrap();
+    assert_eq!(stats, AccumulateStats { non_finite: 3, holes: 1, resets: 0 });
+    assert_eq!(acc.get(1, 0), [5.0; 3]);
+    assert_eq!(len.as_slice()[1], 3.0);
+    assert_eq!(acc.get(2, 0), [0.0; 3]);
+    assert_eq!(len.as_slice()[2], 0.0);
+    assert_eq!(acc.get(0, 0), [4.2; 3]);
+    assert_eq!(len.as_slice()[0], 4.0);
+}
+
+#[test]
+fn blend_simd_equals_scalar_and_is_a_50_50_mix_where_valid() {
+    let mut rng = Rng::new(21);
+    for case in 0..40 {
+        let e = extent([1, 7, 8, 9, 17, 40][case % 6], 1 + rng.below(5));
+        let own = random_rgb(e, &mut rng, 0.3);
+        let other = random_rgb(e, &mut rng, 0.0);
+        let reason = random_reasons(e, &mut rng);
+        let params = BlendParams { own_weight: [0.5, 0.0, 1.0, 0.3][case % 4], band_rows: 2 };
+        let run = |simd: bool| {
+            let mut out = other.clone();
+            let f = if simd { accumulate::blend } else { accumulate::blend_scalar };
+            let stats = f(&own.view(), out.view_mut(), &reason.view(), &params).unwrap();
+            (stats, out)
+        };
+        let (sa, a) = run(true);
+        let (sb, b) = run(false);
+        assert_eq!(sa, sb);
+        for (x, y) in [(a.r(), b.r()), (a.g(), b.g()), (a.b(), b.b())] {
+            assert_same_planes("blend", x, y);
+        }
+    }
+    let e = extent(3, 1);
+    let own = RgbBuf::new(e, 1.0);
+    let mut other = RgbBuf::new(e, 3.0);
+    let reason = PlaneBuf::from_vec(vec![0, 1, 0], e).unwrap();
+    accumulate::blend(&own.view(), other.view_mut(), &reason.view(), &BlendParams::default()).unwrap();
+    assert_eq!(other.r().as_slice(), &[2.0, 1.0, 2.0]);
+}
