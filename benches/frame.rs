@@ -11,9 +11,10 @@ use std::time::Duration;
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use stereotrace::camera::StereoRig;
 use stereotrace::kernels::Extent;
-use stereotrace::pipeline::{CameraWalk, Mode, Order, Pipeline, PipelineConfig, Session};
+use stereotrace::pipeline::{Mode, Order, Pipeline, PipelineConfig};
 use stereotrace::render::Renderer;
 use stereotrace::scene::resolve;
+use stereotrace::session::{CameraWalk, Session};
 
 fn frames(c: &mut Criterion) {
     let name = std::env::var("STEREOTRACE_BENCH_SCENE").unwrap_or_else(|_| "atrium".into());

@@ -36,8 +36,9 @@ use stereotrace::kernels::{CameraModel, Extent, RgbBuf};
 use stereotrace::render::bsdf::cosine_hemisphere;
 use stereotrace::render::lights::FrameLights;
 use stereotrace::render::rng::{Dim, SampleStream};
-use stereotrace::render::{GBufferBuf, PixelSelection, Renderer, TraceRequest, pixel_centre_ray};
+use stereotrace::render::{GBufferBuf, Renderer, pixel_centre_ray};
 use stereotrace::scene::resolve;
+use stereotrace::source::{PixelSelection, TraceRequest};
 
 const WIDTH: usize = 1280;
 const HEIGHT: usize = 720;

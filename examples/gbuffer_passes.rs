@@ -48,7 +48,7 @@ fn main() -> Result<(), String> {
     let (left, right) = (left.map_err(|e| e.to_string())?, right.map_err(|e| e.to_string())?);
     let mut raster = RasterGBuffers::new(extent);
     if std::env::var_os("COMPACT").is_some() {
-        raster.planes = stereotrace::render::raster::GBufferPlanes::Compact;
+        raster.planes = stereotrace::pipeline::Layout::Compact;
     }
     raster.visibility_by = match std::env::var("VISIBILITY").as_deref() {
         Ok("fixed") => stereotrace::render::raster::Visibility::Fixed,
@@ -67,9 +67,8 @@ fn main() -> Result<(), String> {
             runs.push((ms(t.elapsed()), st));
         }
         let total = median(runs.iter().map(|r| r.0).collect());
-        let step = |f: &dyn Fn(&stereotrace::render::raster::RasterPassStats) -> f64| {
-            median(runs.iter().map(|r| f(&r.1)).collect())
-        };
+        let step =
+            |f: &dyn Fn(&stereotrace::source::RasterPassStats) -> f64| median(runs.iter().map(|r| f(&r.1)).collect());
         let traced = median(
             (0..traced_runs)
                 .map(|_| {

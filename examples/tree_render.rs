@@ -16,8 +16,9 @@ use std::time::Instant;
 use stereotrace::camera::{Eye, StereoRig};
 use stereotrace::kernels::bvh::{BuildQuality, BvhBuildParams};
 use stereotrace::kernels::{Extent, RgbBuf};
-use stereotrace::render::{PixelSelection, Renderer, TraceRequest};
+use stereotrace::render::Renderer;
 use stereotrace::scene::resolve;
+use stereotrace::source::{PixelSelection, TraceRequest};
 
 fn env_or<T: std::str::FromStr>(var: &str, default: T) -> Result<T, String> {
     std::env::var(var).map_or(Ok(default), |v| v.parse().map_err(|_| format!("{var}: cannot parse {v:?}")))

@@ -10,7 +10,7 @@
 
 #![warn(missing_docs)]
 
-pub use stereotrace_runtime::{camera, cpu, image_io, kernels, pipeline, render, scene, source};
+pub use stereotrace_runtime::{camera, cpu, image_io, kernels, pipeline, render, scene, session, source};
 
 pub mod commands;
 pub mod eval;

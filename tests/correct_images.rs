@@ -19,8 +19,9 @@ use std::path::Path;
 use glam::Vec3;
 use stereotrace::camera::{Eye, StereoRig};
 use stereotrace::kernels::{Extent, RgbBuf};
-use stereotrace::render::{PixelSelection, Renderer, TraceRequest};
+use stereotrace::render::Renderer;
 use stereotrace::scene::{CameraPath, Material, Scene, resolve};
+use stereotrace::source::{PixelSelection, TraceRequest};
 
 /// Per-channel means of independent renders (seeds 1..=batches) and the standard error of
 /// their average.

@@ -6,7 +6,8 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use stereotrace::eval::cache::Cache;
-use stereotrace::eval::run::{EvalError, EvalOutcome, Limits, Quiet};
+use stereotrace::eval::results::EvalOutcome;
+use stereotrace::eval::run::{EvalError, Limits, Quiet};
 use stereotrace::eval::{EvalSpec, Grid, Preset, Variant, evaluate, plots, report};
 use stereotrace::pipeline::{Mode, Order};
 use stereotrace::scene::builtin_names;

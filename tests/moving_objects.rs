@@ -6,9 +6,10 @@
 use glam::Vec3;
 use stereotrace::camera::{Eye, StereoRig};
 use stereotrace::kernels::{Extent, RgbBuf};
-use stereotrace::render::{GBufferBuf, PixelSelection, Renderer, TraceRequest};
+use stereotrace::render::{GBufferBuf, Renderer};
 use stereotrace::scene::object::{MovingObject, box_triangles};
 use stereotrace::scene::{Effect, Material, Mesh, Scene, TransformKey, TransformPath, resolve};
+use stereotrace::source::{PixelSelection, TraceRequest};
 
 const FRAME: u32 = 5;
 

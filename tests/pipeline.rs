@@ -5,9 +5,11 @@ use stereotrace::camera::{Eye, StereoRig};
 use stereotrace::kernels::accumulate;
 use stereotrace::kernels::reproject::{self, Reason, ReprojectInput, ReprojectOutput, ReprojectParams};
 use stereotrace::kernels::{Extent, PlaneBuf, RgbBuf};
-use stereotrace::pipeline::{GBufferView, Layout, Mode, Order, Pipeline, PipelineConfig, RendererPipeline};
-use stereotrace::render::{GBufferBuf, PixelSelection, Renderer, TraceRequest};
+use stereotrace::pipeline::{GBufferView, Layout, Mode, Order, Pipeline, PipelineConfig};
+use stereotrace::render::{GBufferBuf, Renderer};
 use stereotrace::scene::resolve;
+use stereotrace::session::RendererPipeline;
+use stereotrace::source::{PixelSelection, TraceRequest};
 
 const W: usize = 48;
 const H: usize = 27;

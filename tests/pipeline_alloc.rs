@@ -5,9 +5,10 @@
 use stereotrace::camera::StereoRig;
 use stereotrace::kernels::Extent;
 use stereotrace::kernels::check::CountingAllocator;
-use stereotrace::pipeline::{CameraWalk, GBufferPass, Mode, Order, Pipeline, PipelineConfig, Session, View};
-use stereotrace::render::Renderer;
+use stereotrace::pipeline::{Mode, Order, Pipeline, PipelineConfig};
+use stereotrace::render::{GBufferPass, Renderer, RendererOptions};
 use stereotrace::scene::resolve;
+use stereotrace::session::{CameraWalk, Session, View};
 
 #[global_allocator]
 static GLOBAL: CountingAllocator = CountingAllocator::new();
@@ -27,10 +28,10 @@ fn frames_after_the_first_allocate_nothing() {
         for budget in [None, Some(std::time::Duration::from_micros(300))] {
             let mut cfg = PipelineConfig::paper(mode, 1, renderer.scene().tolerances.at_height(36));
             cfg.order = order;
-            cfg.gbuffer = pass;
             cfg.ramp = true;
             cfg.budget = budget;
-            let pipeline = Pipeline::new(&renderer, cfg, StereoRig::default(), e).unwrap();
+            let options = RendererOptions::with_gbuffer(pass);
+            let pipeline = Pipeline::with_options(&renderer, options, cfg, StereoRig::default(), e).unwrap();
             let allocated = warm_then_count(&pool, Session::new(pipeline, CameraWalk::Path));
             assert_eq!(
                 allocated, 0,

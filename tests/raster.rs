@@ -25,8 +25,9 @@ use stereotrace::camera::{Eye, StereoRig};
 use stereotrace::kernels::bvh::{PreparedRay, Ray, TriVerts, intersect_triangle};
 use stereotrace::kernels::raster::{Body, NO_PRIM};
 use stereotrace::kernels::{CameraModel, Extent, PlaneBuf};
+use stereotrace::pipeline::Layout;
 use stereotrace::render::lights::FrameLights;
-use stereotrace::render::raster::{GBufferPlanes, RasterGBuffers, Visibility};
+use stereotrace::render::raster::{RasterGBuffers, Visibility};
 use stereotrace::render::{GBufferBuf, Renderer};
 use stereotrace::scene::{builtin_names, resolve};
 
@@ -296,7 +297,7 @@ fn the_scalar_reference_and_the_simd_body_give_the_same_buffers_in_bands_of_any_
             for rows in [1, 7, 8] {
                 assert_eq!(run(Body::Simd, Some(rows)).0, simd, "{name}: bands of {rows} rows");
             }
-            let counts = |s: &stereotrace::render::raster::RasterPassStats| {
+            let counts = |s: &stereotrace::source::RasterPassStats| {
                 let r = &s.raster;
                 (r.triangles, r.visible, r.clipped, r.band_records, r.exact, r.exact_ties)
             };
@@ -325,7 +326,7 @@ fn the_compact_planes_are_the_full_passs_and_the_rest_are_left_alone() {
         renderer.render_gbuffers_raster(&lights, [&mut gl, &mut gr], &mut raster).unwrap();
         [gl, gr]
     };
-    let (all, compact) = (pass(GBufferPlanes::All), pass(GBufferPlanes::Compact));
+    let (all, compact) = (pass(Layout::Full), pass(Layout::Compact));
     for (a, c) in all.iter().zip(&compact) {
         let bits = |p: &PlaneBuf<f32>| p.as_slice().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
         assert_eq!(bits(&a.depth), bits(&c.depth));

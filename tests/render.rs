@@ -5,9 +5,10 @@ use glam::Vec3;
 use stereotrace::camera::{Eye, StereoRig};
 use stereotrace::kernels::gbuffer::SurfaceLayout;
 use stereotrace::kernels::{Extent, PlaneBuf, RgbBuf};
-use stereotrace::render::{GBufferBuf, PixelSelection, Renderer, TraceRequest};
+use stereotrace::render::{GBufferBuf, Renderer};
 use stereotrace::scene::light::icosphere;
 use stereotrace::scene::{CameraPath, Material, Scene, resolve};
+use stereotrace::source::{PixelSelection, TraceRequest};
 
 fn extent(w: usize, h: usize) -> Extent {
     Extent::new(w, h).unwrap()

@@ -8,9 +8,10 @@
 use glam::Vec3;
 use stereotrace::camera::{Eye, StereoRig};
 use stereotrace::kernels::{CameraModel, Extent, PlaneBuf, RgbBuf};
-use stereotrace::render::{PixelSelection, Renderer, TraceRequest};
+use stereotrace::render::Renderer;
 use stereotrace::scene::texture::Texture;
 use stereotrace::scene::{Scene, resolve};
+use stereotrace::source::{PixelSelection, TraceRequest};
 
 fn camera(renderer: &Renderer, eye: Eye, frame: u32, e: Extent) -> CameraModel {
     StereoRig::default().eye_camera(&renderer.scene().camera.pose_at(frame as f32), eye, e).unwrap()

@@ -10,8 +10,9 @@ use std::path::{Path, PathBuf};
 
 use stereotrace::camera::{Eye, StereoRig};
 use stereotrace::kernels::{Extent, RgbBuf};
-use stereotrace::render::{GBufferBuf, PixelSelection, Renderer, TraceRequest, effects};
+use stereotrace::render::{GBufferBuf, Renderer, effects};
 use stereotrace::scene::resolve;
+use stereotrace::source::{PixelSelection, TraceRequest};
 
 const SCENES: [&str; 5] = ["cornell-box", "sponza", "living-room", "classroom", "bunny"];
 

@@ -48,6 +48,9 @@
 // The library's patch version.
 #define STEREOTRACE_VERSION_PATCH 0
 
+// The number of reason codes.
+#define ST_REASON_COUNT 6
+
 // The largest width or height of a plane, camera or pipeline frame, in pixels (2^15).
 #define STEREOTRACE_MAX_DIMENSION 32768
 
@@ -68,9 +71,6 @@
 
 // The smallest width and height `stereotrace_ssim` accepts: its 11×11 window.
 #define STEREOTRACE_SSIM_MIN_SIDE 11
-
-// The number of reason codes.
-#define ST_REASON_COUNT 6
 
 // What a call returned. Every function that can fail returns one; the message of the last
 // failure on the calling thread is [`stereotrace_last_error`].
@@ -606,6 +606,11 @@ uint32_t stereotrace_version(void);
 // The library's version as text (`"0.2.0"`); a static string, never freed.
 const char *stereotrace_version_string(void);
 
+// The message of the last failed call on this thread, or an empty string after a call
+// that succeeded. Never null. The text stays valid until the next call into the library
+// on this thread; copy it to keep it.
+const char *stereotrace_last_error(void);
+
 // Creates a context with `threads` worker threads (0: one per logical CPU) and stores it in
 // `*out`. Destroy it with [`stereotrace_context_destroy`].
 //
@@ -620,11 +625,6 @@ enum StStatus stereotrace_context_create(uint32_t threads, struct StContext **ou
 // `context` must be null or a context from [`stereotrace_context_create`] not yet
 // destroyed; no call may start on it once this one has returned OK.
 enum StStatus stereotrace_context_destroy(struct StContext *context);
-
-// The message of the last failed call on this thread, or an empty string after a call
-// that succeeded. Never null. The text stays valid until the next call into the library
-// on this thread; copy it to keep it.
-const char *stereotrace_last_error(void);
 
 // The default reprojection parameters: 5 cm, 2 % depth, 25° between normals, renormalised
 // taps, 16-row bands (room-scale scenes in metres).

@@ -12,9 +12,10 @@ use stereotrace_kernels::reproject::{
 };
 use stereotrace_kernels::ssim::{self, SsimParams, SsimVariant};
 use stereotrace_kernels::{CameraModel, CompactGBuffer, Extent, GBuffer};
+use stereotrace_runtime::source::Layout;
 
-use crate::StContext;
 use crate::boundary::{Context, Failure, StStatus, guard};
+use crate::context::StContext;
 use crate::views::{
     Borrows, StPlaneF32, StPlaneMutF32, StPlaneMutU8, StPlaneU8, StPlaneU32, StRgb, StRgbMut, required,
 };
@@ -55,6 +56,18 @@ pub enum StLayout {
     /// `depth` and `normal_octahedral` (see `stereotrace_encode_normal`); positions are
     /// rebuilt from depth through `camera`. 8 bytes per pixel instead of 28: the fast one.
     Compact = 1,
+}
+
+impl StLayout {
+    /// The runtime's [`Layout`] of a `StLayout` value from C (`what` names the field): the
+    /// one place the C ABI reads a layout, for the kernels and the pipeline alike.
+    pub(crate) fn parse(value: u32, what: &str) -> Result<Layout, Failure> {
+        match value {
+            v if v == StLayout::Full as u32 => Ok(Layout::Full),
+            v if v == StLayout::Compact as u32 => Ok(Layout::Compact),
+            other => Err(Failure::invalid(format!("{what} {other} is not a StLayout (0 or 1)"))),
+        }
+    }
 }
 
 /// One eye's G-buffer for one frame: per pixel, the surface the pixel-centre ray hit.
@@ -249,12 +262,8 @@ pub unsafe extern "C" fn stereotrace_reproject(
             Some(p) => p.kernel()?,
             None => ReprojectParams::default(),
         };
-        let layout = |g: &StGBuffer, what: &str| match g.layout {
-            0 => Ok(StLayout::Full),
-            1 => Ok(StLayout::Compact),
-            other => Err(Failure::invalid(format!("{what}.layout {other} is not a StLayout (0 or 1)"))),
-        };
-        let (target_layout, source_layout) = (layout(target, "target")?, layout(source, "source")?);
+        let (target_layout, source_layout) =
+            (StLayout::parse(target.layout, "target.layout")?, StLayout::parse(source.layout, "source.layout")?);
         if target_layout != source_layout {
             return Err(Failure::invalid(format!(
                 "target is {target_layout:?} but source is {source_layout:?}: both G-buffers must have the same layout"
@@ -263,12 +272,12 @@ pub unsafe extern "C" fn stereotrace_reproject(
         let source_camera = source.camera.model("source.camera")?;
         let mut b = Borrows::new();
         let result = match target_layout {
-            StLayout::Full => {
+            Layout::Full => {
                 let t = full_gbuffer(target, ["target.depth", "target.position", "target.normal"], &mut b)?;
                 let s = full_gbuffer(source, ["source.depth", "source.position", "source.normal"], &mut b)?;
                 reproject_views(context, &t, &s, &source_camera, input, output, &params, &mut b)?
             }
-            StLayout::Compact => {
+            Layout::Compact => {
                 let t = compact_gbuffer(target, ["target.depth", "target.normal_octahedral", "target.camera"], &mut b)?;
                 let s = compact_gbuffer(source, ["source.depth", "source.normal_octahedral", "source.camera"], &mut b)?;
                 reproject_views(context, &t, &s, &source_camera, input, output, &params, &mut b)?

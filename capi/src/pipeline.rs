@@ -9,18 +9,17 @@ use std::time::Duration;
 
 use stereotrace_kernels::frame::same_extent;
 use stereotrace_kernels::reproject::Tolerances;
-use stereotrace_kernels::{CameraModel, Extent, PlaneBuf, RgbBuf};
+use stereotrace_kernels::{CameraModel, Extent, GBufferBuf, PlaneBuf, RgbBuf};
 use stereotrace_runtime::camera::{Eye, StereoRig};
 use stereotrace_runtime::pipeline::{
     FrameStats, GBufferView, Layout, MAX_SPP, Mode, Order, Pipeline, PipelineConfig, PipelineError, budget_duration,
     check_spp,
 };
-use stereotrace_runtime::render::raster::RasterPassStats;
-use stereotrace_runtime::render::{GBufferBuf, PixelSelection, Renderer, TraceRequest, TraceStats};
-use stereotrace_runtime::source::{FrameSource, RendererSource};
+use stereotrace_runtime::render::{Renderer, RendererSource};
+use stereotrace_runtime::source::{FrameSource, PixelSelection, RasterPassStats, TraceRequest, TraceStats};
 
-use crate::StStatus;
-use crate::boundary::{Context, Exclusive, Failure, guard};
+use crate::boundary::{Context, Exclusive, Failure, StStatus, guard};
+use crate::context::{check_threads, thread_pool};
 use crate::kernels::{StCamera, StLayout, StReprojectParams};
 use crate::views::{
     Borrows, StPlaneF32, StPlaneMutF32, StPlaneMutU8, StPlaneU8, StPlaneU32, StRgb, StRgbMut, required,
@@ -158,11 +157,7 @@ impl StPipelineConfig {
             1 => Order::StereoFirst,
             other => return Err(Failure::invalid(format!("config.order {other} is not a StOrder (0 or 1)"))),
         };
-        c.layout = match self.layout {
-            0 => Layout::Full,
-            1 => Layout::Compact,
-            other => return Err(Failure::invalid(format!("config.layout {other} is not a StLayout (0 or 1)"))),
-        };
+        c.layout = StLayout::parse(self.layout, "config.layout")?;
         c.seed = self.seed;
         c.history_confidence = match self.history_confidence {
             0 => false,
@@ -188,14 +183,14 @@ impl StPipelineConfig {
     }
 
     fn check_threads(&self) -> Result<(), Failure> {
-        crate::check_threads(self.threads, "config.threads")
+        check_threads(self.threads, "config.threads")
     }
 
     /// The worker threads, started after every buffer is allocated: nothing to stop if an
     /// allocation fails, and the buffers exist before the threads that fill them (what a
     /// race detector needs to see).
     fn pool(&self) -> Result<rayon::ThreadPool, Failure> {
-        crate::thread_pool(self.threads, "config.threads", "stereotrace-pipeline")
+        thread_pool(self.threads, "config.threads", "stereotrace-pipeline")
     }
 }
 
@@ -352,10 +347,9 @@ unsafe extern "C" fn run_band_job(context: *mut c_void, index: u32) {
     let jobs = unsafe { &*context.cast::<BandJobs<'_>>() };
     let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         let Some(runs) = jobs.runs.get(index as usize) else {
-            return Err(PipelineError::Source(format!(
-                "run_jobs called job {index} of {} jobs; the frame was refused",
-                jobs.runs.len()
-            )));
+            return Err(PipelineError::Source(
+                format!("run_jobs called job {index} of {} jobs; the frame was refused", jobs.runs.len()).into(),
+            ));
         };
         runs.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let start = jobs.rows.start + index as usize * jobs.band;
@@ -414,10 +408,13 @@ impl TraceCall<'_> {
             )
         };
         if code != 0 {
-            return Err(PipelineError::Source(format!(
-                "trace callback returned {code} (eye {}, frame {}, rows {}..{}); the frame was refused",
-                self.eye, self.request.frame, rows.start, rows.end
-            )));
+            return Err(PipelineError::Source(
+                format!(
+                    "trace callback returned {code} (eye {}, frame {}, rows {}..{}); the frame was refused",
+                    self.eye, self.request.frame, rows.start, rows.end
+                )
+                .into(),
+            ));
         }
         Ok(())
     }
@@ -464,13 +461,13 @@ impl CallbackSource {
             return Err(e);
         }
         if code != 0 {
-            return Err(PipelineError::Source(format!("run_jobs returned {code}; the frame was refused")));
+            return Err(PipelineError::Source(format!("run_jobs returned {code}; the frame was refused").into()));
         }
         if let Some(i) = runs[..bands].iter().position(|r| r.load(Ordering::Relaxed) != 1) {
             return Err(PipelineError::Source(format!(
                 "run_jobs returned with job {i} of {bands} run {} times (each must run once); the frame was refused",
                 runs[i].load(Ordering::Relaxed)
-            )));
+            ).into()));
         }
         Ok(())
     }
@@ -523,10 +520,9 @@ impl FrameSource for CallbackSource {
         // call; the callback's contract is the header's.
         let code = unsafe { fill_gbuffers(self.callbacks.user, self.frame, &l, &r) };
         if code != 0 {
-            return Err(PipelineError::Source(format!(
-                "fill_gbuffers callback returned {code} (frame {}); the frame was refused",
-                self.frame
-            )));
+            return Err(PipelineError::Source(
+                format!("fill_gbuffers callback returned {code} (frame {}); the frame was refused", self.frame).into(),
+            ));
         }
         Ok(None)
     }
@@ -643,7 +639,7 @@ impl From<&FrameStats> for StFrameStats {
 /// failure have their own, so an engine can tell them from a bad argument.
 fn pipeline_error(e: PipelineError) -> Failure {
     match e {
-        PipelineError::Source(message) => Failure::new(StStatus::CallbackFailed, message),
+        PipelineError::Source(message) => Failure::new(StStatus::CallbackFailed, message.to_string()),
         PipelineError::Frame(frame) => frame.into(),
         other => Failure::invalid(other.to_string()),
     }

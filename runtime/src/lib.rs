@@ -14,8 +14,10 @@ pub use stereotrace_kernels as kernels;
 
 pub mod camera;
 pub mod cpu;
+pub mod engine;
 pub mod image_io;
 pub mod pipeline;
 pub mod render;
 pub mod scene;
+pub mod session;
 pub mod source;

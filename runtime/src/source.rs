@@ -1,25 +1,24 @@
-//! The seam between the frame pipeline and whatever makes G-buffers and samples.
+//! The seam between the frame pipeline and whatever makes G-buffers and samples: every type
+//! an engine needs to stand behind it.
 //!
 //! [`crate::pipeline::Pipeline`] owns every buffer and runs reprojection, accumulation, the
 //! budget planner and the schedule of a mode; it asks a [`FrameSource`] for two things
 //! only: both eyes' G-buffers for this frame's cameras, and path-traced samples for a
-//! chosen set of pixels. [`RendererSource`] is this crate's renderer behind the seam
-//! (rasterised or traced G-buffers, the paper's path tracer); an engine implements the
-//! trait over its own rasteriser and tracer and gets the same pipeline.
+//! chosen set of pixels. An engine implements the trait over its own rasteriser and tracer
+//! (`runtime/examples/embed.rs`); this crate's renderer stands behind it as
+//! `render::RendererSource`.
 //!
 //! Why the seam is here: everything above it is defined on buffers (the paper's
 //! reprojection, EMA and blend, the budget), everything below it on a scene. A source never
-//! sees the pipeline's history, and the pipeline never sees a scene, a BVH or a light.
+//! sees the pipeline's history, and the pipeline never sees a scene, a BVH or a light. This
+//! module imports the kernels and the camera alone: neither side's code.
 
-use std::borrow::Borrow;
 use std::ops::Range;
+use std::time::Duration;
 
-use crate::kernels::{CameraModel, Extent, RgbBuf};
-// From the configuration module only: the pipeline proper sits above this seam.
-use crate::pipeline::config::{GBufferPass, Layout, PipelineConfig, PipelineError};
-use crate::render::lights::FrameLights;
-use crate::render::raster::{GBufferPlanes, RasterGBuffers, RasterPassStats, Visibility};
-use crate::render::{GBufferBuf, PixelSelection, Renderer, TraceRequest, TraceStats};
+use crate::camera::Eye;
+use crate::kernels::raster::RasterStats;
+use crate::kernels::{CameraModel, Extent, FrameError, GBufferBuf, PlaneBuf, RgbBuf};
 
 /// What makes a frame's G-buffers and samples for [`crate::pipeline::Pipeline`].
 ///
@@ -63,94 +62,103 @@ pub trait FrameSource {
     }
 }
 
-/// This crate's renderer as a [`FrameSource`]: the per-frame light table, the rasterised or
-/// traced G-buffer pass the configuration names, and the specialised or general path
-/// tracer. `R` is how the renderer is held: borrowed (`&Renderer`, what
-/// [`crate::pipeline::Pipeline::new`] is usually given) or owned/shared (`Renderer`,
-/// `Arc<Renderer>`: a pipeline that must outlive its caller's stack, as behind the C ABI).
-pub struct RendererSource<R: Borrow<Renderer>> {
-    renderer: R,
-    lights: FrameLights,
-    /// The rasterised G-buffer pass's buffers (with [`GBufferPass::Raster`]).
-    raster: Option<RasterGBuffers>,
-    general_integrator: bool,
+/// Which G-buffer layout the reprojection kernels read.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum Layout {
+    /// Depth + octahedral normals, positions rebuilt from depth (8 B/px).
+    #[default]
+    Compact,
+    /// Depth, position and normal planes (28 B/px).
+    Full,
 }
 
-impl<R: Borrow<Renderer>> RendererSource<R> {
-    /// The renderer configured as `config` asks, for frames of `extent`; fails only if the
-    /// per-pixel buffers cannot be allocated ([`crate::kernels::FrameError::OutOfMemory`]).
-    pub fn new(renderer: R, config: &PipelineConfig, extent: Extent) -> Result<Self, PipelineError> {
-        let raster = match config.gbuffer {
-            GBufferPass::Raster | GBufferPass::Fixed => {
-                let mut raster = RasterGBuffers::try_new(extent)?;
-                if config.layout == Layout::Compact {
-                    raster.planes = GBufferPlanes::Compact;
-                }
-                if config.gbuffer == GBufferPass::Fixed {
-                    raster.visibility_by = Visibility::Fixed;
-                }
-                Some(raster)
-            }
-            GBufferPass::Traced => None,
-        };
-        Ok(Self {
-            lights: renderer.borrow().frame_lights(0),
-            renderer,
-            raster,
-            general_integrator: config.general_integrator,
-        })
-    }
-
-    /// The renderer behind this source.
-    pub fn renderer(&self) -> &Renderer {
-        self.renderer.borrow()
-    }
+/// The parameters of one path-tracing call.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TraceRequest {
+    /// Which eye (part of every random number).
+    pub eye: Eye,
+    /// The frame (scene time, and part of every random number).
+    pub frame: u32,
+    /// Samples per pixel.
+    pub spp: u32,
+    /// Seed of the random numbers (references and comparison frames use different seeds).
+    pub seed: u64,
+    /// Index of the first sample (so that n more samples can be added to m earlier ones with
+    /// the same numbers as one (m + n)-sample render).
+    pub first_sample: u32,
 }
 
-impl<R: Borrow<Renderer>> FrameSource for RendererSource<R> {
-    fn begin_frame(&mut self, frame: u32) {
-        self.lights.update(self.renderer.borrow().scene(), frame);
-    }
+/// Which pixels a tracing call fills.
+#[derive(Clone, Copy)]
+pub enum PixelSelection<'a> {
+    /// Every pixel.
+    All,
+    /// Only pixels whose mask byte is non-zero; the others keep their value.
+    Mask(&'a PlaneBuf<u8>),
+}
 
-    fn resize(&mut self, extent: Extent) -> Result<(), PipelineError> {
-        if let Some(raster) = &mut self.raster {
-            let mut resized = RasterGBuffers::try_new(extent)?;
-            (resized.planes, resized.visibility_by, resized.body) = (raster.planes, raster.visibility_by, raster.body);
-            *raster = resized;
+impl PixelSelection<'_> {
+    /// Whether pixel `(x, y)` is to be filled (for a frame source's per-pixel loop).
+    pub fn selects(&self, x: usize, y: usize) -> bool {
+        match self {
+            PixelSelection::All => true,
+            PixelSelection::Mask(m) => m.view().get(x, y) != 0,
         }
-        Ok(())
     }
+}
 
-    fn fill_gbuffers(
-        &mut self,
-        gbuffers: [&mut GBufferBuf; 2],
-        _layout: Layout,
-    ) -> Result<Option<RasterPassStats>, PipelineError> {
-        // The layout was fixed at construction (the raster pass's planes).
-        let renderer = self.renderer.borrow();
-        let [left, right] = gbuffers;
-        let stats = match &mut self.raster {
-            Some(raster) => Some(renderer.render_gbuffers_raster(&self.lights, [&mut *left, &mut *right], raster)?),
-            None => {
-                renderer.render_gbuffer(&self.lights, left);
-                renderer.render_gbuffer(&self.lights, right);
-                None
-            }
-        };
-        renderer.write_motion(&self.lights, left);
-        renderer.write_motion(&self.lights, right);
-        Ok(stats)
-    }
+/// Counters of one render call.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TraceStats {
+    /// Rays traced (primary, secondary and shadow).
+    pub rays: u64,
+    /// Pixel samples taken.
+    pub samples: u64,
+    /// Samples whose estimate was not finite (replaced by 0).
+    pub non_finite: u64,
+}
 
-    fn trace(
-        &self,
-        camera: &CameraModel,
-        request: &TraceRequest,
-        selection: PixelSelection<'_>,
-        rows: Range<usize>,
-        out: &mut RgbBuf,
-    ) -> Result<TraceStats, PipelineError> {
-        let general = self.general_integrator;
-        Ok(self.renderer.borrow().trace_rows(&self.lights, camera, request, selection, rows, out, general)?)
+impl std::ops::Add for TraceStats {
+    type Output = Self;
+    fn add(self, o: Self) -> Self {
+        Self { rays: self.rays + o.rays, samples: self.samples + o.samples, non_finite: self.non_finite + o.non_finite }
     }
+}
+
+impl std::iter::Sum for TraceStats {
+    fn sum<I: Iterator<Item = Self>>(iter: I) -> Self {
+        iter.fold(Self::default(), |a, b| a + b)
+    }
+}
+
+/// What one rasterised G-buffer pass did: the kernel's statistics (with its step times) and
+/// the resolve's time.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RasterPassStats {
+    /// The rasteriser's counters and step times.
+    pub raster: RasterStats,
+    /// Wall time of the resolve (visibility into G-buffer texels).
+    pub resolve: Duration,
+}
+
+/// Why a pipeline could not be built or could not run a frame: raised by the pipeline or by
+/// its source, which share this one error type.
+#[derive(Debug, thiserror::Error)]
+pub enum PipelineError {
+    #[error("invalid pipeline configuration: {0}")]
+    /// The configuration was refused (the message says which field and why).
+    Config(String),
+    #[error(transparent)]
+    /// A buffer, extent or camera was refused by a kernel.
+    Frame(#[from] FrameError),
+    /// The [`FrameSource`] failed: an engine's message (`PipelineError::Source("...".into())`)
+    /// or the renderer's own error, kept whole for `source()` and downcasting.
+    #[error("frame source: {0}")]
+    Source(Box<dyn std::error::Error + Send + Sync>),
+    /// G-buffers lent to [`crate::pipeline::Pipeline::render_frame_lent`] were refused (a plane missing
+    /// or of the wrong size, or last frame's G-buffers not lent again).
+    #[error("lent G-buffers: {0}")]
+    Lent(String),
 }

@@ -1,21 +1,26 @@
-//! The pipeline over a frame source that is not this crate's renderer: an analytic scene of
-//! rectangles (no BVH, no lights) whose "path-traced" samples are its texture times a
-//! deterministic per-pixel noise. Every mode and order runs through `Pipeline`, and the
-//! modes whose schedule is one or two kernel calls are checked against those kernel calls
-//! made directly on the same buffers, bit for bit.
+//! The pipeline over a frame source that is not this crate's renderer: the engine of
+//! `runtime/examples/embed.rs` (included here, so the example an engine copies is the one
+//! tested), an analytic scene of rectangles (no BVH, no lights) whose "path-traced" samples
+//! are its texture times a deterministic per-pixel noise. Every mode and order runs through
+//! `Pipeline`, and the modes whose schedule is one or two kernel calls are checked against
+//! those kernel calls made directly on the same buffers, bit for bit.
 
+#[path = "../examples/embed.rs"]
+#[allow(dead_code)] // its `main` is the example's, not this test's
+mod embed;
+
+use std::time::Duration;
+
+use embed::{Engine, cameras as eye_cameras};
 use glam::Vec3;
 use stereotrace_runtime::camera::Eye;
 use stereotrace_runtime::kernels::accumulate::{self, EmaInput, EmaParams, EmaState};
 use stereotrace_runtime::kernels::reproject::{
     self, Reason, ReprojectInput, ReprojectOutput, ReprojectParams, Tolerances,
 };
-use stereotrace_runtime::kernels::synth::{AnalyticScene, SynthFrame, camera_at};
+use stereotrace_runtime::kernels::synth::{SynthFrame, camera_at};
 use stereotrace_runtime::kernels::{CameraModel, Extent, PlaneBuf, RgbBuf};
-use stereotrace_runtime::pipeline::{Layout, Mode, Order, Pipeline, PipelineConfig, PipelineError};
-use stereotrace_runtime::render::raster::RasterPassStats;
-use stereotrace_runtime::render::{GBufferBuf, PixelSelection, TraceRequest, TraceStats};
-use stereotrace_runtime::source::FrameSource;
+use stereotrace_runtime::pipeline::{Mode, Order, Pipeline, PipelineConfig};
 
 const W: usize = 61;
 const H: usize = 37;
@@ -24,66 +29,12 @@ fn extent() -> Extent {
     Extent::new(W, H).unwrap()
 }
 
-/// Eye cameras of frame `f`: a parallel pair 6 cm apart, sliding right 2 cm per frame.
 fn cameras(f: u32) -> [CameraModel; 2] {
-    let x = 0.02 * f as f32;
-    [-0.03, 0.03].map(|dx| camera_at(Vec3::new(x + dx, 0.0, 0.0), extent(), 60.0))
+    eye_cameras(f, extent())
 }
 
-/// The "path-traced" sample: the surface's texture times a noise in [0.8, 1.2) that depends
-/// on eye, frame and pixel only (so accumulation over frames has something to average).
 fn sample(frame: &SynthFrame, eye: Eye, f: u32, x: usize, y: usize) -> [f32; 3] {
-    let mut h = (eye as u64) << 56 ^ u64::from(f) << 32 ^ (y * W + x) as u64;
-    h = (h ^ (h >> 33)).wrapping_mul(0xff51_afd7_ed55_8ccd);
-    h = (h ^ (h >> 33)).wrapping_mul(0xc4ce_b9fe_1a85_ec53);
-    let noise = 0.8 + 0.4 * ((h >> 40) as f32 / (1u64 << 24) as f32);
-    frame.colour.get(x, y).map(|c| c * noise)
-}
-
-struct Analytic {
-    scene: AnalyticScene,
-    /// Each eye's frame as last rendered by `fill_gbuffers` (the tracer's surfaces).
-    frames: [Option<SynthFrame>; 2],
-    frame: u32,
-}
-
-impl FrameSource for Analytic {
-    fn begin_frame(&mut self, frame: u32) {
-        self.frame = frame;
-    }
-
-    fn fill_gbuffers(
-        &mut self,
-        gbuffers: [&mut GBufferBuf; 2],
-        _layout: Layout,
-    ) -> Result<Option<RasterPassStats>, PipelineError> {
-        for (eye, g) in gbuffers.into_iter().enumerate() {
-            let f = self.scene.render(&g.camera, [0.0; 3]);
-            g.copy_from(&f.surfaces)?;
-            self.frames[eye] = Some(f);
-        }
-        Ok(None)
-    }
-
-    fn trace(
-        &self,
-        camera: &CameraModel,
-        request: &TraceRequest,
-        selection: PixelSelection<'_>,
-        rows: std::ops::Range<usize>,
-        out: &mut RgbBuf,
-    ) -> Result<TraceStats, PipelineError> {
-        let frame = self.frames[request.eye as usize].as_ref().expect("G-buffers before tracing");
-        assert_eq!(&frame.surfaces.camera, camera, "traced with the camera the G-buffer was made with");
-        for y in rows {
-            for x in 0..W {
-                if selection.selects(x, y) {
-                    out.set(x, y, sample(frame, request.eye, self.frame, x, y));
-                }
-            }
-        }
-        Ok(TraceStats::default())
-    }
+    Engine::sample(frame, eye, f, x, y)
 }
 
 fn config(mode: Mode, order: Order) -> PipelineConfig {
@@ -93,13 +44,12 @@ fn config(mode: Mode, order: Order) -> PipelineConfig {
     c
 }
 
-fn pipeline(mode: Mode, order: Order) -> Pipeline<Analytic> {
-    let source = Analytic { scene: AnalyticScene::room(6.0), frames: [None, None], frame: 0 };
-    Pipeline::with_source(source, config(mode, order), cameras(0)).unwrap()
+fn pipeline(mode: Mode, order: Order) -> Pipeline<Engine> {
+    Pipeline::with_source(Engine::new(Duration::ZERO), config(mode, order), cameras(0)).unwrap()
 }
 
-fn rendered(source: &Analytic, eye: Eye) -> &SynthFrame {
-    source.frames[eye as usize].as_ref().unwrap()
+fn rendered(source: &Engine, eye: Eye) -> &SynthFrame {
+    source.rendered(eye).expect("G-buffers were filled")
 }
 
 /// Every pixel's sample of `eye` at frame `f`.
@@ -238,7 +188,7 @@ fn eye_cameras_of_another_size_are_refused() {
     let err = p.render_frame_at(0, wrong).unwrap_err();
     assert!(err.to_string().contains("eye camera"), "{err}");
     // A pipeline made over a source has no rig to turn a head pose into eyes.
-    let head = stereotrace_runtime::scene::CameraPose {
+    let head = stereotrace_runtime::camera::CameraPose {
         eye: Vec3::ZERO,
         forward: -Vec3::Z,
         up: Vec3::Y,

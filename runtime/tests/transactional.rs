@@ -12,11 +12,9 @@ use glam::Vec3;
 use stereotrace_runtime::camera::Eye;
 use stereotrace_runtime::kernels::reproject::Tolerances;
 use stereotrace_runtime::kernels::synth::{AnalyticScene, SynthFrame, camera_at};
-use stereotrace_runtime::kernels::{CameraModel, Extent, PlaneBuf, RgbBuf};
+use stereotrace_runtime::kernels::{CameraModel, Extent, GBufferBuf, PlaneBuf, RgbBuf};
 use stereotrace_runtime::pipeline::{FrameStats, Layout, Mode, Order, Pipeline, PipelineConfig, PipelineError};
-use stereotrace_runtime::render::raster::RasterPassStats;
-use stereotrace_runtime::render::{GBufferBuf, PixelSelection, TraceRequest, TraceStats};
-use stereotrace_runtime::source::FrameSource;
+use stereotrace_runtime::source::{FrameSource, PixelSelection, RasterPassStats, TraceRequest, TraceStats};
 
 const W: usize = 45;
 const H: usize = 29;

@@ -9,7 +9,8 @@ use clap::{Arg, Args};
 
 use crate::eval::EvalSpec;
 use crate::kernels::Extent;
-use crate::pipeline::{GBufferPass, budget_duration, check_spp};
+use crate::pipeline::{budget_duration, check_spp};
+use crate::render::GBufferPass;
 
 /// The scene a command renders and its size per eye.
 #[derive(Args, Clone, Debug)]

@@ -9,7 +9,8 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::eval::cache::Cache;
 use crate::eval::paper::PaperTables;
-use crate::eval::run::{EvalError, EvalOutcome, Limits, merge, plan, run_shard};
+use crate::eval::results::EvalOutcome;
+use crate::eval::run::{EvalError, Limits, merge, plan, run_shard};
 use crate::eval::units::{Shard, hours_text};
 use crate::eval::{EvalSpec, Grid, Preset, Reporter, SsimChoice, Variant, evaluate, plots, report};
 use crate::kernels::Extent;
@@ -71,7 +72,7 @@ pub struct EvalOptions {
     pub max_units: Option<usize>,
     /// How the pipelines make their G-buffers (default: raster).
     #[arg(long, value_enum)]
-    pub gbuffer: Option<crate::pipeline::GBufferPass>,
+    pub gbuffer: Option<crate::render::GBufferPass>,
     /// Give the pipelines the surfaces' motion (moving area lights' own), which temporal
     /// reprojection follows; without it every surface is taken as still.
     #[arg(long)]

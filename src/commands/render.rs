@@ -10,7 +10,8 @@ use indicatif::{ProgressBar, ProgressStyle};
 use crate::camera::{Eye, StereoRig};
 use crate::image_io::{write_exr, write_png_preview};
 use crate::kernels::RgbBuf;
-use crate::render::{PixelSelection, Renderer, TraceRequest, TraceStats};
+use crate::render::Renderer;
+use crate::source::{PixelSelection, TraceRequest, TraceStats};
 
 use super::args::{SceneArgs, default, parse_exposure, parse_frames, parse_spp};
 

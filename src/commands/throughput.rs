@@ -20,8 +20,9 @@ use serde::Serialize;
 
 use crate::camera::{Eye, StereoRig};
 use crate::kernels::Extent;
-use crate::pipeline::{CameraWalk, FrameStats, Layout, Mode, Order, Pipeline, PipelineConfig, Session, View};
-use crate::render::Renderer;
+use crate::pipeline::{FrameStats, Layout, Mode, Order, Pipeline, PipelineConfig};
+use crate::render::{Renderer, RendererOptions};
+use crate::session::{CameraWalk, Session, View};
 
 use super::args::{GBufferArg, SceneArgs, ThreadsArg, default, parse_budget_ms, parse_frames, parse_spp};
 
@@ -228,12 +229,14 @@ fn ms(d: Duration) -> f64 {
 /// see [`Pipeline::render_mono_frame`]).
 fn run_frames(
     renderer: &Renderer,
+    options: RendererOptions,
     config: PipelineConfig,
     extent: Extent,
     frames: u32,
     mono: bool,
 ) -> Result<Vec<FrameStats>, String> {
-    let pipeline = Pipeline::new(renderer, config, StereoRig::default(), extent).map_err(|e| e.to_string())?;
+    let pipeline =
+        Pipeline::with_options(renderer, options, config, StereoRig::default(), extent).map_err(|e| e.to_string())?;
     let view = if mono { View::Mono } else { View::Stereo };
     let mut session = Session::new(pipeline, CameraWalk::BackAndForth).with_view(view);
     let mut stats = Vec::with_capacity(frames as usize);
@@ -262,9 +265,9 @@ pub fn run(opts: &ThroughputOptions) -> Result<ThroughputReport, String> {
     let mut config = PipelineConfig::paper(opts.mode, opts.spp, tolerances);
     config.order = opts.order;
     config.layout = opts.layout;
-    config.gbuffer = opts.gbuffer.gbuffer;
+    let options = RendererOptions::with_gbuffer(opts.gbuffer.gbuffer);
     config.budget = opts.budget_ms.map(crate::pipeline::budget_duration).transpose()?;
-    let stats = pool.install(|| run_frames(&renderer, config, opts.input.res, opts.frames, false))?;
+    let stats = pool.install(|| run_frames(&renderer, options, config, opts.input.res, opts.frames, false))?;
     // Every run below shares `config`, the budget included: only the schedule differs.
     let schedule = |name: &str, stats: &[FrameStats], eyes: [bool; 2]| {
         ScheduleRun::of(name, stats, opts.input.res, opts.spp, opts.budget_ms, eyes)
@@ -274,13 +277,13 @@ pub fn run(opts: &ThroughputOptions) -> Result<ThroughputReport, String> {
         Some(this_run.clone())
     } else if opts.baseline {
         let full = PipelineConfig { mode: Mode::PathTraced, ..config };
-        let full_stats = pool.install(|| run_frames(&renderer, full, opts.input.res, opts.frames, false))?;
+        let full_stats = pool.install(|| run_frames(&renderer, options, full, opts.input.res, opts.frames, false))?;
         Some(schedule("full stereo", &full_stats, [true, true]))
     } else {
         None
     };
     let mono = if opts.baseline {
-        let mono_stats = pool.install(|| run_frames(&renderer, config, opts.input.res, opts.frames, true))?;
+        let mono_stats = pool.install(|| run_frames(&renderer, options, config, opts.input.res, opts.frames, true))?;
         Some(schedule("mono", &mono_stats, [false, true]))
     } else {
         None

@@ -27,7 +27,9 @@ use crate::eval::stats::Summary;
 use crate::eval::{EvalSpec, Metric, Preset, Reporter, Variant};
 use crate::kernels::Extent;
 use crate::kernels::reproject::TapPolicy;
-use crate::pipeline::{CameraWalk, GBufferPass, Layout, Mode, Order, Pipeline, Session};
+use crate::pipeline::{Layout, Mode, Order, Pipeline};
+use crate::render::{GBufferPass, RendererOptions};
+use crate::session::{CameraWalk, Session};
 
 use super::args::{
     GBufferArg, ReferenceArgs, SceneArgs, ThreadsArg, default, parse_budget_ms, parse_frames, parse_spp,
@@ -300,10 +302,10 @@ fn measure_setting(
     config.policy = setting.policy;
     config.ramp = setting.ramp;
     config.layout = setting.layout;
-    config.gbuffer = setting.gbuffer;
     config.budget = budget_ms.map(crate::pipeline::budget_duration).transpose()?;
     let rig = StereoRig::new(spec.eye_separation)?;
-    let pipeline = Pipeline::new(renderer, config, rig, extent).map_err(|e| e.to_string())?;
+    let options = RendererOptions::with_gbuffer(setting.gbuffer);
+    let pipeline = Pipeline::with_options(renderer, options, config, rig, extent).map_err(|e| e.to_string())?;
     let mut session = Session::new(pipeline, CameraWalk::Path);
     let variant = spec.ssim.kernel();
     let pixels = extent.pixels() as f64;

@@ -28,7 +28,7 @@ use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use super::curve::SampleSums;
+use super::curve::{CurvePoint, SampleSums};
 use crate::kernels::{Extent, PlaneBuf, RgbBuf};
 
 /// Bumped whenever the meaning or layout of any entry changes.
@@ -367,6 +367,30 @@ pub fn decode_mask(r: &mut Reader<'_>) -> Result<PlaneBuf<u8>, String> {
     let (w, h) = (r.u32()? as usize, r.u32()? as usize);
     let e = Extent::new(w, h).map_err(|e| e.to_string())?;
     PlaneBuf::from_vec(r.take(e.pixels())?.to_vec(), e).map_err(|e| e.to_string())
+}
+
+/// The payload of a checkpoint: the samples so far, the curve points so far, the sum.
+pub(crate) fn encode_partial(samples: u32, points: &[CurvePoint], sum: &SampleSums) -> Vec<u8> {
+    let json = serde_json::to_vec(points).expect("points serialise");
+    let mut out = Vec::with_capacity(16 + json.len() + 24 * sum.extent.pixels());
+    out.extend_from_slice(&samples.to_le_bytes());
+    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    out.extend_from_slice(&json);
+    encode_sums(sum, &mut out);
+    out
+}
+
+/// Reads back what [`encode_partial`] wrote; refuses anything else.
+pub(crate) fn decode_partial(bytes: &[u8]) -> Result<(u32, Vec<CurvePoint>, SampleSums), String> {
+    let mut r = Reader::new(bytes);
+    let samples = r.u32()?;
+    let len = r.u32()? as usize;
+    let points = serde_json::from_slice(r.take(len)?).map_err(|e| e.to_string())?;
+    let sum = decode_sums(&mut r)?;
+    if !r.finished() {
+        return Err("trailing bytes".into());
+    }
+    Ok((samples, points, sum))
 }
 
 #[cfg(test)]

@@ -13,8 +13,9 @@ use super::effective::{ErrorCurve, Grid, Interpolation, Metric};
 use crate::camera::{Eye, StereoRig};
 use crate::kernels::ssim::{SsimParams, SsimVariant, ssim};
 use crate::kernels::{CameraModel, Extent, RgbBuf};
+use crate::render::Renderer;
 use crate::render::lights::FrameLights;
-use crate::render::{PixelSelection, Renderer, TraceRequest, TraceStats};
+use crate::source::{PixelSelection, TraceRequest, TraceStats};
 
 /// What the renderer needs to trace one frame of one eye.
 pub struct FrameView {

@@ -8,11 +8,11 @@ use std::path::{Path, PathBuf};
 use plotters::coord::{CoordTranslate, Shift};
 use plotters::prelude::*;
 
-use super::Variant;
 use super::effective::{EffectiveSpp, Metric};
 use super::paper::PaperTables;
 use super::report::{averaged_scenes, paper_average, scene_average};
-use super::run::{Artifacts, ComparisonRow, DiscardMap, EvalResults};
+use super::results::{Artifacts, ComparisonRow, DiscardMap, EvalResults};
+use super::spec::Variant;
 use super::stats::Bound;
 use crate::image_io::tonemap;
 use crate::kernels::RgbBuf;

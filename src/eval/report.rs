@@ -14,9 +14,9 @@ use serde::Serialize;
 
 use super::effective::Metric;
 use super::paper::{PaperTables, PaperValue, discard_group};
-use super::run::{ConfigResult, EvalOutcome, EvalResults, FrameReasons, SceneResult, WorkCounters};
+use super::results::{ConfigResult, EvalOutcome, EvalResults, FrameReasons, SceneResult, WorkCounters};
+use super::spec::{EvalSpec, Variant};
 use super::stats::{Summary, mean, sample_std};
-use super::{EvalSpec, Variant};
 use crate::kernels::reproject::Reason;
 
 /// The scenes that enter the scene average (see the module docs).

@@ -30,23 +30,26 @@
 use std::collections::BTreeMap;
 use std::time::Instant;
 
-use serde::{Deserialize, Serialize};
-
 use super::cache::{
-    CACHE_FORMAT, Cache, CacheKey, Lookup, Reader, checksum, decode_image, decode_mask, decode_sums, encode_image,
-    encode_mask, encode_sums,
+    CACHE_FORMAT, Cache, CacheKey, Lookup, Reader, checksum, decode_image, decode_mask, decode_partial, encode_image,
+    encode_mask, encode_partial,
 };
 use super::claim::{Attempt, Claim, clear_orphan, try_claim};
-use super::curve::{CurvePoint, FrameCurve, FrameView, Measurement, Progressive, SampleSums, measure};
+use super::curve::{CurvePoint, FrameCurve, FrameView, Measurement, Progressive, measure};
 use super::effective::{EffectiveSpp, Grid, Metric};
+use super::probes::{code_probe, scene_probe};
+use super::results::{
+    Artifacts, ComparisonRow, ConfigResult, DiscardMap, EvalOutcome, EvalResults, FrameReasons, FrameResult,
+    SceneResult, WorkCounters,
+};
+use super::spec::{EvalSpec, Variant};
 use super::stats::Summary;
-use super::units::{Plan, Shard, Unit, UnitKind, assign};
-use super::{EvalSpec, Variant};
+use super::units::{Plan, Shard, Unit, UnitKind, assign, config_work, seconds_per_sample};
 use crate::camera::{Eye, StereoRig};
-use crate::kernels::reproject::REASON_COUNT;
 use crate::kernels::{Extent, PlaneBuf, RgbBuf};
-use crate::pipeline::{CameraWalk, Mode, Order, Pipeline, PipelineConfig, Session};
-use crate::render::Renderer;
+use crate::pipeline::{Mode, Pipeline, PipelineConfig};
+use crate::render::{Renderer, RendererOptions};
+use crate::session::{CameraWalk, Session};
 
 /// Where a run reports progress and warnings (the CLI shows a progress bar).
 pub trait Reporter: Sync {
@@ -71,32 +74,6 @@ pub struct Quiet;
 
 impl Reporter for Quiet {
     fn warn(&self, _message: &str) {}
-}
-
-/// What a run computed (as opposed to loading it from the cache).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-pub struct WorkCounters {
-    /// References rendered (or finished from a checkpoint).
-    pub references: usize,
-    /// Error curves built (or finished from a checkpoint).
-    pub curves: usize,
-    /// Configurations run through the pipeline.
-    pub configs: usize,
-    /// Figure images rendered.
-    pub figure_images: usize,
-    /// Entries loaded from the cache.
-    pub cache_hits: usize,
-    /// Entries that failed verification and were recomputed.
-    pub corrupt_entries: usize,
-    /// Pixel samples path traced.
-    pub samples: u64,
-}
-
-impl WorkCounters {
-    /// References, curves and configurations computed.
-    pub fn computed_units(&self) -> usize {
-        self.references + self.curves + self.configs
-    }
 }
 
 /// Stops a run early (tests; splitting a long run into sessions).
@@ -136,248 +113,10 @@ impl From<String> for EvalError {
     }
 }
 
-/// Pixels of one frame per reason, indexed by the reason code.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub struct FrameReasons {
-    /// Frame index, from 0.
-    pub frame: u32,
-    /// Left-eye pixels per reason code (Table 4's input), indexed as
-    /// [`Reason`](crate::kernels::reproject::Reason).
-    pub counts: [u64; REASON_COUNT],
-}
-
-/// One measured frame of a configuration.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct FrameResult {
-    /// Frame index, from 0.
-    pub frame: u32,
-    /// Whether the frame is after the warm-up (only those are summarised).
-    pub evaluated: bool,
-    /// SSIM of the left-eye output against the frame's reference.
-    pub ssim: f64,
-    /// RMSE of the left-eye output against the frame's reference.
-    pub rmse: f64,
-    /// Effective spp (evaluated frames only).
-    pub effective_ssim: Option<EffectiveSpp>,
-    /// Effective spp by RMSE (evaluated frames only).
-    pub effective_rmse: Option<EffectiveSpp>,
-}
-
-impl FrameResult {
-    /// The effective spp by `metric` (`None` for a warm-up frame).
-    pub fn effective(&self, metric: Metric) -> Option<EffectiveSpp> {
-        match metric {
-            Metric::Ssim => self.effective_ssim,
-            Metric::Rmse => self.effective_rmse,
-        }
-    }
-}
-
-/// One (variant, input spp) of one scene.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct ConfigResult {
-    /// The pipeline mode and order.
-    pub variant: Variant,
-    /// Input samples per pixel.
-    pub spp: u32,
-    /// The frames with a reference (the evaluated ones; every frame for Figure 3's scene).
-    pub frames: Vec<FrameResult>,
-    /// Left eye, every frame: stereo reprojection into it (zero where the mode has none).
-    pub stereo_reasons: Vec<FrameReasons>,
-    /// Left eye, every frame: temporal reprojection of its history (zero on frame 0).
-    pub temporal_reasons: Vec<FrameReasons>,
-    /// Effective spp over the evaluated frames.
-    pub ssim: Summary,
-    /// Effective spp by RMSE over the evaluated frames.
-    pub rmse: Summary,
-    /// Left-eye pixels path traced over all frames.
-    pub traced_left_pixels: u64,
-}
-
-impl ConfigResult {
-    /// The effective spp summary by `metric`.
-    pub fn summary(&self, metric: Metric) -> &Summary {
-        match metric {
-            Metric::Ssim => &self.ssim,
-            Metric::Rmse => &self.rmse,
-        }
-    }
-}
-
-/// Everything measured on one scene.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct SceneResult {
-    /// The scene's own name (a manifest's `name`, a folder's name), keying its cache entries.
-    pub name: String,
-    /// Human-readable name for tables and figures.
-    pub display_name: String,
-    /// The paper scene it stands for (Figure 2 label); `None` for a scene the paper lacks.
-    pub paper_scene: Option<String>,
-    /// [`Scene::fingerprint`](crate::scene::Scene::fingerprint) as 16 hex digits.
-    pub fingerprint: String,
-    /// The error curves of the frames with a reference.
-    pub curves: Vec<FrameCurve>,
-    /// One result per (variant, input spp), variants outermost.
-    pub configs: Vec<ConfigResult>,
-}
-
-impl SceneResult {
-    /// The result of `variant` at input `spp`, if the run has it.
-    pub fn config(&self, variant: Variant, spp: u32) -> Option<&ConfigResult> {
-        self.configs.iter().find(|c| c.variant == variant && c.spp == spp)
-    }
-}
-
-/// The machine-readable result of a run.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct EvalResults {
-    /// The spec evaluated.
-    pub spec: EvalSpec,
-    /// `<cache format>/<crate version>/<global probe>`, as in every cache key.
-    pub code_version: String,
-    /// Per-scene results, in spec order.
-    pub scenes: Vec<SceneResult>,
-}
-
-/// Figure 6's input: one eye's reason codes at one frame, over its reference.
-#[derive(Clone, Debug)]
-pub struct DiscardMap {
-    /// The scene's own name ([`SceneResult::name`]).
-    pub scene: String,
-    /// The figure frame ([`EvalSpec::figure_frame`]).
-    pub frame: u32,
-    /// `stereo` or `temporal`.
-    pub kind: &'static str,
-    /// The left eye's reason code per pixel.
-    pub reasons: PlaneBuf<u8>,
-    /// The frame's left-eye reference, shown darkened under reprojected and background
-    /// pixels.
-    pub background: RgbBuf,
-}
-
-/// One row of Figure 7.
-#[derive(Clone, Debug)]
-pub struct ComparisonRow {
-    /// The scene's own name ([`SceneResult::name`]).
-    pub scene: String,
-    /// The figure frame ([`EvalSpec::figure_frame`]).
-    pub frame: u32,
-    /// Input samples per pixel.
-    pub spp: u32,
-    /// The frame path traced at `spp`.
-    pub path_traced: RgbBuf,
-    /// The spatiotemporal pipeline's left-eye output at `spp` (paper order).
-    pub reprojected: RgbBuf,
-    /// The reprojected image's effective spp by SSIM.
-    pub effective: EffectiveSpp,
-    /// The effective spp rounded, at least 1 (`M` above the curve's range; 1 below it
-    /// or when undefined).
-    pub comparison_spp: u32,
-    /// The frame path traced at `comparison_spp`.
-    pub comparison: RgbBuf,
-}
-
-/// Images for the figures (kept out of the JSON).
-#[derive(Clone, Debug, Default)]
-pub struct Artifacts {
-    /// Figure 6's discard maps.
-    pub discard_maps: Vec<DiscardMap>,
-    /// Figure 7's rows.
-    pub comparisons: Vec<ComparisonRow>,
-}
-
-/// What [`evaluate`] returns.
-pub struct EvalOutcome {
-    /// The measured results (`results.json`).
-    pub results: EvalResults,
-    /// Images for the figures.
-    pub artifacts: Artifacts,
-    /// What this run computed rather than loaded.
-    pub counters: WorkCounters,
-    /// Non-fatal problems, in the order they were reported.
-    pub warnings: Vec<String>,
-    /// Wall time of the run, in seconds.
-    pub seconds: f64,
-}
-
-const PROBE_SEED: u64 = 0x9E0B_E5EE_D000_0001;
-
 /// How often a process waiting for another's claim looks again.
 const CLAIM_POLL: std::time::Duration = std::time::Duration::from_millis(500);
 /// How often a wait is reported again.
 const WAIT_REPORT: std::time::Duration = std::time::Duration::from_secs(30);
-
-/// Hashes the bits of images and numbers.
-#[derive(Default)]
-struct BitHash(Vec<u8>);
-
-impl BitHash {
-    fn image(&mut self, img: &RgbBuf) {
-        for p in img.planes() {
-            for v in p.as_slice() {
-                self.0.extend_from_slice(&v.to_bits().to_le_bytes());
-            }
-        }
-    }
-    fn bytes(&mut self, b: &[u8]) {
-        self.0.extend_from_slice(b);
-    }
-    fn f64(&mut self, v: f64) {
-        self.0.extend_from_slice(&v.to_bits().to_le_bytes());
-    }
-    fn finish(&self) -> u64 {
-        checksum(&[&self.0])
-    }
-}
-
-/// The global behavioural probe: every pipeline mode and order on a 32×18 Cornell box for
-/// three frames, and SSIM between the outputs.
-pub fn code_probe() -> Result<u64, String> {
-    let scene = crate::scene::resolve("cornell").map_err(|e| e.to_string())?;
-    let renderer = Renderer::new(scene).map_err(|e| e.to_string())?;
-    let extent = Extent::new(32, 18).map_err(|e| e.to_string())?;
-    let mut h = BitHash::default();
-    let mut outputs = Vec::new();
-    let tol = renderer.scene().tolerances.at_height(extent.height());
-    let mut variants = vec![Variant::new(Mode::PathTraced, Order::Paper)];
-    variants.extend(Variant::ALL);
-    for v in variants {
-        let mut cfg = PipelineConfig::paper(v.mode, 1, tol);
-        cfg.order = v.order;
-        let pipeline = Pipeline::new(&renderer, cfg, StereoRig::default(), extent).map_err(|e| e.to_string())?;
-        let mut session = Session::new(pipeline, CameraWalk::Path);
-        for _ in 0..3 {
-            session.next_frame().map_err(|e| e.to_string())?;
-        }
-        let p = session.pipeline();
-        for eye in Eye::BOTH {
-            h.image(p.output(eye));
-            h.bytes(p.stereo_reasons(eye).as_slice());
-            h.bytes(p.temporal_reasons(eye).as_slice());
-        }
-        outputs.push(p.output(Eye::Left).clone());
-    }
-    for w in outputs.windows(2) {
-        for variant in [crate::kernels::ssim::SsimVariant::Volume, crate::kernels::ssim::SsimVariant::PerChannel] {
-            let m = measure(&w[0], &w[1], variant)?;
-            h.f64(m.ssim);
-            h.f64(m.rmse);
-        }
-    }
-    Ok(h.finish())
-}
-
-/// The scene probe: a 24×14, 2-spp left-eye render of the first and last frame.
-pub fn scene_probe(renderer: &Renderer, rig: &StereoRig) -> Result<u64, String> {
-    let extent = Extent::new(24, 14).map_err(|e| e.to_string())?;
-    let mut h = BitHash::default();
-    let last = renderer.scene().frame_count().saturating_sub(1);
-    for frame in [0, last] {
-        let view = FrameView::new(renderer, rig, extent, frame, Eye::Left)?;
-        h.image(&view.render(renderer, 2, PROBE_SEED, 0, false)?.0);
-    }
-    Ok(h.finish())
-}
 
 /// A scene's references and curves, held while a shard runs that scene's units.
 struct SceneInputs {
@@ -443,29 +182,6 @@ struct Runner<'a> {
     warnings: Vec<String>,
     /// Compute nothing: every entry must be in the cache (`eval --merge`).
     merge_only: bool,
-}
-
-/// The payload of a checkpoint: the samples so far, the curve points so far, the sum.
-fn encode_partial(samples: u32, points: &[CurvePoint], sum: &SampleSums) -> Vec<u8> {
-    let json = serde_json::to_vec(points).expect("points serialise");
-    let mut out = Vec::with_capacity(16 + json.len() + 24 * sum.extent.pixels());
-    out.extend_from_slice(&samples.to_le_bytes());
-    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
-    out.extend_from_slice(&json);
-    encode_sums(sum, &mut out);
-    out
-}
-
-fn decode_partial(bytes: &[u8]) -> Result<(u32, Vec<CurvePoint>, SampleSums), String> {
-    let mut r = Reader::new(bytes);
-    let samples = r.u32()?;
-    let len = r.u32()? as usize;
-    let points = serde_json::from_slice(r.take(len)?).map_err(|e| e.to_string())?;
-    let sum = decode_sums(&mut r)?;
-    if !r.finished() {
-        return Err("trailing bytes".into());
-    }
-    Ok((samples, points, sum))
 }
 
 impl Runner<'_> {
@@ -914,7 +630,9 @@ impl Runner<'_> {
         let spec = self.spec;
         let tol = plan.renderer.scene().tolerances.at_height(self.extent.height());
         let cfg = pipeline_config(spec, c.variant, c.spp, tol);
-        let pipeline = Pipeline::new(&plan.renderer, cfg, self.rig, self.extent).map_err(|e| e.to_string())?;
+        let options = RendererOptions::with_gbuffer(spec.gbuffer);
+        let pipeline =
+            Pipeline::with_options(&plan.renderer, options, cfg, self.rig, self.extent).map_err(|e| e.to_string())?;
         let mut session = Session::new(pipeline, CameraWalk::Path);
         let mut result = ConfigResult {
             variant: c.variant,
@@ -1183,7 +901,8 @@ impl Runner<'_> {
     }
 }
 
-/// The pipeline configuration of a variant at `spp` (the paper's settings).
+/// The pipeline configuration of a variant at `spp` (the paper's settings; the spec's
+/// G-buffer pass is the renderer's option, [`RendererOptions`]).
 pub fn pipeline_config(
     spec: &EvalSpec,
     variant: Variant,
@@ -1193,14 +912,8 @@ pub fn pipeline_config(
     let mut cfg = PipelineConfig::paper(variant.mode, spp, tolerances);
     cfg.order = variant.order;
     cfg.seed = spec.seeds.pipeline;
-    cfg.gbuffer = spec.gbuffer;
     cfg.motion_vectors = spec.motion_vectors;
     cfg
-}
-
-/// Estimated path-tracing work of a configuration over `frames` frames.
-fn config_work(pixels: u64, frames: u32, variant: Variant, spp: u32) -> u64 {
-    pixels * u64::from(frames) * u64::from(spp) * variant.traced_eyes_x10() / 10
 }
 
 /// The runner and the scenes' plans of a run (every scope starts here).
@@ -1364,24 +1077,6 @@ pub fn plan(spec: &EvalSpec, cache: &Cache, reporter: &dyn Reporter) -> Result<P
     }
     let units = runner.units(&plans, Some(&rates));
     Ok(Plan { units, seconds_per_sample: plans.iter().map(|p| p.name.clone()).zip(rates).collect() })
-}
-
-/// CPU seconds per left-eye pixel sample of frame 0 (wall time × threads of a render at
-/// most 160×90, after one warm-up render).
-fn seconds_per_sample(renderer: &Renderer, rig: &StereoRig, extent: Extent) -> Result<f64, String> {
-    let scale = (160.0 / extent.width() as f64).min(90.0 / extent.height() as f64).min(1.0);
-    let small = Extent::new(
-        ((extent.width() as f64 * scale).round() as usize).max(1),
-        ((extent.height() as f64 * scale).round() as usize).max(1),
-    )
-    .map_err(|e| e.to_string())?;
-    let view = FrameView::new(renderer, rig, small, 0, Eye::Left)?;
-    view.render(renderer, 1, PROBE_SEED, 0, false)?;
-    let spp = 4;
-    let t = Instant::now();
-    view.render(renderer, spp, PROBE_SEED, 0, false)?;
-    let cpu = t.elapsed().as_secs_f64() * rayon::current_num_threads() as f64;
-    Ok(cpu / (small.pixels() as f64 * f64::from(spp)))
 }
 
 /// A scene's measuring stick under a spec: the renderer, and the reference and error curve

@@ -18,7 +18,14 @@
 
 use serde::Serialize;
 
-use super::Variant;
+use std::time::Instant;
+
+use super::curve::FrameView;
+use super::probes::PROBE_SEED;
+use super::spec::Variant;
+use crate::camera::{Eye, StereoRig};
+use crate::kernels::Extent;
+use crate::render::Renderer;
 
 /// What a unit computes.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize)]
@@ -257,6 +264,29 @@ pub fn hours_text(seconds: f64) -> String {
     } else {
         format!("{seconds:.0} s")
     }
+}
+
+/// Estimated path-tracing work of a configuration over `frames` frames.
+pub(crate) fn config_work(pixels: u64, frames: u32, variant: Variant, spp: u32) -> u64 {
+    pixels * u64::from(frames) * u64::from(spp) * variant.traced_eyes_x10() / 10
+}
+
+/// CPU seconds per left-eye pixel sample of frame 0 (wall time × threads of a render at
+/// most 160×90, after one warm-up render).
+pub(crate) fn seconds_per_sample(renderer: &Renderer, rig: &StereoRig, extent: Extent) -> Result<f64, String> {
+    let scale = (160.0 / extent.width() as f64).min(90.0 / extent.height() as f64).min(1.0);
+    let small = Extent::new(
+        ((extent.width() as f64 * scale).round() as usize).max(1),
+        ((extent.height() as f64 * scale).round() as usize).max(1),
+    )
+    .map_err(|e| e.to_string())?;
+    let view = FrameView::new(renderer, rig, small, 0, Eye::Left)?;
+    view.render(renderer, 1, PROBE_SEED, 0, false)?;
+    let spp = 4;
+    let t = Instant::now();
+    view.render(renderer, spp, PROBE_SEED, 0, false)?;
+    let cpu = t.elapsed().as_secs_f64() * rayon::current_num_threads() as f64;
+    Ok(cpu / (small.pixels() as f64 * f64::from(spp)))
 }
 
 #[cfg(test)]

@@ -3,9 +3,8 @@
 
 use std::time::Duration;
 
-use crate::kernels::FrameError;
 use crate::kernels::reproject::{TapPolicy, Tolerances};
-use crate::render::RenderError;
+use crate::source::Layout;
 
 /// The most samples per pixel a command or an embedder's configuration accepts (2²⁰: above
 /// the paper's 4096-spp references by far; a larger count is a typo that would run for days,
@@ -128,48 +127,6 @@ impl Order {
     }
 }
 
-/// How each frame's G-buffers are made.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
-#[serde(rename_all = "kebab-case")]
-pub enum GBufferPass {
-    /// Both eyes rasterised in one pass over the triangles, then resolved with the tracer's
-    /// own triangle test (`render::raster`): the same texels as `traced` except at exact depth
-    /// ties, at a fraction of the cost.
-    #[default]
-    Raster,
-    /// One primary ray per pixel through the BVH (the reference).
-    Traced,
-    /// Both eyes rasterised as GPUs rasterise (vertices snapped to 1/256 px, integer edge
-    /// functions, the top-left rule), then resolved like `raster`: the traced pass's triangle
-    /// except within 1/256 px of an edge or at a depth tie, and where the triangle is the
-    /// same, the same texel.
-    Fixed,
-}
-
-impl GBufferPass {
-    /// The CLI's and the tables' name.
-    pub fn name(self) -> &'static str {
-        match self {
-            GBufferPass::Raster => "raster",
-            GBufferPass::Traced => "traced",
-            GBufferPass::Fixed => "fixed",
-        }
-    }
-}
-
-/// Which G-buffer layout the reprojection kernels read.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
-#[serde(rename_all = "kebab-case")]
-pub enum Layout {
-    /// Depth + octahedral normals, positions rebuilt from depth (8 B/px).
-    #[default]
-    Compact,
-    /// Depth, position and normal planes (28 B/px).
-    Full,
-}
-
 /// Everything that decides a pipeline's images.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PipelineConfig {
@@ -197,10 +154,6 @@ pub struct PipelineConfig {
     pub budget: Option<Duration>,
     /// Rows per tracing tile under a budget.
     pub tile_rows: usize,
-    /// Use the general integrator instead of the specialised one.
-    pub general_integrator: bool,
-    /// How the G-buffers are made.
-    pub gbuffer: GBufferPass,
     /// Give each G-buffer a history-confidence plane for the source to fill, which the EMA
     /// reads (see `kernels::accumulate::EmaInput::confidence`); off, the plain EMA.
     pub history_confidence: bool,
@@ -226,22 +179,25 @@ impl PipelineConfig {
             seed: 1,
             budget: None,
             tile_rows: 8,
-            general_integrator: false,
-            gbuffer: GBufferPass::Raster,
             history_confidence: false,
             motion_vectors: false,
         }
     }
 
     /// Refuses what no pipeline can run: a sample count outside [`check_spp`], a budget
-    /// outside [`budget_duration`]'s range, an EMA weight outside (0, 1], a blend weight
+    /// above [`MAX_BUDGET_MS`] (what [`budget_duration`] makes of a number of milliseconds), an EMA weight outside (0, 1], a blend weight
     /// outside [0, 1], no rows per tile, or invalid tolerances. [`super::Pipeline`] calls it
     /// on construction; a command or an engine may call it first to report every field at
     /// its own boundary.
     pub fn validate(&self) -> Result<(), String> {
         check_spp(self.spp)?;
-        if let Some(budget) = self.budget {
-            budget_duration(budget.as_secs_f64() * 1e3)?;
+        // A duration is never NaN or negative; a tiny one (even zero after rounding to
+        // nanoseconds) is a budget the always-run work overruns, which a frame reports.
+        if let Some(budget) = self.budget.filter(|b| b.as_secs_f64() * 1e3 > MAX_BUDGET_MS) {
+            return Err(format!(
+                "budget {} ms must be at most {MAX_BUDGET_MS} ms",
+                readable(budget.as_secs_f64() * 1e3)
+            ));
         }
         if !(self.alpha > 0.0 && self.alpha <= 1.0) {
             return Err(format!("EMA alpha must be in (0, 1], got {}", self.alpha));
@@ -254,25 +210,4 @@ impl PipelineConfig {
         }
         self.tolerances.validate().map_err(|e| e.to_string())
     }
-}
-
-/// Why a pipeline could not be built or could not run a frame.
-#[derive(Debug, thiserror::Error)]
-pub enum PipelineError {
-    #[error("invalid pipeline configuration: {0}")]
-    /// The configuration was refused (the message says which field and why).
-    Config(String),
-    #[error(transparent)]
-    /// A buffer, extent or camera was refused by a kernel.
-    Frame(#[from] FrameError),
-    #[error(transparent)]
-    /// The renderer failed.
-    Render(#[from] RenderError),
-    /// A [`crate::source::FrameSource`] other than the renderer failed (its own message).
-    #[error("frame source: {0}")]
-    Source(String),
-    /// G-buffers lent to [`super::Pipeline::render_frame_lent`] were refused (a plane missing
-    /// or of the wrong size, or last frame's G-buffers not lent again).
-    #[error("lent G-buffers: {0}")]
-    Lent(String),
 }

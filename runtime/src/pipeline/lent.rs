@@ -17,7 +17,7 @@ use super::{Layout, PipelineConfig, PipelineError};
 /// present follows the pipeline's configuration: `normal_oct` with [`Layout::Compact`],
 /// `position` and `normal` with [`Layout::Full`], `history_confidence` exactly when
 /// `config.history_confidence`, `motion` exactly when `config.motion_vectors`. Values mean
-/// what the same planes of a [`crate::render::GBufferBuf`] mean.
+/// what the same planes of a [`crate::kernels::GBufferBuf`] mean.
 #[derive(Clone, Copy)]
 pub struct GBufferView<'a> {
     /// View-axis depth (`+inf`: no surface).

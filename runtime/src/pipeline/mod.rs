@@ -49,35 +49,30 @@
 //! the stereo-first schedules reproject (or blend) the whole `traced` image of an eye, whose
 //! untraced pixels hold an older frame's samples: an approximation the budget buys.
 
-use std::borrow::Borrow;
 use std::time::Instant;
 
-use crate::camera::{Eye, StereoRig};
+use crate::camera::{CameraPose, Eye, StereoRig};
 use crate::kernels::accumulate::{self, BlendParams, EmaInput, EmaParams, EmaState};
-use crate::kernels::gbuffer::{CompactGBuffer, GBuffer};
+use crate::kernels::frame::{Plane, RgbPlanes};
+use crate::kernels::gbuffer::{CompactGBuffer, GBuffer, SurfaceLayout};
 use crate::kernels::reproject::{self, Reason, ReasonCounts, ReprojectInput, ReprojectOutput, ReprojectParams};
-use crate::kernels::{CameraModel, Extent, FrameError, PlaneBuf, RgbBuf};
-use crate::render::{GBufferBuf, PixelSelection, Renderer, TraceRequest};
-use crate::scene::CameraPose;
-use crate::source::{FrameSource, RendererSource};
+use crate::kernels::{CameraModel, Extent, FrameError, GBufferBuf, PlaneBuf, RgbBuf};
+use crate::source::{FrameSource, PixelSelection, TraceRequest};
 
 mod budget;
 pub(crate) mod config;
 mod lent;
 mod plan;
-mod session;
 mod stats;
 
 use budget::BudgetPlanner;
-pub use config::{
-    GBufferPass, Layout, MAX_BUDGET_MS, MAX_SPP, Mode, Order, PipelineConfig, PipelineError, budget_duration,
-    check_spp, readable,
-};
+pub use config::{MAX_BUDGET_MS, MAX_SPP, Mode, Order, PipelineConfig, budget_duration, check_spp, readable};
+// The seam's types a pipeline user names, where the pipeline's own are.
+pub use crate::source::{Layout, PipelineError};
 pub use lent::GBufferView;
 use lent::Lent;
 use plan::Target;
 pub use plan::{Source, Step, StereoSource, plan};
-pub use session::{CameraWalk, Session, View};
 pub use stats::{FrameStats, StageTimes};
 
 /// What one frame of one eye leaves behind: everything a caller reads after the frame (the
@@ -172,8 +167,10 @@ struct Committed {
     planner: BudgetPlanner,
 }
 
-/// The per-frame pipeline over a [`FrameSource`] (this crate's renderer by default, see
-/// [`Pipeline::new`]; any other with [`Pipeline::with_source`]).
+/// The per-frame pipeline over a [`FrameSource`]: any source with eye cameras per frame
+/// ([`Pipeline::with_source`]), or with head poses through a stereo rig
+/// ([`Pipeline::with_rig`]). This crate's renderer has its constructor in
+/// `crate::session`.
 pub struct Pipeline<S: FrameSource> {
     source: S,
     config: PipelineConfig,
@@ -191,9 +188,6 @@ pub struct Pipeline<S: FrameSource> {
     /// them again as its previous frame's.
     gbuffers_lent: bool,
 }
-
-/// The pipeline over this crate's renderer.
-pub type RendererPipeline<'r> = Pipeline<RendererSource<&'r Renderer>>;
 
 const L: usize = Eye::Left as usize;
 
@@ -222,6 +216,48 @@ fn full<'a>(planes: &GBufferView<'a>) -> Result<GBuffer<'a>, FrameError> {
     GBuffer::new(planes.depth, planes.position.ok_or(missing.clone())?, planes.normal.ok_or(missing)?)
 }
 
+/// What a reprojection carries besides the two G-buffers: the kernel's input but for the
+/// layout-specific views.
+struct Carried<'a> {
+    colour: RgbPlanes<'a>,
+    extra: Option<Plane<'a>>,
+    pixel_mask: Option<Plane<'a, u8>>,
+    motion: Option<[Plane<'a>; 3]>,
+    jitter: Option<reproject::Jitter>,
+}
+
+/// One reprojection from `source` (planes, and the camera that rendered them) into `target`
+/// in `layout`: the one place the layout picks the kernel's G-buffer type (stereo and
+/// temporal reprojection both come here).
+fn reproject_in(
+    layout: Layout,
+    (target, target_camera): (&GBufferView<'_>, CameraModel),
+    (source, source_camera): (&GBufferView<'_>, &CameraModel),
+    carried: Carried<'_>,
+    out: ReprojectOutput<'_>,
+    params: &ReprojectParams,
+) -> Result<ReasonCounts, PipelineError> {
+    fn run<L: SurfaceLayout>(
+        target: &L,
+        source: &L,
+        source_camera: &CameraModel,
+        c: Carried<'_>,
+        out: ReprojectOutput<'_>,
+        params: &ReprojectParams,
+    ) -> Result<ReasonCounts, FrameError> {
+        let Carried { colour, extra, pixel_mask, motion, jitter } = c;
+        let input = ReprojectInput { target, source, source_camera, colour, extra, pixel_mask, motion, jitter };
+        reproject::reproject(&input, out, params)
+    }
+    Ok(match layout {
+        Layout::Compact => {
+            let (t, s) = (compact(target, target_camera)?, compact(source, *source_camera)?);
+            run(&t, &s, source_camera, carried, out, params)?
+        }
+        Layout::Full => run(&full(target)?, &full(source)?, source_camera, carried, out, params)?,
+    })
+}
+
 /// The jitter of a reprojection from `source`'s G-buffer into `target`'s, if either has one.
 fn jitter_between(target: &GBufferBuf, source: &GBufferBuf) -> Option<reproject::Jitter> {
     let jittered = target.jitter != [0.0; 2] || source.jitter != [0.0; 2];
@@ -230,47 +266,6 @@ fn jitter_between(target: &GBufferBuf, source: &GBufferBuf) -> Option<reproject:
 
 fn is_reprojected(code: u8) -> bool {
     code == Reason::Reprojected as u8
-}
-
-impl<R: Borrow<Renderer>> Pipeline<RendererSource<R>> {
-    /// A pipeline over this crate's renderer (borrowed, owned or shared: see
-    /// [`RendererSource`]), with every buffer allocated for frames of `extent`; `rig` turns
-    /// the scene's head poses into eye cameras.
-    ///
-    /// Three spatiotemporal frames of the built-in Cornell box, the head walking the scene's
-    /// camera path:
-    ///
-    /// ```
-    /// use stereotrace_runtime::camera::{Eye, StereoRig};
-    /// use stereotrace_runtime::kernels::Extent;
-    /// use stereotrace_runtime::pipeline::{Mode, Pipeline, PipelineConfig};
-    /// use stereotrace_runtime::render::Renderer;
-    ///
-    /// # fn main() -> Result<(), Box<dyn std::error::Error>> {
-    /// let renderer = Renderer::new(stereotrace_runtime::scene::resolve("cornell")?)?;
-    /// let extent = Extent::new(64, 36)?;
-    /// let tolerances = renderer.scene().tolerances.at_height(extent.height());
-    /// let config = PipelineConfig::paper(Mode::Spatiotemporal, 1, tolerances);
-    /// let mut pipeline = Pipeline::new(&renderer, config, StereoRig::default(), extent)?;
-    /// for frame in 0..3 {
-    ///     let head = renderer.scene().camera.pose_back_and_forth(frame);
-    ///     let stats = pipeline.render_frame(frame, &head)?;
-    ///     // The right eye is path traced; most of the left eye is reprojected from it.
-    ///     assert!(stats.traced_pixels[0] < stats.traced_pixels[1] / 4);
-    /// }
-    /// let left = pipeline.output(Eye::Left);
-    /// assert!(left.r().as_slice().iter().all(|v| v.is_finite()));
-    /// # Ok(())
-    /// # }
-    /// ```
-    pub fn new(renderer: R, config: PipelineConfig, rig: StereoRig, extent: Extent) -> Result<Self, PipelineError> {
-        config.validate().map_err(PipelineError::Config)?;
-        let head = renderer.borrow().scene().camera.pose_at(0.0);
-        let cameras = [rig.eye_camera(&head, Eye::Left, extent)?, rig.eye_camera(&head, Eye::Right, extent)?];
-        let mut pipeline = Self::with_source(RendererSource::new(renderer, &config, extent)?, config, cameras)?;
-        pipeline.rig = Some(rig);
-        Ok(pipeline)
-    }
 }
 
 impl<S: FrameSource> Pipeline<S> {
@@ -295,6 +290,23 @@ impl<S: FrameSource> Pipeline<S> {
             jitter: [0.0; 2],
             gbuffers_lent: false,
         })
+    }
+
+    /// A pipeline over `source` driven by head poses: `rig` turns each frame's head pose
+    /// into eye cameras of `extent` ([`Pipeline::render_frame`]); `head` gives the cameras
+    /// the buffers are allocated for until the first frame.
+    pub fn with_rig(
+        source: S,
+        config: PipelineConfig,
+        rig: StereoRig,
+        head: &CameraPose,
+        extent: Extent,
+    ) -> Result<Self, PipelineError> {
+        config.validate().map_err(PipelineError::Config)?;
+        let cameras = [rig.eye_camera(head, Eye::Left, extent)?, rig.eye_camera(head, Eye::Right, extent)?];
+        let mut pipeline = Self::with_source(source, config, cameras)?;
+        pipeline.rig = Some(rig);
+        Ok(pipeline)
     }
 
     /// The frame source.
@@ -663,37 +675,8 @@ impl<S: FrameSource> Pipeline<S> {
         // The surfaces' own motion since the last frame, where the source gives it.
         let motion = target.motion;
         let (prev_camera, jitter) = (s.prev.gbuffer.camera, jitter_between(g, &s.prev.gbuffer));
-        let counts = match layout {
-            Layout::Compact => {
-                let (t, src) = (compact(&target, g.camera)?, compact(&source, prev_camera)?);
-                let input = ReprojectInput {
-                    target: &t,
-                    source: &src,
-                    source_camera: &prev_camera,
-                    colour,
-                    extra,
-                    pixel_mask,
-                    motion,
-                    jitter,
-                };
-                reproject::reproject(&input, out, &params)?
-            }
-            Layout::Full => {
-                let (t, src) = (full(&target)?, full(&source)?);
-                let input = ReprojectInput {
-                    target: &t,
-                    source: &src,
-                    source_camera: &prev_camera,
-                    colour,
-                    extra,
-                    pixel_mask,
-                    motion,
-                    jitter,
-                };
-                reproject::reproject(&input, out, &params)?
-            }
-        };
-        Ok(counts)
+        let carried = Carried { colour, extra, pixel_mask, motion, jitter };
+        reproject_in(layout, (&target, g.camera), (&source, &prev_camera), carried, out, &params)
     }
 
     /// Stereo reprojection of the other eye's `source` image into `eye`'s `work` buffer.
@@ -729,38 +712,10 @@ impl<S: FrameSource> Pipeline<S> {
             reason: target.cur.stereo_reason.view_mut(),
             weight: None,
         };
-        let counts = match layout {
-            Layout::Compact => {
-                let t = compact(&target_planes, target.cur.gbuffer.camera)?;
-                let src = compact(&source_planes, other.cur.gbuffer.camera)?;
-                let input = ReprojectInput {
-                    target: &t,
-                    source: &src,
-                    source_camera: &other.cur.gbuffer.camera,
-                    colour,
-                    extra: None,
-                    pixel_mask: None,
-                    motion: None,
-                    jitter: jitter_between(&target.cur.gbuffer, &other.cur.gbuffer),
-                };
-                reproject::reproject(&input, out, &params)?
-            }
-            Layout::Full => {
-                let (t, src) = (full(&target_planes)?, full(&source_planes)?);
-                let input = ReprojectInput {
-                    target: &t,
-                    source: &src,
-                    source_camera: &other.cur.gbuffer.camera,
-                    colour,
-                    extra: None,
-                    pixel_mask: None,
-                    motion: None,
-                    jitter: jitter_between(&target.cur.gbuffer, &other.cur.gbuffer),
-                };
-                reproject::reproject(&input, out, &params)?
-            }
-        };
-        Ok(counts)
+        let jitter = jitter_between(&target.cur.gbuffer, &other.cur.gbuffer);
+        let carried = Carried { colour, extra: None, pixel_mask: None, motion: None, jitter };
+        let target_view = (&target_planes, target.cur.gbuffer.camera);
+        reproject_in(layout, target_view, (&source_planes, &other.cur.gbuffer.camera), carried, out, &params)
     }
 
     /// The stereo-mode left image in `work`: the right eye's `source` reprojected where

@@ -4,8 +4,7 @@ use std::time::Duration;
 
 use crate::kernels::accumulate::AccumulateStats;
 use crate::kernels::reproject::ReasonCounts;
-use crate::render::TraceStats;
-use crate::render::raster::RasterPassStats;
+use crate::source::{RasterPassStats, TraceStats};
 
 /// Time per stage of one frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

@@ -38,6 +38,7 @@ pub mod lights;
 mod packets;
 pub mod raster;
 pub mod rng;
+pub mod source;
 pub mod spawn;
 
 use std::time::Duration;
@@ -45,7 +46,6 @@ use std::time::Duration;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
-use crate::camera::Eye;
 use crate::kernels::bvh::{
     BuildQuality, BuildStats, BvhBuildParams, Hit, PreparedRay, Ray, TriHit, TriangleBvh, intersect_triangle,
 };
@@ -54,10 +54,12 @@ use crate::kernels::gbuffer::{NO_NORMAL, encode_normal};
 use crate::kernels::simd::{F32s, LANES};
 use crate::kernels::{CameraModel, FrameError, PlaneBuf, RgbBuf};
 use crate::scene::{MaterialKind, Scene};
+use crate::source::{PixelSelection, TraceRequest, TraceStats};
 use bsdf::ShadingPoint;
 use effects::{ALPHA_MASKS, MOVING_GEOMETRY, TEXTURES, has};
 use lights::{FrameLights, MovingTriangle};
 use rng::{Dim, SampleStream};
+pub use source::{GBufferPass, RendererOptions, RendererSource};
 
 /// Why rendering could not start.
 #[derive(Debug, thiserror::Error)]
@@ -115,30 +117,6 @@ impl Surface {
     }
 }
 
-/// Counters of one render call.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct TraceStats {
-    /// Rays traced (primary, secondary and shadow).
-    pub rays: u64,
-    /// Pixel samples taken.
-    pub samples: u64,
-    /// Samples whose estimate was not finite (replaced by 0).
-    pub non_finite: u64,
-}
-
-impl std::ops::Add for TraceStats {
-    type Output = Self;
-    fn add(self, o: Self) -> Self {
-        Self { rays: self.rays + o.rays, samples: self.samples + o.samples, non_finite: self.non_finite + o.non_finite }
-    }
-}
-
-impl std::iter::Sum for TraceStats {
-    fn sum<I: Iterator<Item = Self>>(iter: I) -> Self {
-        iter.fold(Self::default(), |a, b| a + b)
-    }
-}
-
 /// How a tracing call traces its rays.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Kernel {
@@ -147,41 +125,6 @@ enum Kernel {
     Packets,
     /// The single-ray reference.
     SingleRays,
-}
-
-/// Which pixels a tracing call fills.
-#[derive(Clone, Copy)]
-pub enum PixelSelection<'a> {
-    /// Every pixel.
-    All,
-    /// Only pixels whose mask byte is non-zero; the others keep their value.
-    Mask(&'a PlaneBuf<u8>),
-}
-
-impl PixelSelection<'_> {
-    /// Whether pixel `(x, y)` is to be filled (for a frame source's per-pixel loop).
-    pub fn selects(&self, x: usize, y: usize) -> bool {
-        match self {
-            PixelSelection::All => true,
-            PixelSelection::Mask(m) => m.view().get(x, y) != 0,
-        }
-    }
-}
-
-/// The parameters of one path-tracing call.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct TraceRequest {
-    /// Which eye (part of every random number).
-    pub eye: Eye,
-    /// The frame (scene time, and part of every random number).
-    pub frame: u32,
-    /// Samples per pixel.
-    pub spp: u32,
-    /// Seed of the random numbers (references and comparison frames use different seeds).
-    pub seed: u64,
-    /// Index of the first sample (so that n more samples can be added to m earlier ones with
-    /// the same numbers as one (m + n)-sample render).
-    pub first_sample: u32,
 }
 
 impl Renderer {

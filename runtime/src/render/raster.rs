@@ -22,9 +22,10 @@ use crate::kernels::CameraModel;
 use crate::kernels::bvh::{Hit, PreparedRay, Ray, TriVerts, intersect_triangle_line};
 use crate::kernels::gbuffer::encode_normals;
 use crate::kernels::raster::fixed::FixedRasterizer;
-use crate::kernels::raster::{AlphaTest, Body, NO_PRIM, RasterStats, Rasterizer, Triangles, VisibilityBuffer};
+use crate::kernels::raster::{AlphaTest, Body, NO_PRIM, Rasterizer, Triangles, VisibilityBuffer};
 use crate::kernels::simd::{F32s, LANES, lane_offsets};
 use crate::kernels::{Extent, FrameError};
+use crate::source::{Layout, RasterPassStats};
 
 /// The rasterised pass's own buffers (kept between frames).
 #[derive(Clone, Debug)]
@@ -39,8 +40,12 @@ pub struct RasterGBuffers {
     extra: Vec<TriVerts>,
     /// The kernel body (the SIMD one, or its scalar reference for tests).
     pub body: Body,
-    /// Which planes the resolve writes.
-    pub planes: GBufferPlanes,
+    /// Which planes the resolve writes: with [`Layout::Full`] every plane, as the traced
+    /// pass writes them; with [`Layout::Compact`] depth, octahedral normal and material only,
+    /// what the compact layout's reprojection reads (it rebuilds positions from depth), which
+    /// leaves the position and normal planes as they were and saves two thirds of the
+    /// resolve's writes.
+    pub planes: Layout,
 }
 
 /// Which rasteriser finds each pixel's triangle; the resolve is the same for both.
@@ -56,18 +61,6 @@ pub enum Visibility {
     Fixed,
 }
 
-/// Which planes of a [`GBufferBuf`] a rasterised pass writes.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum GBufferPlanes {
-    /// Every plane, as the traced pass writes them.
-    #[default]
-    All,
-    /// Depth, octahedral normal and material only: what the compact layout's reprojection
-    /// reads (it rebuilds positions from depth). The position and normal planes are left
-    /// as they were, which saves two thirds of the resolve's writes.
-    Compact,
-}
-
 impl RasterGBuffers {
     /// Buffers for frames of `extent` (grown as frames need).
     pub fn new(extent: Extent) -> Self {
@@ -78,7 +71,7 @@ impl RasterGBuffers {
             visibility: [VisibilityBuffer::new(extent), VisibilityBuffer::new(extent)],
             extra: Vec::new(),
             body: Body::Simd,
-            planes: GBufferPlanes::All,
+            planes: Layout::Full,
         }
     }
 
@@ -93,7 +86,7 @@ impl RasterGBuffers {
             visibility: [VisibilityBuffer::try_new(extent)?, VisibilityBuffer::try_new(extent)?],
             extra: Vec::new(),
             body: Body::Simd,
-            planes: GBufferPlanes::All,
+            planes: Layout::Full,
         })
     }
 
@@ -108,16 +101,6 @@ impl RasterGBuffers {
         self.rasterizer = Rasterizer::with_band_rows(rows);
         self.fixed = FixedRasterizer::with_band_rows(rows);
     }
-}
-
-/// What one rasterised G-buffer pass did: the kernel's statistics (with its step times) and
-/// the resolve's time.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct RasterPassStats {
-    /// The rasteriser's counters and step times.
-    pub raster: RasterStats,
-    /// Wall time of the resolve (visibility into G-buffer texels).
-    pub resolve: std::time::Duration,
 }
 
 /// The scene's cut-outs as the kernel asks for them.
@@ -168,7 +151,7 @@ impl Renderer {
         }
         .map_err(|e: FrameError| RenderError::Frame(e))?;
         let start = std::time::Instant::now();
-        let all_planes = raster.planes == GBufferPlanes::All;
+        let all_planes = raster.planes == Layout::Full;
         self.resolve(lights, &raster.visibility[0], left, &tris, all_planes);
         self.resolve(lights, &raster.visibility[1], right, &tris, all_planes);
         Ok(RasterPassStats { raster: stats, resolve: start.elapsed() })

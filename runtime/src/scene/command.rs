@@ -5,6 +5,7 @@ use std::io::{self, Write};
 
 use super::builtin::list_builtin;
 use super::error::SceneError;
+use super::model::Scene;
 use super::resolve::resolve;
 
 /// Why the command failed.
@@ -64,7 +65,7 @@ pub fn run(specs: &[String], out: &mut dyn Write) -> Result<(), CommandError> {
 /// 1280×720, of the surface at the centre of frame 0's view (where the viewer looks). The
 /// parallel rig shifts a point at view depth `z` by `separation · f / z` pixels,
 /// `f = (720 / 2) / tan(vfov / 2)`.
-fn disparity_line(scene: &super::Scene) -> Option<String> {
+fn disparity_line(scene: &Scene) -> Option<String> {
     use crate::kernels::bvh::{BuildQuality, Ray, TriangleBvh};
     let pose = scene.camera.pose_at(0.0);
     let (bvh, _) = TriangleBvh::build(&scene.mesh.positions, BuildQuality::Fast).ok()?;

@@ -16,10 +16,12 @@ use std::path::Path;
 use glam::Vec3;
 use serde_json::json;
 
+use super::error::SceneError;
 use super::light::{Environment, MovingShape};
 use super::material::MaterialKind;
+use super::model::Scene;
+use super::texture::Texture;
 use super::texture::linear_to_srgb;
-use super::{Scene, SceneError, Texture};
 use crate::kernels::{Extent, RgbBuf};
 
 /// What [`export_folder`] wrote.

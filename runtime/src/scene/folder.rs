@@ -43,12 +43,14 @@ use std::path::{Path, PathBuf};
 use glam::{Mat3, Vec3};
 use serde::Deserialize;
 
+use super::effects::EffectSet;
 use super::envmap::EnvMap;
 use super::error::{Location, SceneError};
 use super::light::{Environment, Lights, PointLight, SkyGradient, SunLight};
+use super::mesh::Mesh;
+use super::model::{Scene, SceneSource, SceneTolerances, Units, UnitsFrom};
 use super::obj::{GlassMode, ObjData, ObjOptions, load_obj};
 use super::path::{CameraKey, CameraPath, DEFAULT_FRAMES};
-use super::{EffectSet, Scene, SceneSource, SceneTolerances, Units, UnitsFrom};
 
 /// Mitsuba's apparent sun radius in degrees (half its 0.5358° diameter).
 pub const SUN_RADIUS_DEG: f32 = 0.5358 / 2.0;
@@ -458,7 +460,7 @@ fn folder_units(explicit: Option<f32>, camera: Option<&CameraJson>, dir: &Path, 
 /// Typical size of the geometry: the largest per-axis extent between the 2nd and 98th
 /// percentiles of (a sample of) vertex coordinates. Robust to a few far-away vertices, such
 /// as the classroom's 221 m ground quad.
-pub fn robust_size(mesh: &super::Mesh) -> f32 {
+pub fn robust_size(mesh: &Mesh) -> f32 {
     let n = mesh.len();
     if n == 0 {
         return 1.0;

@@ -73,12 +73,14 @@ use super::effects::{Effect, EffectSet};
 use super::envmap::EnvMap;
 use super::error::{Location, SceneError, line_column};
 use super::folder::{load_parts, path_around, robust_size};
+use super::light::Lights;
 use super::light::{Environment, MovingLight, MovingShape, PointLight, SkyGradient, SunLight};
 use super::material::{Material, MaterialKind};
+use super::mesh::Mesh;
+use super::model::{Scene, SceneSource, SceneTolerances};
 use super::obj::GlassMode;
 use super::object::{MovingObject, box_triangles, sphere_triangles};
 use super::path::{CameraKey, CameraPath, DEFAULT_FRAMES, MAX_FRAMES, TransformKey, TransformPath};
-use super::{Scene, SceneSource, SceneTolerances};
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -476,7 +478,7 @@ pub fn load_manifest(path: &Path) -> Result<Scene, SceneError> {
                 materials.push(emitter);
                 let mid = materials.len() as u32 - 1;
                 let n = (c[1] - c[0]).cross(c[2] - c[0]).normalize_or_zero();
-                let extra = super::Mesh {
+                let extra = Mesh {
                     positions: vec![[c[0], c[1], c[2]], [c[0], c[2], c[3]]],
                     normals: Some(vec![[n; 3]; 2]),
                     uvs: None,
@@ -581,7 +583,7 @@ pub fn load_manifest(path: &Path) -> Result<Scene, SceneError> {
 }
 
 /// Removes the content that needs `effect` (see the module notes).
-fn strip(effect: Effect, materials: &mut [Material], lights: &mut super::Lights) {
+fn strip(effect: Effect, materials: &mut [Material], lights: &mut Lights) {
     match effect {
         Effect::Glossy => {
             materials.iter_mut().filter(|m| m.kind == MaterialKind::Glossy).for_each(Material::make_diffuse)

@@ -84,7 +84,7 @@ impl Default for ObjOptions {
     }
 }
 
-/// A loaded OBJ: geometry, materials and textures, ready for a [`Scene`](super::Scene).
+/// A loaded OBJ: geometry, materials and textures, ready for a [`Scene`](super::model::Scene).
 #[derive(Clone, Debug)]
 pub struct ObjData {
     /// Triangles (scaled).

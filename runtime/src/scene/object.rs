@@ -5,7 +5,7 @@
 //! it per frame beside the moving lights' triangles ([`crate::render::lights::FrameLights`]): rays
 //! hit it, it casts shadows, it is shaded with its material, and the G-buffer's motion
 //! planes carry its motion. A scene without objects runs none of that code (the
-//! [`Effect::MovingObjects`](super::Effect::MovingObjects) effect).
+//! [`Effect::MovingObjects`](super::effects::Effect::MovingObjects) effect).
 //!
 //! Shading is flat (the face normal) and untextured: an object's material gives the BSDF
 //! and a constant albedo. Objects come from manifests (`[[objects]]`) and the
@@ -99,7 +99,7 @@ pub fn sphere_triangles(radius: f32, subdivisions: u32) -> Vec<[Vec3; 3]> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::TransformKey;
+    use crate::scene::path::TransformKey;
 
     #[test]
     fn a_box_is_closed_and_outward() {

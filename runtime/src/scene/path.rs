@@ -10,7 +10,9 @@
 //! vector, up and right) plus the vertical field of view. The stereo rig offsets both eyes
 //! along `right`; it does not need anything else from the scene.
 
-use glam::{Affine3A, DMat4, DVec4, Mat4, Quat, Vec3};
+use glam::{Affine3A, Quat, Vec3};
+
+pub use crate::camera::CameraPose;
 use serde::{Deserialize, Serialize};
 
 /// Default number of frames of a scene's camera path (the paper renders 60).
@@ -111,55 +113,6 @@ pub struct CameraKey {
 
 fn default_up() -> [f32; 3] {
     [0.0, 1.0, 0.0]
-}
-
-/// The camera of one frame: an orthonormal frame and the vertical field of view.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CameraPose {
-    /// Eye position (centre of the stereo rig).
-    pub eye: Vec3,
-    /// Unit view direction.
-    pub forward: Vec3,
-    /// Unit up, orthogonal to `forward`.
-    pub up: Vec3,
-    /// Unit right, `forward x up`.
-    pub right: Vec3,
-    /// Vertical field of view in degrees.
-    pub vfov_deg: f32,
-}
-
-impl CameraPose {
-    /// Right-handed view matrix (camera looks down −Z in view space).
-    pub fn view(&self) -> Mat4 {
-        glam::camera::rh::view::look_to_mat4(self.eye, self.forward, self.up)
-    }
-
-    /// Right-handed OpenGL-style perspective × view (clip `w` = view depth), in f64 (see
-    /// `stereotrace_kernels::CameraModel::from_f64`): the view's rows are this pose's
-    /// `right`, `up` and `−forward` with the translation `−R·eye` formed in f64.
-    pub fn view_proj(&self, aspect: f32, near: f32, far: f32) -> DMat4 {
-        let (r, u, f, e) = (self.right.as_dvec3(), self.up.as_dvec3(), self.forward.as_dvec3(), self.eye.as_dvec3());
-        let view = DMat4::from_cols(
-            DVec4::new(r.x, u.x, -f.x, 0.0),
-            DVec4::new(r.y, u.y, -f.y, 0.0),
-            DVec4::new(r.z, u.z, -f.z, 0.0),
-            DVec4::new(-r.dot(e), -u.dot(e), f.dot(e), 1.0),
-        );
-        let focal = 1.0 / (0.5 * f64::from(self.vfov_deg).to_radians()).tan();
-        let (near, far) = (f64::from(near), f64::from(far));
-        let proj = DMat4::from_cols(
-            DVec4::new(focal / f64::from(aspect), 0.0, 0.0, 0.0),
-            DVec4::new(0.0, focal, 0.0, 0.0),
-            DVec4::new(0.0, 0.0, (far + near) / (near - far), -1.0),
-            DVec4::new(0.0, 0.0, 2.0 * far * near / (near - far), 0.0),
-        );
-        proj * view
-    }
-
-    /// The same pose moved by `offset` along `right` (a stereo eye: ±half the separation).
-    pub fn offset_right(&self, offset: f32) -> Self {
-        Self { eye: self.eye + self.right * offset, ..*self }
-    }
 }
 
 /// A smooth camera path over a fixed number of frames.

@@ -2,10 +2,11 @@
 
 use std::path::Path;
 
+use super::builtin;
 use super::error::SceneError;
 use super::folder::{FolderOptions, folder_name, load_folder};
 use super::manifest::{load_manifest, manifest_name};
-use super::{Scene, builtin};
+use super::model::Scene;
 
 /// What a scene spec names, decided from the spec and the file system without loading
 /// anything (the one place the order below is written).

@@ -13,10 +13,10 @@ use super::geom::{Builder, Rng};
 use super::textures;
 use super::util::{path, rgb};
 use super::{Parts, Variant};
-use crate::scene::SceneTolerances;
 use crate::scene::folder::sunsky;
 use crate::scene::light::{Environment, Lights};
 use crate::scene::material::Material;
+use crate::scene::model::SceneTolerances;
 
 const W: f32 = 8.0;
 const D: f32 = 10.0;

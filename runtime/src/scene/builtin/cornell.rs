@@ -7,9 +7,9 @@ use glam::{Vec2, Vec3};
 use super::geom::Builder;
 use super::util::{path, rgb};
 use super::{Parts, Variant};
-use crate::scene::SceneTolerances;
 use crate::scene::light::Lights;
 use crate::scene::material::Material;
+use crate::scene::model::SceneTolerances;
 
 pub(crate) fn build(_variant: Variant) -> Parts {
     let mut b = Builder::new();

@@ -15,9 +15,9 @@ use super::geom::{Builder, Rng};
 use super::textures;
 use super::util::{path, rgb};
 use super::{Parts, Variant};
-use crate::scene::SceneTolerances;
 use crate::scene::light::{Lights, MovingLight, MovingShape};
 use crate::scene::material::Material;
+use crate::scene::model::SceneTolerances;
 use crate::scene::path::{TransformKey, TransformPath};
 
 const W: f32 = 6.0;

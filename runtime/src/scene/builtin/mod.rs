@@ -17,7 +17,7 @@
 //! | `courtyard` | San Miguel | dense courtyard: arcades, fountain, trees with tens of thousands of leaves, potted plants, tables; sun + sky |
 //!
 //! All-glossy variants convert every non-emissive material with
-//! [`Material::make_glossy`](crate::scene::Material::make_glossy) at reflectance 0.5 and
+//! [`Material::make_glossy`](crate::scene::material::Material::make_glossy) at reflectance 0.5 and
 //! roughness 0.3 (α = 0.09). Generation is seeded and uses no floating-point reductions whose
 //! order could vary, so a built-in is bit-identical across runs and machines of one target.
 
@@ -34,10 +34,10 @@ use super::error::SceneError;
 use super::light::Lights;
 use super::material::Material;
 use super::mesh::Mesh;
+use super::model::{Scene, SceneSource, SceneTolerances, Units};
 use super::object::MovingObject;
 use super::path::CameraPath;
 use super::texture::Texture;
-use super::{Scene, SceneSource, SceneTolerances};
 
 /// Glossy lobe of the all-glossy variants: (reflectance, roughness).
 pub const GLOSSY_VARIANT: (f32, f32) = (0.5, 0.3);
@@ -203,7 +203,7 @@ fn build_spec(spec: &BuiltinSpec) -> Result<Scene, SceneError> {
         tolerances: parts.tolerances,
         effects: EffectSet::EMPTY,
         forced_effects: EffectSet::EMPTY,
-        units: super::Units::METRES,
+        units: Units::METRES,
         warnings: Vec::new(),
     };
     scene.update()?;

@@ -1,5 +1,8 @@
-//! The one frame driver: a [`Pipeline`] over this crate's renderer walking its scene's camera
-//! path, frame after frame.
+//! This crate's renderer driving the pipeline: [`Pipeline::new`] over a [`RendererSource`],
+//! and the one frame driver, a [`Session`] walking the scene's camera path frame after frame.
+//!
+//! The pipeline (`crate::pipeline`) and the renderer (`crate::render`) meet only at the seam
+//! (`crate::source`); this module, above both, is where they are put together.
 //!
 //! Every loop that renders a scene's frames (the `throughput` and `tradeoff` commands, the
 //! evaluation, the frame benchmark) is this driver: what differs between them is only how the
@@ -9,9 +12,63 @@
 
 use std::borrow::Borrow;
 
-use super::{FrameStats, Pipeline, PipelineError};
-use crate::render::Renderer;
-use crate::source::RendererSource;
+use crate::camera::StereoRig;
+use crate::kernels::Extent;
+use crate::pipeline::{FrameStats, Pipeline, PipelineConfig, PipelineError};
+use crate::render::{Renderer, RendererOptions, RendererSource};
+
+/// The pipeline over this crate's renderer.
+pub type RendererPipeline<'r> = Pipeline<RendererSource<&'r Renderer>>;
+
+impl<R: Borrow<Renderer>> Pipeline<RendererSource<R>> {
+    /// A pipeline over this crate's renderer (borrowed, owned or shared: see
+    /// [`RendererSource`]), with every buffer allocated for frames of `extent`; `rig` turns
+    /// the scene's head poses into eye cameras.
+    ///
+    /// Three spatiotemporal frames of the built-in Cornell box, the head walking the scene's
+    /// camera path:
+    ///
+    /// ```
+    /// use stereotrace_runtime::camera::{Eye, StereoRig};
+    /// use stereotrace_runtime::kernels::Extent;
+    /// use stereotrace_runtime::pipeline::{Mode, Pipeline, PipelineConfig};
+    /// use stereotrace_runtime::render::Renderer;
+    ///
+    /// # fn main() -> Result<(), Box<dyn std::error::Error>> {
+    /// let renderer = Renderer::new(stereotrace_runtime::scene::resolve("cornell")?)?;
+    /// let extent = Extent::new(64, 36)?;
+    /// let tolerances = renderer.scene().tolerances.at_height(extent.height());
+    /// let config = PipelineConfig::paper(Mode::Spatiotemporal, 1, tolerances);
+    /// let mut pipeline = Pipeline::new(&renderer, config, StereoRig::default(), extent)?;
+    /// for frame in 0..3 {
+    ///     let head = renderer.scene().camera.pose_back_and_forth(frame);
+    ///     let stats = pipeline.render_frame(frame, &head)?;
+    ///     // The right eye is path traced; most of the left eye is reprojected from it.
+    ///     assert!(stats.traced_pixels[0] < stats.traced_pixels[1] / 4);
+    /// }
+    /// let left = pipeline.output(Eye::Left);
+    /// assert!(left.r().as_slice().iter().all(|v| v.is_finite()));
+    /// # Ok(())
+    /// # }
+    /// ```
+    pub fn new(renderer: R, config: PipelineConfig, rig: StereoRig, extent: Extent) -> Result<Self, PipelineError> {
+        Self::with_options(renderer, RendererOptions::default(), config, rig, extent)
+    }
+
+    /// [`Pipeline::new`] with the renderer's own choices (how G-buffers are made, which
+    /// integrator traces).
+    pub fn with_options(
+        renderer: R,
+        options: RendererOptions,
+        config: PipelineConfig,
+        rig: StereoRig,
+        extent: Extent,
+    ) -> Result<Self, PipelineError> {
+        config.validate().map_err(PipelineError::Config)?;
+        let head = renderer.borrow().scene().camera.pose_at(0.0);
+        Pipeline::with_rig(RendererSource::new(renderer, options, extent)?, config, rig, &head, extent)
+    }
+}
 
 /// How the head moves along the scene's camera path, frame after frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -39,7 +96,8 @@ pub enum View {
 /// ```
 /// use stereotrace_runtime::camera::StereoRig;
 /// use stereotrace_runtime::kernels::Extent;
-/// use stereotrace_runtime::pipeline::{CameraWalk, Mode, Pipeline, PipelineConfig, Session};
+/// use stereotrace_runtime::pipeline::{Mode, Pipeline, PipelineConfig};
+/// use stereotrace_runtime::session::{CameraWalk, Session};
 /// use stereotrace_runtime::render::Renderer;
 ///
 /// # fn main() -> Result<(), Box<dyn std::error::Error>> {
