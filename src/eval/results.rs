@@ -187,7 +187,7 @@ pub struct Artifacts {
     pub comparisons: Vec<ComparisonRow>,
 }
 
-/// What [`evaluate`] returns.
+/// What [`evaluate`](super::run::evaluate) returns.
 pub struct EvalOutcome {
     /// The measured results (`results.json`).
     pub results: EvalResults,

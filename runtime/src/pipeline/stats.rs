@@ -50,6 +50,6 @@ pub struct FrameStats {
     pub budget: Option<Duration>,
     /// False when the budget was set and the frame took longer.
     pub budget_met: bool,
-    /// The rasterised G-buffer pass's counts and step times (with [`super::GBufferPass::Raster`]).
+    /// The rasterised G-buffer pass's counts and step times, from a source that rasterises (`None` otherwise).
     pub raster: Option<RasterPassStats>,
 }
