@@ -45,6 +45,26 @@ const VARIANTS: [Variant; 3] = [
 ];
 
 #[test]
+fn the_gbuffer_pass_is_part_of_a_configurations_cache_key() {
+    // The G-buffer pass is the renderer's option, not a pipeline setting: a run with traced
+    // G-buffers must not load the rasterised run's results from a shared cache.
+    let mut spec = tiny(&["cornell"], &VARIANTS[..1], &[1]);
+    spec.figures.framewise_scene = None;
+    spec.figures.discard_scene = None;
+    spec.figures.comparison_scenes.clear();
+    let cache = temp("gbuffer-key");
+    let raster = run(&spec, &cache, Limits::default()).unwrap();
+    assert_eq!(raster.counters.configs, 1, "{:?}", raster.counters);
+    spec.gbuffer = stereotrace::render::GBufferPass::Traced;
+    let traced = run(&spec, &cache, Limits::default()).unwrap();
+    assert_eq!(traced.counters.configs, 1, "traced G-buffers loaded the raster run's result");
+    assert_eq!((traced.counters.references, traced.counters.curves), (0, 0), "{:?}", traced.counters);
+    spec.gbuffer = stereotrace::render::GBufferPass::Raster;
+    assert_eq!(run(&spec, &cache, Limits::default()).unwrap().counters.configs, 0, "the raster entry is kept");
+    std::fs::remove_dir_all(&cache).ok();
+}
+
+#[test]
 fn an_interrupted_run_resumes_without_redoing_finished_work() {
     let spec = tiny(&["cornell"], &VARIANTS, &[1, 2]);
     // Units: 2 references, 2 curves (evaluated frames) + 2 more of each for the warm-up
