@@ -9,7 +9,7 @@ use clap::{Arg, Args};
 
 use crate::eval::EvalSpec;
 use crate::kernels::Extent;
-use crate::pipeline::{budget_duration, check_spp};
+use crate::pipeline::{MAX_SPP, budget_duration, check_spp};
 use crate::render::GBufferPass;
 
 /// The scene a command renders and its size per eye.
@@ -105,8 +105,10 @@ pub const MAX_FRAMES: u32 = 1_000_000;
 
 /// Parses a sample count, checked by the pipeline's own rule ([`check_spp`]).
 pub fn parse_spp(s: &str) -> Result<u32, String> {
-    let v: u64 = s.trim().parse().map_err(|_| format!("samples per pixel '{s}' is not a whole number"))?;
-    check_spp(u32::try_from(v).unwrap_or(u32::MAX))
+    // A count beyond u32 is refused here, naming what was typed (not a clamped number).
+    let v: u32 =
+        s.trim().parse().map_err(|_| format!("samples per pixel '{s}' is not a whole number in 1..={MAX_SPP}"))?;
+    check_spp(v)
 }
 
 /// Parses a frame count: a whole number in 1 ..= [`MAX_FRAMES`].

@@ -193,11 +193,8 @@ impl PipelineConfig {
         check_spp(self.spp)?;
         // A duration is never NaN or negative; a tiny one (even zero after rounding to
         // nanoseconds) is a budget the always-run work overruns, which a frame reports.
-        if let Some(budget) = self.budget.filter(|b| b.as_secs_f64() * 1e3 > MAX_BUDGET_MS) {
-            return Err(format!(
-                "budget {} ms must be at most {MAX_BUDGET_MS} ms",
-                readable(budget.as_secs_f64() * 1e3)
-            ));
+        if let Some(ms) = self.budget.map(|b| b.as_secs_f64() * 1e3).filter(|&ms| ms > MAX_BUDGET_MS) {
+            return Err(format!("budget {} ms must be at most {MAX_BUDGET_MS} ms", readable(ms)));
         }
         if !(self.alpha > 0.0 && self.alpha <= 1.0) {
             return Err(format!("EMA alpha must be in (0, 1], got {}", self.alpha));

@@ -134,12 +134,12 @@ impl<R: Borrow<Renderer>> FrameSource for RendererSource<R> {
         let renderer = self.renderer.borrow();
         let [left, right] = gbuffers;
         let stats = match &mut self.raster {
-            Some(raster) => Some({
+            Some(raster) => {
                 // The compact layout reads depth, normal and material: the resolve writes
                 // those alone (the traced pass writes every plane whatever the layout).
                 raster.planes = layout;
-                renderer.render_gbuffers_raster(&self.lights, [&mut *left, &mut *right], raster)?
-            }),
+                Some(renderer.render_gbuffers_raster(&self.lights, [&mut *left, &mut *right], raster)?)
+            }
             None => {
                 renderer.render_gbuffer(&self.lights, left);
                 renderer.render_gbuffer(&self.lights, right);
