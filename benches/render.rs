@@ -32,13 +32,12 @@ use rayon::prelude::*;
 use stereotrace::camera::{Eye, StereoRig};
 use stereotrace::kernels::bvh::Ray;
 use stereotrace::kernels::traverse::{PacketHits, RayPacket};
-use stereotrace::kernels::{CameraModel, Extent, RgbBuf};
+use stereotrace::kernels::{Extent, RgbBuf};
 use stereotrace::render::bsdf::cosine_hemisphere;
-use stereotrace::render::lights::FrameLights;
 use stereotrace::render::rng::{Dim, SampleStream};
-use stereotrace::render::{GBufferBuf, Renderer, pixel_centre_ray};
+use stereotrace::render::{FrameView, GBufferBuf, Renderer, pixel_centre_ray};
 use stereotrace::scene::resolve;
-use stereotrace::source::{PixelSelection, TraceRequest};
+use stereotrace::source::PixelSelection;
 
 const WIDTH: usize = 1280;
 const HEIGHT: usize = 720;
@@ -50,9 +49,8 @@ type Packet = (RayPacket, u32);
 
 struct Fixture {
     renderer: Renderer,
-    lights: FrameLights,
-    /// Right-eye camera (the path-traced eye) and left-eye camera at [`FRAME`].
-    cameras: [CameraModel; 2],
+    /// Both eyes' cameras and the lights at [`FRAME`].
+    view: FrameView,
     primary: Vec<Packet>,
     primary_rays: u64,
     shadow: Vec<Packet>,
@@ -93,11 +91,9 @@ fn row_packets(at: &dyn Fn(usize, usize) -> Option<Ray>) -> Vec<Packet> {
 impl Fixture {
     fn new(name: &str, renderer: Renderer) -> Self {
         let extent = Extent::new(WIDTH, HEIGHT).expect("extent");
-        let head = renderer.scene().camera.pose_at(FRAME as f32);
-        let rig = StereoRig::default();
-        let cameras = [Eye::Right, Eye::Left].map(|eye| rig.eye_camera(&head, eye, extent).expect("camera"));
-        let lights = renderer.frame_lights(FRAME);
-        let camera = &cameras[0];
+        let view = FrameView::new(&renderer, &StereoRig::default(), extent, FRAME).expect("a valid frame");
+        // The rays below are the right eye's (the path-traced one).
+        let (camera, lights) = (view.camera(Eye::Right), &view.lights);
         let bvh = renderer.bvh();
         let mesh = &renderer.scene().mesh;
         // Primary hits: position and geometric normal facing the viewer.
@@ -144,24 +140,12 @@ impl Fixture {
             p.iter().flat_map(|(p, m)| (0..8).filter(move |&i| m & (1 << i) != 0).map(move |i| p.ray(i))).collect()
         };
         let (primary_single, shadow_single) = (unpack(&primary), unpack(&shadow));
-        Fixture {
-            renderer,
-            lights,
-            cameras,
-            primary,
-            primary_rays,
-            shadow,
-            shadow_rays,
-            primary_single,
-            shadow_single,
-            diffuse,
-        }
+        Fixture { view, renderer, primary, primary_rays, shadow, shadow_rays, primary_single, shadow_single, diffuse }
     }
 
-    fn trace(&self, eye: usize, out: &mut RgbBuf, general: bool, single_rays: bool) -> u64 {
-        let eye_id = [Eye::Right, Eye::Left][eye];
-        let request = TraceRequest { eye: eye_id, frame: FRAME, spp: 1, seed: 1, first_sample: 0 };
-        let (r, l, c) = (&self.renderer, &self.lights, &self.cameras[eye]);
+    fn trace(&self, eye: Eye, out: &mut RgbBuf, general: bool, single_rays: bool) -> u64 {
+        let request = self.view.request(eye, 1, 1, 0);
+        let (r, l, c) = (&self.renderer, &self.view.lights, self.view.camera(eye));
         let stats = if single_rays {
             r.trace_single_rays(l, c, &request, PixelSelection::All, out, general)
         } else {
@@ -280,15 +264,17 @@ fn trace(c: &mut Criterion) {
     for name in scenes() {
         let Some(f) = fixture(name) else { continue };
         let mut out = RgbBuf::new(extent, 0.0);
-        let rays = f.trace(0, &mut out, false, false);
+        let rays = f.trace(Eye::Right, &mut out, false, false);
         let mut g = c.benchmark_group(format!("render/trace/{name}"));
         g.sampling_mode(SamplingMode::Flat).sample_size(10).throughput(Throughput::Elements(rays));
         for (threads, pool) in &pools {
             g.bench_function(format!("packets/{threads}t"), |b| {
-                b.iter(|| pool.install(|| f.trace(0, black_box(&mut out), false, false)))
+                b.iter(|| pool.install(|| f.trace(Eye::Right, black_box(&mut out), false, false)))
             });
         }
-        g.bench_function("single_rays/1t", |b| b.iter(|| pools[0].1.install(|| f.trace(0, &mut out, false, true))));
+        g.bench_function("single_rays/1t", |b| {
+            b.iter(|| pools[0].1.install(|| f.trace(Eye::Right, &mut out, false, true)))
+        });
         g.finish();
     }
 }
@@ -299,12 +285,12 @@ fn stereo_frame(c: &mut Criterion) {
     for name in scenes() {
         let Some(f) = fixture(name) else { continue };
         let mut out = [RgbBuf::new(extent, 0.0), RgbBuf::new(extent, 0.0)];
-        let mut gbuffers = f.cameras.map(GBufferBuf::new);
+        let mut gbuffers = f.view.cameras.map(GBufferBuf::new);
         let mut frame = || {
             let mut rays = 0;
-            for eye in 0..2 {
-                f.renderer.render_gbuffer(&f.lights, &mut gbuffers[eye]);
-                rays += (WIDTH * HEIGHT) as u64 + f.trace(eye, &mut out[eye], false, false);
+            for eye in Eye::BOTH {
+                f.renderer.render_gbuffer(&f.view.lights, &mut gbuffers[eye as usize]);
+                rays += (WIDTH * HEIGHT) as u64 + f.trace(eye, &mut out[eye as usize], false, false);
             }
             rays
         };
@@ -322,11 +308,11 @@ fn specialisation(c: &mut Criterion) {
     for name in ["cornell", "living-room"] {
         let Some(f) = fixture(name) else { continue };
         let mut out = RgbBuf::new(extent, 0.0);
-        let rays = one.install(|| f.trace(0, &mut out, false, false));
+        let rays = one.install(|| f.trace(Eye::Right, &mut out, false, false));
         let mut g = c.benchmark_group(format!("render/specialisation/{name}"));
         g.sampling_mode(SamplingMode::Flat).sample_size(10).throughput(Throughput::Elements(rays));
-        g.bench_function("specialised/1t", |b| b.iter(|| one.install(|| f.trace(0, &mut out, false, false))));
-        g.bench_function("general/1t", |b| b.iter(|| one.install(|| f.trace(0, &mut out, true, false))));
+        g.bench_function("specialised/1t", |b| b.iter(|| one.install(|| f.trace(Eye::Right, &mut out, false, false))));
+        g.bench_function("general/1t", |b| b.iter(|| one.install(|| f.trace(Eye::Right, &mut out, true, false))));
         g.finish();
     }
 }

@@ -19,9 +19,8 @@ use std::path::Path;
 use glam::Vec3;
 use stereotrace::camera::{Eye, StereoRig};
 use stereotrace::kernels::{Extent, RgbBuf};
-use stereotrace::render::Renderer;
+use stereotrace::render::{FrameView, Renderer};
 use stereotrace::scene::{CameraPath, Material, Scene, resolve};
-use stereotrace::source::{PixelSelection, TraceRequest};
 
 /// Per-channel means of independent renders (seeds 1..=batches) and the standard error of
 /// their average.
@@ -32,14 +31,12 @@ struct Estimate {
 
 fn estimate(scene: &Scene, extent: Extent, spp: u32, batches: u64) -> Estimate {
     let renderer = Renderer::new(scene.clone()).unwrap();
-    let lights = renderer.frame_lights(0);
-    let head = renderer.scene().camera.pose_at(0.0);
-    let camera = StereoRig::new(0.0).unwrap().eye_camera(&head, Eye::Left, extent).unwrap();
+    // A mono rig: the eye at the head pose.
+    let view = FrameView::new(&renderer, &StereoRig::new(0.0).unwrap(), extent, 0).unwrap();
     let mut image = RgbBuf::new(extent, f32::NAN);
     let means: Vec<[f64; 3]> = (1..=batches)
         .map(|seed| {
-            let request = TraceRequest { eye: Eye::Left, frame: 0, spp, seed, first_sample: 0 };
-            let stats = renderer.trace(&lights, &camera, &request, PixelSelection::All, &mut image, false).unwrap();
+            let stats = view.trace(&renderer, &view.request(Eye::Left, spp, seed, 0), &mut image, false).unwrap();
             assert_eq!(stats.non_finite, 0);
             image.planes().map(|p| {
                 let v = p.as_slice();

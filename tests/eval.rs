@@ -8,11 +8,11 @@ use std::sync::OnceLock;
 
 use stereotrace::camera::{Eye, StereoRig};
 use stereotrace::eval::Seeds;
-use stereotrace::eval::curve::{FrameCurve, FrameView, Progressive, build_curve, measure};
+use stereotrace::eval::curve::{FrameCurve, Progressive, build_curve, measure};
 use stereotrace::eval::effective::{EffectiveSpp, ErrorCurve, Grid, Interpolation, Metric};
 use stereotrace::kernels::ssim::SsimVariant;
 use stereotrace::kernels::{Extent, RgbBuf};
-use stereotrace::render::Renderer;
+use stereotrace::render::{FrameView, Renderer};
 use stereotrace::scene::{builtin_names, resolve};
 
 const W: usize = 64;
@@ -27,7 +27,7 @@ fn extent() -> Extent {
 }
 
 fn view(r: &Renderer, frame: u32) -> FrameView {
-    FrameView::new(r, &StereoRig::default(), extent(), frame, Eye::Left).unwrap()
+    FrameView::new(r, &StereoRig::default(), extent(), frame).unwrap()
 }
 
 /// One scene's dense curve (1..=CURVE_SPP) and its reference.
@@ -45,7 +45,8 @@ fn builtin_curves() -> &'static [SceneCurve] {
             .map(|name| {
                 let r = Renderer::new(resolve(name).unwrap()).unwrap();
                 let v = view(&r, FRAME);
-                let (reference, _) = v.render(&r, REFERENCE_SPP, SEEDS.reference, 0, false).unwrap();
+                let (reference, _) =
+                    v.render(&r, &v.request(Eye::Left, REFERENCE_SPP, SEEDS.reference, 0), false).unwrap();
                 let points: Vec<u32> = (1..=CURVE_SPP).collect();
                 let curve =
                     build_curve(&r, &v, SEEDS.curve, Grid::Dense, &points, &reference, SsimVariant::Volume).unwrap();
@@ -63,13 +64,13 @@ fn progressive_means_equal_direct_renders_bit_for_bit() {
         let mut prog = Progressive::new(extent());
         for m in 1..=6 {
             prog.add_sample(&r, &v, 99, false).unwrap();
-            let (direct, _) = v.render(&r, m, 99, 0, false).unwrap();
+            let (direct, _) = v.render(&r, &v.request(Eye::Left, m, 99, 0), false).unwrap();
             assert_eq!(prog.mean(), &direct, "{name}: {m} spp");
         }
         // Resuming from a checkpoint continues with the same numbers.
         let mut resumed = Progressive::resume(prog.samples(), prog.sum().clone());
         resumed.add_sample(&r, &v, 99, false).unwrap();
-        assert_eq!(resumed.mean(), &v.render(&r, 7, 99, 0, false).unwrap().0, "{name}: resumed");
+        assert_eq!(resumed.mean(), &v.render(&r, &v.request(Eye::Left, 7, 99, 0), false).unwrap().0, "{name}: resumed");
     }
 }
 
@@ -141,7 +142,7 @@ fn out_of_range_frames_are_reported_as_such() {
     let sc = builtin_curves().iter().find(|s| s.name == "atrium").unwrap();
     let r = Renderer::new(resolve("atrium").unwrap()).unwrap();
     let v = view(&r, FRAME);
-    let (reference, _) = v.render(&r, REFERENCE_SPP, SEEDS.reference, 0, false).unwrap();
+    let (reference, _) = v.render(&r, &v.request(Eye::Left, REFERENCE_SPP, SEEDS.reference, 0), false).unwrap();
     let black = RgbBuf::new(extent(), 0.0);
     let nan = RgbBuf::new(extent(), f32::NAN);
     for metric in Metric::ALL {
@@ -168,7 +169,7 @@ fn effective_spp_of_path_traced_frames_is_their_spp() {
     for name in ["cornell", "atrium", "classroom", "courtyard"] {
         let r = Renderer::new(resolve(name).unwrap()).unwrap();
         let v = view(&r, FRAME);
-        let (reference, _) = v.render(&r, REFERENCE_SPP, SEEDS.reference, 0, false).unwrap();
+        let (reference, _) = v.render(&r, &v.request(Eye::Left, REFERENCE_SPP, SEEDS.reference, 0), false).unwrap();
         let points: Vec<u32> = (1..=32).collect();
         let curves: Vec<FrameCurve> = curve_seeds
             .clone()
@@ -180,7 +181,7 @@ fn effective_spp_of_path_traced_frames_is_their_spp() {
                 let mut eff = Vec::new();
                 let (mut below, mut above) = (0, 0);
                 for seed in frame_seeds.clone() {
-                    let (img, _) = v.render(&r, n, seed, 0, false).unwrap();
+                    let (img, _) = v.render(&r, &v.request(Eye::Left, n, seed, 0), false).unwrap();
                     let e = measure(&img, &reference, SsimVariant::Volume).unwrap().error(metric);
                     for c in &curves {
                         match c.curve(metric).unwrap().effective_spp(e) {
@@ -294,9 +295,9 @@ fn geometric_grids_agree_with_dense_curves() {
 #[test]
 fn ssim_of_the_same_images_is_bit_identical_across_calls() {
     let r = Renderer::new(resolve("cornell").unwrap()).unwrap();
-    let v = FrameView::new(&r, &StereoRig::default(), Extent::new(32, 18).unwrap(), 2, Eye::Left).unwrap();
-    let (a, _) = v.render(&r, 2, 5, 0, false).unwrap();
-    let (b, _) = v.render(&r, 16, 6, 0, false).unwrap();
+    let v = FrameView::new(&r, &StereoRig::default(), Extent::new(32, 18).unwrap(), 2).unwrap();
+    let (a, _) = v.render(&r, &v.request(Eye::Left, 2, 5, 0), false).unwrap();
+    let (b, _) = v.render(&r, &v.request(Eye::Left, 16, 6, 0), false).unwrap();
     let first = measure(&a, &b, SsimVariant::Volume).unwrap();
     for i in 0..200 {
         let m = measure(&a, &b, SsimVariant::Volume).unwrap();

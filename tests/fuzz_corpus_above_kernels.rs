@@ -1,8 +1,8 @@
 //! Replays the committed corpora of the fuzz targets above the kernels (`fuzz/corpus/<target>/*`:
-//! the rasteriser, the scene loaders, image decoding, the eval cache) through the entry points
+//! the scene loaders, image decoding, the eval cache) through the entry points
 //! the cargo-fuzz targets call, so every `cargo test` re-checks what the fuzzer found
-//! interesting, former crashes included. The kernels' corpora replay in
-//! `kernels/tests/fuzz_corpus.rs`.
+//! interesting, former crashes included. The kernels' corpora (the
+//! rasterisers' among them) replay in `kernels/tests/fuzz_corpus.rs`.
 
 use std::path::PathBuf;
 
@@ -11,18 +11,6 @@ use stereotrace::kernels::fuzzing::replay_dir;
 fn replay(target: &str, run: fn(&[u8])) {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fuzz/corpus").join(target);
     replay_dir(&dir, 8, run);
-}
-
-#[test]
-fn raster_corpus() {
-    replay("raster", stereotrace::fuzzing::raster);
-}
-
-/// The fixed-point rasteriser decodes the same cases as the exact one: both corpora seed it.
-#[test]
-fn raster_fixed_corpus() {
-    replay("raster_fixed", stereotrace::fuzzing::raster_fixed);
-    replay("raster", stereotrace::fuzzing::raster_fixed);
 }
 
 #[test]

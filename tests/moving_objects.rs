@@ -5,11 +5,10 @@
 
 use glam::Vec3;
 use stereotrace::camera::{Eye, StereoRig};
-use stereotrace::kernels::{Extent, RgbBuf};
-use stereotrace::render::{GBufferBuf, Renderer};
+use stereotrace::kernels::Extent;
+use stereotrace::render::{FrameView, Renderer};
 use stereotrace::scene::object::{MovingObject, box_triangles};
 use stereotrace::scene::{Effect, Material, Mesh, Scene, TransformKey, TransformPath, resolve};
-use stereotrace::source::{PixelSelection, TraceRequest};
 
 const FRAME: u32 = 5;
 
@@ -42,8 +41,8 @@ fn moving_and_frozen() -> (Scene, Scene) {
     (moving, frozen)
 }
 
-fn camera(r: &Renderer, e: Extent) -> stereotrace::kernels::CameraModel {
-    StereoRig::default().eye_camera(&r.scene().camera.pose_at(FRAME as f32), Eye::Left, e).unwrap()
+fn view(r: &Renderer, e: Extent) -> FrameView {
+    FrameView::new(r, &StereoRig::default(), e, FRAME).unwrap()
 }
 
 #[test]
@@ -51,11 +50,9 @@ fn a_moving_object_renders_as_the_same_triangles_made_static() {
     let (moving, frozen) = moving_and_frozen();
     let (moving, frozen) = (Renderer::new(moving).unwrap(), Renderer::new(frozen).unwrap());
     let e = Extent::new(96, 64).unwrap();
-    let request = TraceRequest { eye: Eye::Left, frame: FRAME, spp: 4, seed: 9, first_sample: 0 };
     let render = |r: &Renderer, general: bool| {
-        let mut out = RgbBuf::new(e, -1.0);
-        r.trace(&r.frame_lights(FRAME), &camera(r, e), &request, PixelSelection::All, &mut out, general).unwrap();
-        out
+        let view = view(r, e);
+        view.render(r, &view.request(Eye::Left, 4, 9, 0), general).unwrap().0
     };
     let reference = render(&frozen, false);
     for general in [false, true] {
@@ -75,8 +72,7 @@ fn a_moving_object_renders_as_the_same_triangles_made_static() {
     }
     // The box is in view (and so the comparison tests it): the frozen mesh's extra triangles
     // are seen by some pixels.
-    let mut g = GBufferBuf::new(camera(&frozen, e));
-    frozen.render_gbuffer(&frozen.frame_lights(FRAME), &mut g);
+    let g = view(&frozen, e).gbuffer(&frozen, Eye::Left);
     let object_material = frozen.scene().materials.len() as u32 - 1;
     let seen = g.material.as_slice().iter().filter(|&&m| m == object_material).count();
     assert!(seen > 100, "the box covers {seen} pixels");
@@ -87,11 +83,7 @@ fn a_moving_object_gives_the_static_g_buffer() {
     let (moving, frozen) = moving_and_frozen();
     let (moving, frozen) = (Renderer::new(moving).unwrap(), Renderer::new(frozen).unwrap());
     let e = Extent::new(96, 64).unwrap();
-    let gbuffer = |r: &Renderer| {
-        let mut g = GBufferBuf::new(camera(r, e));
-        r.render_gbuffer(&r.frame_lights(FRAME), &mut g);
-        g
-    };
+    let gbuffer = |r: &Renderer| view(r, e).gbuffer(r, Eye::Left);
     let (a, b) = (gbuffer(&moving), gbuffer(&frozen));
     assert_eq!(a.material, b.material);
     for (i, (da, db)) in a.depth.as_slice().iter().zip(b.depth.as_slice()).enumerate() {

@@ -6,10 +6,9 @@ use stereotrace::kernels::accumulate;
 use stereotrace::kernels::reproject::{self, Reason, ReprojectInput, ReprojectOutput, ReprojectParams};
 use stereotrace::kernels::{Extent, PlaneBuf, RgbBuf};
 use stereotrace::pipeline::{GBufferView, Layout, Mode, Order, Pipeline, PipelineConfig};
-use stereotrace::render::{GBufferBuf, Renderer};
+use stereotrace::render::{FrameView, GBufferBuf, Renderer};
 use stereotrace::scene::resolve;
 use stereotrace::session::RendererPipeline;
-use stereotrace::source::{PixelSelection, TraceRequest};
 
 const W: usize = 48;
 const H: usize = 27;
@@ -28,12 +27,8 @@ fn config(r: &Renderer, mode: Mode, spp: u32) -> PipelineConfig {
 
 /// A full path-traced image of `eye` at `frame`, as the renderer makes it.
 fn traced(r: &Renderer, eye: Eye, frame: u32, spp: u32, seed: u64) -> RgbBuf {
-    let head = r.scene().camera.pose_at(frame as f32);
-    let camera = StereoRig::default().eye_camera(&head, eye, extent()).unwrap();
-    let mut img = RgbBuf::new(extent(), 0.0);
-    let req = TraceRequest { eye, frame, spp, seed, first_sample: 0 };
-    r.trace(&r.frame_lights(frame), &camera, &req, PixelSelection::All, &mut img, false).unwrap();
-    img
+    let view = FrameView::new(r, &StereoRig::default(), extent(), frame).unwrap();
+    view.render(r, &view.request(eye, spp, seed, 0), false).unwrap().0
 }
 
 fn run(p: &mut RendererPipeline<'_>, r: &Renderer, frames: std::ops::Range<u32>) {
@@ -72,14 +67,8 @@ fn stereo_mode_reprojects_where_valid_and_traces_only_the_rest() {
     let left = traced(&r, Eye::Left, 7, 1, 1);
     assert_eq!(p.output(Eye::Right), &right);
     // The same reprojection straight from the kernel.
-    let head = r.scene().camera.pose_at(7.0);
-    let lights = r.frame_lights(7);
-    let gbuf = |eye| {
-        let mut g = GBufferBuf::new(StereoRig::default().eye_camera(&head, eye, extent()).unwrap());
-        r.render_gbuffer(&lights, &mut g);
-        g
-    };
-    let (gl, gr) = (gbuf(Eye::Left), gbuf(Eye::Right));
+    let view = FrameView::new(&r, &StereoRig::default(), extent(), 7).unwrap();
+    let (gl, gr) = (view.gbuffer(&r, Eye::Left), view.gbuffer(&r, Eye::Right));
     let mut expected = RgbBuf::new(extent(), 0.0);
     let mut reason = PlaneBuf::new(extent(), 0u8);
     let (t, s) = (gl.compact(), gr.compact());
@@ -185,14 +174,8 @@ fn spatiotemporal_accumulation_lowers_the_error() {
     let cfg = PipelineConfig::paper(Mode::Spatiotemporal, 1, r.scene().tolerances.at_height(108));
     let mut p = Pipeline::new(&r, cfg, StereoRig::default(), e).unwrap();
     run(&mut p, &r, 0..12);
-    let head = r.scene().camera.pose_at(11.0);
-    let camera = StereoRig::default().eye_camera(&head, Eye::Left, e).unwrap();
-    let render = |spp, seed| {
-        let mut img = RgbBuf::new(e, 0.0);
-        let req = TraceRequest { eye: Eye::Left, frame: 11, spp, seed, first_sample: 0 };
-        r.trace(&r.frame_lights(11), &camera, &req, PixelSelection::All, &mut img, false).unwrap();
-        img
-    };
+    let view = FrameView::new(&r, &StereoRig::default(), e, 11).unwrap();
+    let render = |spp, seed| view.render(&r, &view.request(Eye::Left, spp, seed, 0), false).unwrap().0;
     let reference = render(256, 77);
     let rmse = |img: &RgbBuf| {
         let d: f64 =

@@ -4,7 +4,7 @@
 //! images whose every sample is finite (a NaN or an overflow to infinity anywhere in the
 //! estimator, the reprojection or the accumulation shows up there).
 //! (The kernel-level hard cases are in `kernels/tests/hard_cases.rs`; raster against traced
-//! visibility on degenerate and coincident triangles is in `tests/raster.rs`.)
+//! visibility on degenerate and coincident triangles is in `tests/raster_gbuffers.rs`.)
 
 mod common;
 

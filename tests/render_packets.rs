@@ -7,26 +7,25 @@
 
 use glam::Vec3;
 use stereotrace::camera::{Eye, StereoRig};
-use stereotrace::kernels::{CameraModel, Extent, PlaneBuf, RgbBuf};
-use stereotrace::render::Renderer;
+use stereotrace::kernels::{Extent, PlaneBuf, RgbBuf};
+use stereotrace::render::{FrameView, Renderer};
 use stereotrace::scene::texture::Texture;
 use stereotrace::scene::{Scene, resolve};
 use stereotrace::source::{PixelSelection, TraceRequest};
 
-fn camera(renderer: &Renderer, eye: Eye, frame: u32, e: Extent) -> CameraModel {
-    StereoRig::default().eye_camera(&renderer.scene().camera.pose_at(frame as f32), eye, e).unwrap()
+fn view(renderer: &Renderer, frame: u32, e: Extent) -> FrameView {
+    FrameView::new(renderer, &StereoRig::default(), e, frame).unwrap()
 }
 
 /// Renders with both loops (specialised or general) and checks they agree, pixel and counters.
 fn assert_loops_agree(renderer: &Renderer, what: &str, e: Extent, selection: PixelSelection<'_>, general: bool) {
     let (eye, frame) = (Eye::Right, 7);
-    let camera = camera(renderer, eye, frame, e);
-    let lights = renderer.frame_lights(frame);
-    let request = TraceRequest { eye, frame, spp: 3, seed: 21, first_sample: 2 };
+    let view = view(renderer, frame, e);
+    let (lights, camera, request) = (&view.lights, view.camera(eye), view.request(eye, 3, 21, 2));
     let mut packets = RgbBuf::new(e, -1.0);
     let mut single = RgbBuf::new(e, -1.0);
-    let a = renderer.trace(&lights, &camera, &request, selection, &mut packets, general).unwrap();
-    let b = renderer.trace_single_rays(&lights, &camera, &request, selection, &mut single, general).unwrap();
+    let a = renderer.trace(lights, camera, &request, selection, &mut packets, general).unwrap();
+    let b = renderer.trace_single_rays(lights, camera, &request, selection, &mut single, general).unwrap();
     assert_eq!(a, b, "{what}: trace statistics differ");
     assert!(a.rays > a.samples, "{what}: {a:?}");
     assert_eq!(packets, single, "{what}: packet loop and single-ray reference differ");
@@ -65,16 +64,15 @@ fn packet_loop_with_masks_and_row_ranges() {
     assert_loops_agree(&renderer, "mask", e, PixelSelection::Mask(&mask), false);
 
     // Row tiles write only their rows and together give the whole image.
-    let camera = camera(&renderer, Eye::Left, 2, e);
-    let lights = renderer.frame_lights(2);
-    let request = TraceRequest { eye: Eye::Left, frame: 2, spp: 2, seed: 3, first_sample: 0 };
+    let view = view(&renderer, 2, e);
+    let (lights, camera, request) = (&view.lights, view.camera(Eye::Left), view.request(Eye::Left, 2, 3, 0));
     let mut whole = RgbBuf::new(e, -1.0);
-    renderer.trace_single_rays(&lights, &camera, &request, PixelSelection::Mask(&mask), &mut whole, false).unwrap();
+    renderer.trace_single_rays(lights, camera, &request, PixelSelection::Mask(&mask), &mut whole, false).unwrap();
     let mut tiled = RgbBuf::new(e, -1.0);
     for rows in [0..4, 4..5, 5..5, 5..13] {
         let before = tiled.clone();
         renderer
-            .trace_rows(&lights, &camera, &request, PixelSelection::Mask(&mask), rows.clone(), &mut tiled, false)
+            .trace_rows(lights, camera, &request, PixelSelection::Mask(&mask), rows.clone(), &mut tiled, false)
             .unwrap();
         for y in (0..e.height()).filter(|y| !rows.contains(y)) {
             let row = y * e.width()..(y + 1) * e.width();
@@ -123,11 +121,8 @@ fn packet_loop_with_cut_outs() {
     // The cut-outs change what is seen (rays do pass through them).
     let opaque = Renderer::new(resolve("living-room").unwrap()).unwrap();
     let render = |r: &Renderer| {
-        let camera = camera(r, Eye::Right, 7, e);
-        let request = TraceRequest { eye: Eye::Right, frame: 7, spp: 1, seed: 21, first_sample: 0 };
-        let mut img = RgbBuf::new(e, -1.0);
-        r.trace(&r.frame_lights(7), &camera, &request, PixelSelection::All, &mut img, false).unwrap();
-        img
+        let view = view(r, 7, e);
+        view.render(r, &view.request(Eye::Right, 1, 21, 0), false).unwrap().0
     };
     let (a, b) = (render(&renderer), render(&opaque));
     let changed = (0..e.pixels()).filter(|&i| a.g().as_slice()[i] != b.g().as_slice()[i]).count();
@@ -143,7 +138,7 @@ fn rays_the_bvh_rejects_miss_in_both_loops() {
     let e = Extent::new(19, 5).unwrap();
     let mut pose = renderer.scene().camera.pose_at(0.0);
     pose.eye += Vec3::new(1e9, 0.0, 0.0);
-    let camera = stereotrace::camera::camera_for(&pose, e).unwrap();
+    let camera = stereotrace::kernels::CameraModel::from_pose(&pose, e).unwrap();
     let lights = renderer.frame_lights(0);
     let request = TraceRequest { eye: Eye::Left, frame: 0, spp: 1, seed: 1, first_sample: 0 };
     let mut packets = RgbBuf::new(e, -1.0);

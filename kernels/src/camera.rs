@@ -1,4 +1,5 @@
-//! The camera as the kernels see it: a validated view-projection matrix for one extent.
+//! The camera as the kernels see it: a validated view-projection matrix for one extent, and
+//! the pose (an orthonormal frame and a field of view) it is usually built from.
 //!
 //! Convention: `clip = M · [X, 1]` with the clip `w` equal to the distance of `X` along the
 //! camera's view axis (what `glam::Mat4::perspective_rh` / `_lh` times a view matrix gives).
@@ -9,7 +10,7 @@
 //! unit view depth, so a world position can be rebuilt from a depth value
 //! (`X = centre + depth · ray(x, y)`); the compact G-buffer layout relies on that.
 
-use glam::{DMat3, DMat4, DVec3, Mat4};
+use glam::{DMat3, DMat4, DVec3, DVec4, Mat4, Vec3};
 
 use crate::frame::{Extent, FrameError};
 
@@ -167,6 +168,69 @@ impl CameraModel {
     pub fn unproject_pixel(&self, x: usize, y: usize, depth: f32) -> [f32; 3] {
         let r = self.ray(x as f32 + 0.5, y as f32 + 0.5);
         [0, 1, 2].map(|i| self.centre[i] + depth * r[i])
+    }
+}
+
+/// The camera of one frame: an orthonormal frame and the vertical field of view.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraPose {
+    /// Eye position (centre of the stereo rig).
+    pub eye: Vec3,
+    /// Unit view direction.
+    pub forward: Vec3,
+    /// Unit up, orthogonal to `forward`.
+    pub up: Vec3,
+    /// Unit right, `forward x up`.
+    pub right: Vec3,
+    /// Vertical field of view in degrees.
+    pub vfov_deg: f32,
+}
+
+impl CameraPose {
+    /// Right-handed view matrix (camera looks down −Z in view space).
+    pub fn view(&self) -> Mat4 {
+        glam::camera::rh::view::look_to_mat4(self.eye, self.forward, self.up)
+    }
+
+    /// Right-handed OpenGL-style perspective × view (clip `w` = view depth), in f64 (see
+    /// [`CameraModel::from_f64`]): the view's rows are this pose's
+    /// `right`, `up` and `−forward` with the translation `−R·eye` formed in f64.
+    pub fn view_proj(&self, aspect: f32, near: f32, far: f32) -> DMat4 {
+        let (r, u, f, e) = (self.right.as_dvec3(), self.up.as_dvec3(), self.forward.as_dvec3(), self.eye.as_dvec3());
+        let view = DMat4::from_cols(
+            DVec4::new(r.x, u.x, -f.x, 0.0),
+            DVec4::new(r.y, u.y, -f.y, 0.0),
+            DVec4::new(r.z, u.z, -f.z, 0.0),
+            DVec4::new(-r.dot(e), -u.dot(e), f.dot(e), 1.0),
+        );
+        let focal = 1.0 / (0.5 * f64::from(self.vfov_deg).to_radians()).tan();
+        let (near, far) = (f64::from(near), f64::from(far));
+        let proj = DMat4::from_cols(
+            DVec4::new(focal / f64::from(aspect), 0.0, 0.0, 0.0),
+            DVec4::new(0.0, focal, 0.0, 0.0),
+            DVec4::new(0.0, 0.0, (far + near) / (near - far), -1.0),
+            DVec4::new(0.0, 0.0, 2.0 * far * near / (near - far), 0.0),
+        );
+        proj * view
+    }
+
+    /// The same pose moved by `offset` along `right` (a stereo eye: ±half the separation).
+    pub fn offset_right(&self, offset: f32) -> Self {
+        Self { eye: self.eye + self.right * offset, ..*self }
+    }
+}
+
+/// Near and far planes of the projection. Only the x, y and w rows matter to the kernels,
+/// so these only need to bracket nothing in particular; they are kept wide.
+pub const NEAR: f32 = 0.01;
+/// The far plane (see [`NEAR`]).
+pub const FAR: f32 = 10_000.0;
+
+impl CameraModel {
+    /// The camera of `pose` for frames of `extent` (the projection's aspect is the extent's).
+    pub fn from_pose(pose: &CameraPose, extent: Extent) -> Result<Self, FrameError> {
+        let aspect = extent.width() as f32 / extent.height() as f32;
+        Self::from_f64(pose.view_proj(aspect, NEAR, FAR), extent)
     }
 }
 

@@ -32,6 +32,18 @@ fn ssim_corpus() {
 }
 
 #[test]
-fn bvh_corpus() {
+fn traverse_corpus() {
     replay("traverse", stereotrace_kernels::fuzzing::traverse);
+}
+
+#[test]
+fn raster_corpus() {
+    replay("raster", stereotrace_kernels::fuzzing::raster);
+}
+
+/// The fixed-point rasteriser decodes the same cases as the exact one: both corpora seed it.
+#[test]
+fn raster_fixed_corpus() {
+    replay("raster_fixed", stereotrace_kernels::fuzzing::raster_fixed);
+    replay("raster", stereotrace_kernels::fuzzing::raster_fixed);
 }

@@ -1,4 +1,4 @@
-//! Camera poses and the stereo rig: parallel (sensor-shift) cameras offset along the head's
+//! The stereo rig: parallel (sensor-shift) cameras offset along the head pose's
 //! right vector.
 //!
 //! Both eyes share orientation and projection and sit at `±separation / 2` along the head
@@ -10,67 +10,11 @@
 
 use std::fmt;
 
-use glam::{DMat4, DVec4, Mat4, Vec3};
-
+pub use crate::kernels::camera::{CameraPose, FAR, NEAR};
 use crate::kernels::{CameraModel, Extent, FrameError};
-
-/// The camera of one frame: an orthonormal frame and the vertical field of view.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CameraPose {
-    /// Eye position (centre of the stereo rig).
-    pub eye: Vec3,
-    /// Unit view direction.
-    pub forward: Vec3,
-    /// Unit up, orthogonal to `forward`.
-    pub up: Vec3,
-    /// Unit right, `forward x up`.
-    pub right: Vec3,
-    /// Vertical field of view in degrees.
-    pub vfov_deg: f32,
-}
-
-impl CameraPose {
-    /// Right-handed view matrix (camera looks down −Z in view space).
-    pub fn view(&self) -> Mat4 {
-        glam::camera::rh::view::look_to_mat4(self.eye, self.forward, self.up)
-    }
-
-    /// Right-handed OpenGL-style perspective × view (clip `w` = view depth), in f64 (see
-    /// `stereotrace_kernels::CameraModel::from_f64`): the view's rows are this pose's
-    /// `right`, `up` and `−forward` with the translation `−R·eye` formed in f64.
-    pub fn view_proj(&self, aspect: f32, near: f32, far: f32) -> DMat4 {
-        let (r, u, f, e) = (self.right.as_dvec3(), self.up.as_dvec3(), self.forward.as_dvec3(), self.eye.as_dvec3());
-        let view = DMat4::from_cols(
-            DVec4::new(r.x, u.x, -f.x, 0.0),
-            DVec4::new(r.y, u.y, -f.y, 0.0),
-            DVec4::new(r.z, u.z, -f.z, 0.0),
-            DVec4::new(-r.dot(e), -u.dot(e), f.dot(e), 1.0),
-        );
-        let focal = 1.0 / (0.5 * f64::from(self.vfov_deg).to_radians()).tan();
-        let (near, far) = (f64::from(near), f64::from(far));
-        let proj = DMat4::from_cols(
-            DVec4::new(focal / f64::from(aspect), 0.0, 0.0, 0.0),
-            DVec4::new(0.0, focal, 0.0, 0.0),
-            DVec4::new(0.0, 0.0, (far + near) / (near - far), -1.0),
-            DVec4::new(0.0, 0.0, 2.0 * far * near / (near - far), 0.0),
-        );
-        proj * view
-    }
-
-    /// The same pose moved by `offset` along `right` (a stereo eye: ±half the separation).
-    pub fn offset_right(&self, offset: f32) -> Self {
-        Self { eye: self.eye + self.right * offset, ..*self }
-    }
-}
 
 /// Default distance between the eyes (metres), the average human interpupillary distance.
 pub const DEFAULT_EYE_SEPARATION: f32 = 0.065;
-
-/// Near and far planes of the projection. Only the x, y and w rows matter to the kernels,
-/// so these only need to bracket nothing in particular; they are kept wide.
-pub const NEAR: f32 = 0.01;
-/// The far plane (see [`NEAR`]).
-pub const FAR: f32 = 10_000.0;
 
 /// Which eye.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -150,14 +94,8 @@ impl StereoRig {
 
     /// The camera of `eye` for `head` at `extent`.
     pub fn eye_camera(&self, head: &CameraPose, eye: Eye, extent: Extent) -> Result<CameraModel, FrameError> {
-        camera_for(&self.eye_pose(head, eye), extent)
+        CameraModel::from_pose(&self.eye_pose(head, eye), extent)
     }
-}
-
-/// The kernel camera of a pose at an extent.
-pub fn camera_for(pose: &CameraPose, extent: Extent) -> Result<CameraModel, FrameError> {
-    let aspect = extent.width() as f32 / extent.height() as f32;
-    CameraModel::from_f64(pose.view_proj(aspect, NEAR, FAR), extent)
 }
 
 #[cfg(test)]

@@ -10,8 +10,8 @@ use indicatif::{ProgressBar, ProgressStyle};
 use crate::camera::{Eye, StereoRig};
 use crate::image_io::{write_exr, write_png_preview};
 use crate::kernels::RgbBuf;
-use crate::render::Renderer;
-use crate::source::{PixelSelection, TraceRequest, TraceStats};
+use crate::render::{FrameView, Renderer};
+use crate::source::TraceStats;
 
 use super::args::{SceneArgs, default, parse_exposure, parse_frames, parse_spp};
 
@@ -122,17 +122,12 @@ pub fn run(opts: &RenderOptions) -> Result<String, String> {
     let mut image = RgbBuf::new(opts.input.res, 0.0);
     let mut stats = TraceStats::default();
     let start = Instant::now();
-    let mut lights = renderer.frame_lights(opts.first_frame);
+    let mut view = FrameView::new(&renderer, &rig, opts.input.res, opts.first_frame).map_err(|e| e.to_string())?;
     for frame in opts.first_frame..last {
-        lights.update(renderer.scene(), frame);
-        let head = renderer.scene().camera.pose_at(frame as f32);
+        view.set_frame(&renderer, &rig, frame).map_err(|e| e.to_string())?;
         for &eye in opts.eye.eyes() {
-            let camera = rig.eye_camera(&head, eye, opts.input.res).map_err(|e| format!("frame {frame}: {e}"))?;
-            let request = TraceRequest { eye, frame, spp: opts.spp, seed: opts.seed, first_sample: 0 };
-            stats = stats
-                + renderer
-                    .trace(&lights, &camera, &request, PixelSelection::All, &mut image, opts.general)
-                    .map_err(|e| e.to_string())?;
+            let request = view.request(eye, opts.spp, opts.seed, 0);
+            stats = stats + view.trace(&renderer, &request, &mut image, opts.general).map_err(|e| e.to_string())?;
             let stem = dir.join(format!("{eye}_{frame:03}"));
             write_exr(&stem.with_extension("exr"), &image).map_err(|e| e.to_string())?;
             write_png_preview(&stem.with_extension("png"), &image, opts.exposure).map_err(|e| e.to_string())?;

@@ -10,50 +10,14 @@
 use serde::{Deserialize, Serialize};
 
 use super::effective::{ErrorCurve, Grid, Interpolation, Metric};
-use crate::camera::{Eye, StereoRig};
+use crate::camera::Eye;
 use crate::kernels::ssim::{SsimParams, SsimVariant, ssim};
-use crate::kernels::{CameraModel, Extent, RgbBuf};
-use crate::render::Renderer;
-use crate::render::lights::FrameLights;
-use crate::source::{PixelSelection, TraceRequest, TraceStats};
+use crate::kernels::{Extent, RgbBuf};
+use crate::render::{FrameView, Renderer};
+use crate::source::TraceStats;
 
-/// What the renderer needs to trace one frame of one eye.
-pub struct FrameView {
-    /// Frame on the scene's camera path.
-    pub frame: u32,
-    /// The eye traced.
-    pub eye: Eye,
-    /// That eye's camera at that frame; its extent is the image's.
-    pub camera: CameraModel,
-    /// The scene's lights at that frame.
-    pub lights: FrameLights,
-}
-
-impl FrameView {
-    /// The view of `eye` at `frame` on the scene's camera path.
-    pub fn new(renderer: &Renderer, rig: &StereoRig, extent: Extent, frame: u32, eye: Eye) -> Result<Self, String> {
-        let head = renderer.scene().camera.pose_at(frame as f32);
-        let camera = rig.eye_camera(&head, eye, extent).map_err(|e| format!("frame {frame}: {e}"))?;
-        Ok(Self { frame, eye, camera, lights: renderer.frame_lights(frame) })
-    }
-
-    /// A whole `spp`-sample render with `seed` (samples `first_sample..first_sample + spp`).
-    pub fn render(
-        &self,
-        renderer: &Renderer,
-        spp: u32,
-        seed: u64,
-        first_sample: u32,
-        general: bool,
-    ) -> Result<(RgbBuf, TraceStats), String> {
-        let mut img = RgbBuf::new(self.camera.extent, 0.0);
-        let request = TraceRequest { eye: self.eye, frame: self.frame, spp, seed, first_sample };
-        let stats = renderer
-            .trace(&self.lights, &self.camera, &request, PixelSelection::All, &mut img, general)
-            .map_err(|e| e.to_string())?;
-        Ok((img, stats))
-    }
-}
+/// The eye an evaluation measures: the left one, which the stereo modes fill by reprojection.
+pub const MEASURED_EYE: Eye = Eye::Left;
 
 /// Per-pixel sums of samples in f64 (interleaved RGB): the renderer sums a pixel's samples
 /// in f64 too, so the mean of `n` one-sample passes is bit for bit an `n`-sample render.
@@ -111,10 +75,8 @@ impl Progressive {
         seed: u64,
         general: bool,
     ) -> Result<TraceStats, String> {
-        let request = TraceRequest { eye: view.eye, frame: view.frame, spp: 1, seed, first_sample: self.samples };
-        let stats = renderer
-            .trace(&view.lights, &view.camera, &request, PixelSelection::All, &mut self.pass, general)
-            .map_err(|e| e.to_string())?;
+        let request = view.request(MEASURED_EYE, 1, seed, self.samples);
+        let stats = view.trace(renderer, &request, &mut self.pass, general).map_err(|e| e.to_string())?;
         for (c, plane) in self.pass.planes().into_iter().enumerate() {
             for (i, &v) in plane.as_slice().iter().enumerate() {
                 self.sum.rgb[3 * i + c] += f64::from(v);

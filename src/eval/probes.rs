@@ -3,12 +3,12 @@
 //! exactly the entries it affects.
 
 use super::cache::checksum;
-use super::curve::{FrameView, measure};
+use super::curve::{MEASURED_EYE, measure};
 use super::spec::Variant;
 use crate::camera::{Eye, StereoRig};
 use crate::kernels::{Extent, RgbBuf};
 use crate::pipeline::{Mode, Order, Pipeline, PipelineConfig};
-use crate::render::Renderer;
+use crate::render::{FrameView, Renderer};
 use crate::session::{CameraWalk, Session};
 
 /// The seed of the probes' own path tracing.
@@ -80,8 +80,9 @@ pub fn scene_probe(renderer: &Renderer, rig: &StereoRig) -> Result<u64, String> 
     let mut h = BitHash::default();
     let last = renderer.scene().frame_count().saturating_sub(1);
     for frame in [0, last] {
-        let view = FrameView::new(renderer, rig, extent, frame, Eye::Left)?;
-        h.image(&view.render(renderer, 2, PROBE_SEED, 0, false)?.0);
+        let view = FrameView::new(renderer, rig, extent, frame).map_err(|e| e.to_string())?;
+        let request = view.request(MEASURED_EYE, 2, PROBE_SEED, 0);
+        h.image(&view.render(renderer, &request, false).map_err(|e| e.to_string())?.0);
     }
     Ok(h.finish())
 }

@@ -35,7 +35,7 @@ use super::cache::{
     encode_mask, encode_partial,
 };
 use super::claim::{Attempt, Claim, clear_orphan, try_claim};
-use super::curve::{CurvePoint, FrameCurve, FrameView, Measurement, Progressive, measure};
+use super::curve::{CurvePoint, FrameCurve, MEASURED_EYE, Measurement, Progressive, measure};
 use super::effective::{EffectiveSpp, Grid, Metric};
 use super::probes::{code_probe, scene_probe};
 use super::results::{
@@ -48,7 +48,7 @@ use super::units::{Plan, Shard, Unit, UnitKind, assign, config_work, seconds_per
 use crate::camera::{Eye, StereoRig};
 use crate::kernels::{Extent, PlaneBuf, RgbBuf};
 use crate::pipeline::{Mode, Pipeline, PipelineConfig};
-use crate::render::{Renderer, RendererOptions};
+use crate::render::{FrameView, Renderer, RendererOptions};
 use crate::session::{CameraWalk, Session};
 
 /// Where a run reports progress and warnings (the CLI shows a progress bar).
@@ -466,7 +466,7 @@ impl Runner<'_> {
         self.reporter.status(&format!("{}: reference of frame {f} ({r} spp)", plan.name));
         let partial = key.derive("reference-partial", &[]);
         let (mut prog, _) = self.resume(&partial, r)?;
-        let view = FrameView::new(&plan.renderer, &self.rig, self.extent, f, Eye::Left)?;
+        let view = FrameView::new(&plan.renderer, &self.rig, self.extent, f).map_err(|e| e.to_string())?;
         while prog.samples() < r {
             let stats = prog.add_sample(&plan.renderer, &view, self.spec.seeds.reference, false)?;
             self.counters.samples += stats.samples;
@@ -570,7 +570,7 @@ impl Runner<'_> {
             self.reporter.add_work(self.pixels() * u64::from(prog.samples()));
             (prog, points) = (Progressive::new(self.extent), Vec::new());
         }
-        let view = FrameView::new(&plan.renderer, &self.rig, self.extent, f, Eye::Left)?;
+        let view = FrameView::new(&plan.renderer, &self.rig, self.extent, f).map_err(|e| e.to_string())?;
         let variant = self.spec.ssim.kernel();
         while prog.samples() < max_spp {
             let stats = prog.add_sample(&plan.renderer, &view, self.spec.seeds.curve, false)?;
@@ -726,8 +726,9 @@ impl Runner<'_> {
         let work = self.pixels() * u64::from(spp);
         self.reporter.add_work(work);
         self.reporter.status(&format!("{}: figure frame {frame} at {spp} spp", plan.name));
-        let view = FrameView::new(&plan.renderer, &self.rig, self.extent, frame, Eye::Left)?;
-        let (img, stats) = view.render(&plan.renderer, spp, self.spec.seeds.curve, 0, false)?;
+        let view = FrameView::new(&plan.renderer, &self.rig, self.extent, frame).map_err(|e| e.to_string())?;
+        let request = view.request(MEASURED_EYE, spp, self.spec.seeds.curve, 0);
+        let (img, stats) = view.render(&plan.renderer, &request, false).map_err(|e| e.to_string())?;
         self.counters.samples += stats.samples;
         self.counters.figure_images += 1;
         self.reporter.advance(work);

@@ -20,12 +20,12 @@ use serde::Serialize;
 
 use std::time::Instant;
 
-use super::curve::FrameView;
+use super::curve::MEASURED_EYE;
 use super::probes::PROBE_SEED;
 use super::spec::Variant;
-use crate::camera::{Eye, StereoRig};
+use crate::camera::StereoRig;
 use crate::kernels::Extent;
-use crate::render::Renderer;
+use crate::render::{FrameView, Renderer};
 
 /// What a unit computes.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize)]
@@ -280,11 +280,11 @@ pub(crate) fn seconds_per_sample(renderer: &Renderer, rig: &StereoRig, extent: E
         ((extent.height() as f64 * scale).round() as usize).max(1),
     )
     .map_err(|e| e.to_string())?;
-    let view = FrameView::new(renderer, rig, small, 0, Eye::Left)?;
-    view.render(renderer, 1, PROBE_SEED, 0, false)?;
+    let view = FrameView::new(renderer, rig, small, 0).map_err(|e| e.to_string())?;
+    view.render(renderer, &view.request(MEASURED_EYE, 1, PROBE_SEED, 0), false).map_err(|e| e.to_string())?;
     let spp = 4;
     let t = Instant::now();
-    view.render(renderer, spp, PROBE_SEED, 0, false)?;
+    view.render(renderer, &view.request(MEASURED_EYE, spp, PROBE_SEED, 0), false).map_err(|e| e.to_string())?;
     let cpu = t.elapsed().as_secs_f64() * rayon::current_num_threads() as f64;
     Ok(cpu / (small.pixels() as f64 * f64::from(spp)))
 }

@@ -43,10 +43,11 @@
 //! two triangles at exactly equal `t` a BVH returns depends on its traversal order, so those
 //! pixels are the one place the two may differ). The fast path never decides a case it
 //! could get wrong, so raster and traced visibility agree on every pixel that is not an
-//! exact depth tie; `tests/raster.rs` checks this on every scene. The one exception is the
-//! tracer's own rounding: where its f32 test misses a triangle the fast path found certainly
-//! covering a pixel (slivers with vertices hundreds of units away), the exact path keeps the
-//! stored triangle against any hit certainly behind it, as exact geometry does.
+//! exact depth tie; the root crate's `tests/raster_gbuffers.rs` checks this on every scene.
+//! The one exception is the tracer's own rounding: where its f32 test misses a triangle
+//! the fast path found certainly covering a pixel (slivers with vertices hundreds of units
+//! away), the exact path keeps the stored triangle against any hit certainly behind it, as
+//! exact geometry does.
 //!
 //! # Determinism and the scalar reference
 //! Both bodies evaluate the same f32 expressions in the same order (`a * b + c`, two

@@ -8,8 +8,8 @@
 //! | `simd.rs` | the body: packets of eight rays (`TriangleBvh::intersect_packet`, `occluded_packet`) |
 //!
 //! The BVH, rays, the watertight triangle test and the robust node test are in
-//! [`crate::bvh`]; the bench is `benches/traversal.rs`, the tests `kernels/tests/traversal.rs`,
-//! the fuzz target `fuzz/fuzz_targets/bvh.rs` (build and traversal together).
+//! [`crate::bvh`]; the bench is `benches/traverse.rs`, the tests `kernels/tests/traversal.rs`,
+//! the fuzz target `fuzz/fuzz_targets/traverse.rs` (build and traversal together).
 //!
 //! # One loop per layout, generic over the search
 //! Closest hit and any hit differ only in their far bound (the best hit so far, or the ray's

@@ -11,7 +11,7 @@
 //! reach. A node's triangles are 288-byte blocks of eight ([`crate::bvh::TriangleLanes`]),
 //! so a leaf test reads adjacent lines.
 //!
-//! What each step measured, one thread, `benches/traversal.rs`, single rays, Mrays/s, the
+//! What each step measured, one thread, `benches/traverse.rs`, single rays, Mrays/s, the
 //! builds run alternately on the same machine (`BENCHMARKS.md` has the whole table):
 //!
 //! | step | atrium primary | atrium shadow | atrium diffuse | Sponza diffuse |

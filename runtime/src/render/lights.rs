@@ -12,11 +12,13 @@
 
 use glam::{Vec2, Vec3};
 
-use super::MOVING_LIGHT_MATERIAL;
 use super::spawn::{ShadowTarget, barycentric_point};
 use crate::scene::light::sample_triangle;
 use crate::scene::sampling::luminance;
 use crate::scene::{Environment, MovingShape, Scene, SunLight};
+
+/// The material id stored for pixels showing a moving light.
+pub const MOVING_LIGHT_MATERIAL: u32 = u32::MAX - 1;
 
 /// One light of the frame.
 #[derive(Clone, Copy, Debug)]

@@ -32,14 +32,17 @@ use glam::Vec3;
 
 use super::bsdf::{self, BsdfSample};
 use super::effects::{self, ALPHA_MASKS, MIRROR, MOVING_GEOMETRY, has};
+use super::estimator::Surface;
 use super::lights::FrameLights;
+use super::renderer::Renderer;
 use super::rng::{Dim, SampleStream};
-use super::{Renderer, Surface, TraceRequest, spawn};
+use super::spawn;
 use crate::kernels::CameraModel;
 use crate::kernels::bvh::{Hit, Ray};
 use crate::kernels::simd::{F32s, LANES};
 use crate::kernels::traverse::{PacketHits, RayPacket};
 use crate::scene::MaterialKind;
+use crate::source::TraceRequest;
 
 /// What a group's samples share: the frame's lights, the camera and the request.
 pub(super) struct Pass<'a> {
@@ -167,7 +170,7 @@ impl Renderer {
 
     /// Continues the lanes `hit` of `packet` whose closest hit is cut away, from just past
     /// it, until each lane has an opaque hit or none ([`Renderer::closest_mesh`] per lane).
-    fn skip_cut_outs(&self, packet: &mut RayPacket, hit: u32, hits: &mut PacketHits, threshold: u32) {
+    pub(super) fn skip_cut_outs(&self, packet: &mut RayPacket, hit: u32, hits: &mut PacketHits, threshold: u32) {
         let tmax = packet.tmax.to_array();
         let mut tmin = packet.tmin.to_array();
         let mut pending = hit;

@@ -7,7 +7,7 @@
 //! texel through the same function as the traced pass (`Renderer::gbuffer_texel`): where
 //! both see the same triangle, depth, position, normals and material are identical bit for
 //! bit. Which triangle is seen agrees with the traced pass everywhere except exact depth
-//! ties (the kernel's notes say why); `tests/raster.rs` checks both on every scene.
+//! ties (the kernel's notes say why); `tests/raster_gbuffers.rs` checks both on every scene.
 //!
 //! Cut-outs are tested per fragment for the masked triangles only, moving-light triangles
 //! (not in the BVH) are rasterised after the static mesh with ids following it, and
@@ -16,10 +16,13 @@
 use glam::Vec3;
 
 use super::effects::{ALPHA_MASKS, has};
+use super::estimator::Surface;
+use super::gbuffer::{GLanes, GTexel, for_each_gbuffer_row};
 use super::lights::FrameLights;
-use super::{GBufferBuf, GLanes, GTexel, RenderError, Renderer, Surface, for_each_gbuffer_row};
+use super::renderer::{RenderError, Renderer};
 use crate::kernels::CameraModel;
 use crate::kernels::bvh::{Hit, PreparedRay, Ray, TriVerts, intersect_triangle_line};
+use crate::kernels::gbuffer::GBufferBuf;
 use crate::kernels::gbuffer::encode_normals;
 use crate::kernels::raster::fixed::FixedRasterizer;
 use crate::kernels::raster::{AlphaTest, Body, NO_PRIM, Rasterizer, Triangles, VisibilityBuffer};

@@ -7,7 +7,7 @@ use std::ops::Range;
 
 use super::lights::FrameLights;
 use super::raster::{RasterGBuffers, Visibility};
-use super::{RenderError, Renderer};
+use super::renderer::{RenderError, Renderer};
 use crate::kernels::{CameraModel, Extent, GBufferBuf, RgbBuf};
 use crate::source::{FrameSource, Layout, PipelineError, PixelSelection, RasterPassStats, TraceRequest, TraceStats};
 

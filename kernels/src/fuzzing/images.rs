@@ -1,18 +1,5 @@
-//! Fuzz entry points: each takes arbitrary bytes, builds kernel inputs from them, runs the
-//! SIMD body and the scalar reference, and panics if a property fails:
-//!
-//! * no panic inside a kernel, and every refusal is a `FrameError`, never a crash;
-//! * SIMD output equals the scalar reference bit for bit;
-//! * no non-finite value is written from finite inputs;
-//! * weights lie in [0, 1], reason codes are valid and their counts add up.
-//!
-//! The cargo-fuzz targets in `fuzz/` are one-line shims over these, and `cargo test`
-//! replays the committed seed corpus through them (`kernels/tests/fuzz_corpus.rs`).
-//!
-//! Input format: a few leading bytes pick the extent, stride padding, cameras and
-//! tolerances; the rest is a list of 6-byte edits `(plane, index: u8 u8 → u16, value: f32)`
-//! applied over an analytic scene, so short inputs already reach deep into the kernels and
-//! every edit can place a NaN, an infinity, a subnormal or a huge value anywhere.
+//! The image kernels' entry points: backward reprojection, bilinear resampling,
+//! accumulation and SSIM, each over an analytic scene edited by the input's trailing bytes.
 
 use glam::{Mat4, Vec3};
 
@@ -24,67 +11,9 @@ use crate::frame::{Extent, FrameError, PlaneBuf, RgbBuf};
 use crate::gbuffer::SurfaceLayout;
 use crate::isa::Isa;
 use crate::reproject::{self, Reason, ReprojectInput, ReprojectOutput, ReprojectParams, TapPolicy, Tolerances};
-use crate::simd::LANES;
 use crate::synth::{AnalyticScene, SynthFrame, camera_at};
 
-/// Makes the calling thread rayon's whole global pool, so the kernels' parallel bands run
-/// inline on it. A fuzz target calls this once at start-up (libFuzzer runs every input on
-/// that thread): with a separate one-thread pool, every input woke the worker and put the
-/// caller to sleep (~75k context switches per second, two cores busy for one fuzzer's
-/// work). Results do not depend on the thread count (the kernels' tests check that).
-pub fn run_on_this_thread() {
-    // Refused only if a global pool already exists, which then serves as it is.
-    let _ = rayon::ThreadPoolBuilder::new().num_threads(1).use_current_thread().build_global();
-}
-
-/// Fuzz input read front to back: zeros once exhausted, so every input is complete. Also the
-/// reader of the fuzz entry points above the kernels (`stereotrace::fuzzing`).
-pub struct Bytes<'a>(pub &'a [u8]);
-
-impl Bytes<'_> {
-    /// The next byte.
-    pub fn u8(&mut self) -> u8 {
-        match self.0.split_first() {
-            Some((&b, rest)) => {
-                self.0 = rest;
-                b
-            }
-            None => 0,
-        }
-    }
-
-    /// The next four bytes as any f32 (NaN, ±∞, subnormals included).
-    pub fn f32(&mut self) -> f32 {
-        f32::from_bits(u32::from_le_bytes([self.u8(), self.u8(), self.u8(), self.u8()]))
-    }
-
-    /// A float in [lo, hi] from one byte.
-    pub fn unit(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * f32::from(self.u8()) / 255.0
-    }
-
-    /// Whether every byte has been read.
-    pub fn is_empty(&self) -> bool {
-        self.0.is_empty()
-    }
-}
-
-/// Runs every input in `dir` through `run` (sorted, each under `catch_unwind`) and panics
-/// naming the first that fails, or when `dir` holds fewer than `at_least` inputs: how
-/// `cargo test` replays a committed corpus through the entry points the fuzzers call.
-pub fn replay_dir(dir: &std::path::Path, at_least: usize, run: fn(&[u8])) {
-    let mut entries: Vec<std::path::PathBuf> = std::fs::read_dir(dir)
-        .unwrap_or_else(|e| panic!("corpus {} is missing: {e}", dir.display()))
-        .map(|entry| entry.expect("readable corpus entry").path())
-        .collect();
-    entries.sort();
-    assert!(entries.len() >= at_least, "corpus {} has only {} inputs", dir.display(), entries.len());
-    for path in entries {
-        let data = std::fs::read(&path).expect("readable input");
-        let result = std::panic::catch_unwind(|| run(&data));
-        assert!(result.is_ok(), "input {} fails", path.display());
-    }
-}
+use super::input::Bytes;
 
 fn extent_from(bytes: &mut Bytes<'_>) -> Extent {
     // 1×1 … 40×12, so 1×N and N×1 frames come up often.
@@ -646,99 +575,5 @@ pub fn ssim(data: &[u8]) {
         assert!(fast.rmse.is_finite() && fast.rmse >= 0.0, "RMSE not finite: {fast:?}");
     } else {
         assert!(fast.rmse.is_nan(), "no usable sample but RMSE {fast:?}");
-    }
-}
-
-/// A coordinate: mostly on a coarse grid in [−1, 1] (so shared edges, coincident and
-/// degenerate triangles and axis-aligned rays come up often), sometimes any f32.
-fn coordinate(bytes: &mut Bytes<'_>) -> f32 {
-    let b = bytes.u8();
-    match b {
-        0..=239 => f32::from(b % 17) / 8.0 - 1.0,
-        240..=247 => bytes.unit(-1.0, 1.0),
-        _ => bytes.f32(),
-    }
-}
-
-/// Fuzzes BVH build and traversal: up to 48 triangles and 16 rays from the bytes. Checks the
-/// single-ray closest hit against brute force (`t` bit for bit, the same triangle unless both
-/// are hit at exactly that `t`), occlusion against the closest hit, and every lane of a
-/// packet (at single-ray thresholds 0, 2 and 8) against its single ray. Builds that refuse
-/// (non-finite or huge vertices) must say so with a `BvhError`.
-pub fn traverse(data: &[u8]) {
-    use crate::bvh::{BuildQuality, Hit, Ray, TriangleBvh};
-    use crate::traverse::{PacketHits, RayPacket, intersect_brute_force};
-
-    let mut bytes = Bytes(data);
-    let quality = match bytes.u8() % 4 {
-        0 => BuildQuality::Fast,
-        1 => BuildQuality::Medium,
-        2 => BuildQuality::High,
-        _ => BuildQuality::Sah,
-    };
-    let n_tris = usize::from(bytes.u8() % 49);
-    let n_rays = 1 + usize::from(bytes.u8() % 16);
-    let vec = |bytes: &mut Bytes<'_>| Vec3::new(coordinate(bytes), coordinate(bytes), coordinate(bytes));
-    let tris: Vec<[Vec3; 3]> = (0..n_tris).map(|_| [vec(&mut bytes), vec(&mut bytes), vec(&mut bytes)]).collect();
-    let rays: Vec<Ray> = (0..n_rays)
-        .map(|_| {
-            let origin = vec(&mut bytes) * 2.0;
-            let dir = vec(&mut bytes);
-            let (tmin, tmax) = match bytes.u8() % 4 {
-                0 => (0.0, f32::INFINITY),
-                1 => (bytes.unit(0.0, 1.0), bytes.unit(0.0, 4.0)),
-                2 => (bytes.f32(), bytes.f32()),
-                _ => (1e-4, f32::INFINITY),
-            };
-            Ray { origin, dir, tmin, tmax }
-        })
-        .collect();
-    let bvh = match TriangleBvh::build(&tris, quality) {
-        Ok((bvh, _)) => bvh,
-        Err(e) => {
-            // Refused: only for vertices a build cannot take (NaN included: compared lane by
-            // lane, as the build does; `max_element` would skip a NaN).
-            let bound = Vec3::splat(crate::bvh::MAX_COORD);
-            assert!(tris.iter().flatten().any(|v| !v.abs().cmple(bound).all()), "refused: {e}");
-            return;
-        }
-    };
-    let t_of = |prim: u32, ray: &Ray| intersect_brute_force(&tris[prim as usize..prim as usize + 1], ray).map(|h| h.t);
-    let same = |a: Option<Hit>, b: Option<Hit>, ray: &Ray, what: &str| match (a, b) {
-        (None, None) => {}
-        (Some(x), Some(y)) => {
-            assert_eq!(x.t.to_bits(), y.t.to_bits(), "{what}: t {} vs {} for {ray:?}", x.t, y.t);
-            if x.prim == y.prim {
-                assert_eq!((x.u.to_bits(), x.v.to_bits()), (y.u.to_bits(), y.v.to_bits()), "{what}: uv for {ray:?}");
-            } else {
-                assert_eq!(t_of(x.prim, ray), Some(x.t), "{what}: {} vs {} is not a tie", x.prim, y.prim);
-                assert_eq!(t_of(y.prim, ray), Some(x.t), "{what}: {} vs {} is not a tie", x.prim, y.prim);
-            }
-        }
-        _ => panic!("{what}: {a:?} vs {b:?} for {ray:?}"),
-    };
-    let singles: Vec<Option<Hit>> = rays.iter().map(|r| bvh.intersect(r)).collect();
-    for (r, s) in rays.iter().zip(&singles) {
-        same(*s, intersect_brute_force(&tris, r), r, "single ray vs brute force");
-        assert_eq!(bvh.occluded(r), s.is_some(), "occlusion vs closest hit for {r:?}");
-        if let Some(h) = s {
-            assert!(h.t.is_finite() && h.t >= r.tmin && h.t < r.tmax, "hit outside the ray's interval: {h:?} {r:?}");
-        }
-    }
-    for (chunk, singles) in rays.chunks(LANES).zip(singles.chunks(LANES)) {
-        let mut lanes = [Ray::new(Vec3::ZERO, Vec3::X); LANES];
-        lanes[..chunk.len()].copy_from_slice(chunk);
-        let active = (1u32 << chunk.len()) - 1;
-        let packet = RayPacket::from_rays(&lanes);
-        for threshold in [0, 2, 8] {
-            let mut hits = PacketHits::NONE;
-            let hit_mask = bvh.intersect_packet_with(&packet, active, &mut hits, threshold);
-            let occluded = bvh.occluded_packet_with(&packet, active, threshold);
-            for (i, s) in singles.iter().enumerate() {
-                same(hits.get(i), *s, &chunk[i], "packet lane vs single ray");
-                assert_eq!(hit_mask & (1 << i) != 0, s.is_some(), "packet hit mask lane {i}");
-                assert_eq!(occluded & (1 << i) != 0, s.is_some(), "packet occlusion lane {i}");
-            }
-        }
     }
 }

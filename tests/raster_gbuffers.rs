@@ -21,14 +21,14 @@ mod common;
 use std::path::Path;
 
 use glam::{DVec3, Vec3};
-use stereotrace::camera::{Eye, StereoRig};
+use stereotrace::camera::StereoRig;
 use stereotrace::kernels::bvh::{PreparedRay, Ray, TriVerts, intersect_triangle};
 use stereotrace::kernels::raster::{Body, NO_PRIM};
 use stereotrace::kernels::{CameraModel, Extent, PlaneBuf};
 use stereotrace::pipeline::Layout;
 use stereotrace::render::lights::FrameLights;
 use stereotrace::render::raster::{RasterGBuffers, Visibility};
-use stereotrace::render::{GBufferBuf, Renderer};
+use stereotrace::render::{FrameView, GBufferBuf, Renderer};
 use stereotrace::scene::{builtin_names, resolve};
 
 #[derive(Default, Debug)]
@@ -147,10 +147,8 @@ fn rules(kind: Visibility) -> Rules {
 /// Both passes on frame `frame` of `renderer`'s camera path at `extent`, compared.
 fn compare(renderer: &Renderer, extent: Extent, frame: u32, body: Body, kind: Visibility) -> Tally {
     let rules = rules(kind);
-    let lights = renderer.frame_lights(frame);
-    let head = renderer.scene().camera.pose_at(frame as f32);
-    let rig = StereoRig::default();
-    let cams = Eye::BOTH.map(|eye| rig.eye_camera(&head, eye, extent).unwrap());
+    let FrameView { lights, cameras: cams, .. } =
+        FrameView::new(renderer, &StereoRig::default(), extent, frame).unwrap();
     let mut raster = RasterGBuffers::new(extent);
     raster.body = body;
     raster.visibility_by = kind;
@@ -276,9 +274,8 @@ fn the_scalar_reference_and_the_simd_body_give_the_same_buffers_in_bands_of_any_
     let extent = Extent::new(203, 117).unwrap();
     for name in ["cornell", "atrium", "classroom"] {
         let renderer = Renderer::new(resolve(name).unwrap()).unwrap();
-        let lights = renderer.frame_lights(5);
-        let head = renderer.scene().camera.pose_at(5.0);
-        let cams = Eye::BOTH.map(|eye| StereoRig::default().eye_camera(&head, eye, extent).unwrap());
+        let FrameView { lights, cameras: cams, .. } =
+            FrameView::new(&renderer, &StereoRig::default(), extent, 5).unwrap();
         for kind in [Visibility::Exact, Visibility::Fixed] {
             let run = |body: Body, band_rows: Option<usize>| {
                 let mut raster = RasterGBuffers::new(extent);
@@ -316,9 +313,7 @@ fn the_scalar_reference_and_the_simd_body_give_the_same_buffers_in_bands_of_any_
 fn the_compact_planes_are_the_full_passs_and_the_rest_are_left_alone() {
     let renderer = Renderer::new(resolve("living-room-moving-light").unwrap()).unwrap();
     let extent = Extent::new(333, 187).unwrap();
-    let lights = renderer.frame_lights(3);
-    let head = renderer.scene().camera.pose_at(3.0);
-    let cams = Eye::BOTH.map(|eye| StereoRig::default().eye_camera(&head, eye, extent).unwrap());
+    let FrameView { lights, cameras: cams, .. } = FrameView::new(&renderer, &StereoRig::default(), extent, 3).unwrap();
     let pass = |planes| {
         let mut raster = RasterGBuffers::new(extent);
         raster.planes = planes;

@@ -42,8 +42,8 @@ use criterion::{Criterion, SamplingMode, Throughput, criterion_group, criterion_
 use glam::Vec3;
 use obvhs::ray::{Ray as ORay, RayHit};
 use obvhs::triangle::Triangle as OTri;
-use stereotrace::kernels::bvh::{BuildQuality, BvhBuildParams, Ray, Tri, TriangleBvh};
-use stereotrace::kernels::traverse::{PacketHits, RayPacket};
+use stereotrace_kernels::bvh::{BuildQuality, BvhBuildParams, Ray, Tri, TriangleBvh};
+use stereotrace_kernels::traverse::{PacketHits, RayPacket};
 
 #[cfg(feature = "peer-embree")]
 #[path = "peers/embree.rs"]
@@ -306,7 +306,7 @@ impl Fixture {
 
 fn shared_dir() -> Option<PathBuf> {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    [root.join("../shared"), PathBuf::from("/work/shared")].into_iter().find(|p| p.join("scenes").is_dir())
+    [root.join("../../shared"), PathBuf::from("/work/shared")].into_iter().find(|p| p.join("scenes").is_dir())
 }
 
 /// Whether the shared Sponza scene is beside the project.
@@ -396,7 +396,7 @@ fn builtin(name: &'static str) -> &'static Fixture {
     static FIXTURES: [OnceLock<Fixture>; BUILTINS.len()] = [const { OnceLock::new() }; BUILTINS.len()];
     let i = BUILTINS.iter().position(|b| *b == name).expect("a built-in scene");
     FIXTURES[i].get_or_init(|| {
-        let scene = stereotrace::scene::resolve(name).expect("built-in scenes load");
+        let scene = stereotrace_runtime::scene::resolve(name).expect("built-in scenes load");
         let pose = scene.camera.pose_at(0.0);
         let camera = Camera::look_at(pose.eye, pose.eye + pose.forward, pose.up, pose.vfov_deg);
         let bounds = scene.bounds();
@@ -666,7 +666,7 @@ fn trees(c: &mut Criterion) {
 /// Embree's builder (binned SAH, and SAH with spatial splits), all 8-wide, leaves of at most
 /// 3 triangles, costs 1 per node read and 1 per triangle test.
 fn attribution(_: &mut Criterion) {
-    use stereotrace::kernels::traverse::TraversalCounts;
+    use stereotrace_kernels::traverse::TraversalCounts;
     if std::env::var_os("STEREOTRACE_BENCH_ATTRIBUTION").is_none_or(|v| v != "1") {
         eprintln!("SKIPPED attribution table: set STEREOTRACE_BENCH_ATTRIBUTION=1");
         return;

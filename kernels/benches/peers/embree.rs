@@ -9,8 +9,8 @@
 
 use std::ffi::{c_char, c_int, c_uint, c_void};
 
-use stereotrace::kernels::bvh::{Ray, Tri};
-use stereotrace::kernels::traverse::RayPacket;
+use stereotrace_kernels::bvh::{Ray, Tri};
+use stereotrace_kernels::traverse::RayPacket;
 
 type Device = *mut c_void;
 type Scene = *mut c_void;
@@ -225,7 +225,7 @@ impl EmbreeScene {
     }
 
     fn ray8(p: &RayPacket, active: u32) -> ([c_int; 8], Ray8) {
-        let lanes = |v: &stereotrace::kernels::simd::F32s| v.to_array();
+        let lanes = |v: &stereotrace_kernels::simd::F32s| v.to_array();
         let valid = core::array::from_fn(|i| if active & (1 << i) != 0 { -1 } else { 0 });
         let ray = Ray8 {
             org: [lanes(&p.origin[0]), lanes(&p.origin[1]), lanes(&p.origin[2])],

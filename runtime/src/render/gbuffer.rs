@@ -1,0 +1,250 @@
+//! The traced G-buffer pass, traced visibility (the rasteriser's reference), motion vectors,
+//! and the one texel definition both G-buffer passes write through.
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::kernels::bvh::{PreparedRay, Ray};
+use crate::kernels::gbuffer::{GBufferBuf, NO_NORMAL, encode_normal};
+use crate::kernels::simd::{F32s, LANES};
+use crate::kernels::{CameraModel, PlaneBuf};
+
+use super::estimator::{Surface, nearest_moving};
+use super::lights::FrameLights;
+use super::packets;
+use super::renderer::{RenderError, Renderer};
+
+impl Renderer {
+    /// Fills `out` with the G-buffer seen by `out.camera` (one ray per pixel centre, traced
+    /// as 8-wide packets along rows).
+    pub fn render_gbuffer(&self, lights: &FrameLights, out: &mut GBufferBuf) {
+        macro_rules! call {
+            ($e:literal) => {
+                self.gbuffer_pass::<$e>(lights, out)
+            };
+        }
+        crate::dispatch_effects!(self.bits, call)
+    }
+
+    /// Fills `out.motion`, if it has motion planes, with each pixel's world-space motion since
+    /// the light table's previous frame: zero on the static mesh and background, and the
+    /// motion of the moving light or object seen at the pixel (its centre ray's hit on the
+    /// triangle now, less the same barycentric point of it then). A pixel sees moving geometry
+    /// when its material is one that moving triangles carry and a moving triangle lies at its
+    /// depth (not behind a static surface of the same material). Nothing is written for a
+    /// scene without moving geometry: its planes stay as allocated, zero.
+    pub fn write_motion(&self, lights: &FrameLights, out: &mut GBufferBuf) {
+        let Some(motion) = &mut out.motion else { return };
+        let triangles = lights.moving_triangles();
+        if triangles.is_empty() {
+            return;
+        }
+        for plane in motion.iter_mut() {
+            plane.as_mut_slice().fill(0.0);
+        }
+        let camera = &out.camera;
+        let width = out.material.extent().width();
+        let depth = out.depth.as_slice();
+        let moving = lights.moving_materials();
+        for (i, _) in out.material.as_slice().iter().enumerate().filter(|(_, m)| moving.contains(m)) {
+            let (x, y) = (i % width, i / width);
+            let dir = Vec3::from(camera.ray(x as f32 + 0.5, y as f32 + 0.5));
+            let Some(ray) = PreparedRay::new(&Ray::new(Vec3::from(camera.centre), dir)) else { continue };
+            // The ray has unit view depth, so the pixel's surface lies at t = depth; a moving
+            // triangle up to a rounding margin beyond it is the one the pixel sees.
+            let limit = depth[i] * (1.0 + 1e-5) + f32::MIN_POSITIVE;
+            if let Some((index, hit)) = nearest_moving(triangles, &ray, limit) {
+                let tri = &triangles[index as usize];
+                let (u, v) = hit.uv();
+                let moved = |k: usize| tri.v[k] - tri.previous[k];
+                let m = (1.0 - u - v) * moved(0) + u * moved(1) + v * moved(2);
+                for c in 0..3 {
+                    motion[c].as_mut_slice()[i] = m[c];
+                }
+            }
+        }
+    }
+
+    fn gbuffer_pass<const E: u16>(&self, lights: &FrameLights, out: &mut GBufferBuf) {
+        let camera = out.camera;
+        let width = camera.extent.width();
+        let origin = Vec3::from(camera.centre);
+        for_each_gbuffer_row(out, |y, mut row| {
+            let mut x0 = 0;
+            while x0 < width {
+                let lanes = (width - x0).min(LANES);
+                let rays: [Ray; LANES] = core::array::from_fn(|i| {
+                    let x = (x0 + i.min(lanes - 1)) as f32 + 0.5;
+                    Ray::new(origin, Vec3::from(camera.ray(x, y as f32 + 0.5)))
+                });
+                let active = (1u32 << lanes) - 1;
+                let surfaces = self.closest_packet::<E>(lights, &rays, active, packets::PRIMARY);
+                for i in 0..lanes {
+                    row.set(x0 + i, &self.gbuffer_texel(surfaces[i], rays[i].dir, &camera));
+                }
+                x0 += LANES;
+            }
+        });
+    }
+
+    /// The traced visibility of `camera`: per pixel, the id of the triangle its centre ray
+    /// hits (a mesh triangle's index, or the mesh's length plus a moving-light triangle's
+    /// index; `u32::MAX` for none), by the same packets as the traced G-buffer pass. The
+    /// reference the rasterised visibility is tested against.
+    pub fn trace_visibility(
+        &self,
+        lights: &FrameLights,
+        camera: &CameraModel,
+        out: &mut PlaneBuf<u32>,
+    ) -> Result<(), RenderError> {
+        crate::kernels::frame::same_extent("visibility plane", camera.extent, out.extent())?;
+        macro_rules! call {
+            ($e:literal) => {
+                self.visibility_pass::<$e>(lights, camera, out)
+            };
+        }
+        crate::dispatch_effects!(self.bits, call);
+        Ok(())
+    }
+
+    fn visibility_pass<const E: u16>(&self, lights: &FrameLights, camera: &CameraModel, out: &mut PlaneBuf<u32>) {
+        let width = camera.extent.width();
+        let origin = Vec3::from(camera.centre);
+        let mesh_len = self.scene.mesh.len() as u32;
+        out.as_mut_slice().par_chunks_mut(width).enumerate().for_each(|(y, row)| {
+            for x0 in (0..width).step_by(LANES) {
+                let lanes = (width - x0).min(LANES);
+                let rays: [Ray; LANES] = core::array::from_fn(|i| {
+                    let x = (x0 + i.min(lanes - 1)) as f32 + 0.5;
+                    Ray::new(origin, Vec3::from(camera.ray(x, y as f32 + 0.5)))
+                });
+                let surfaces = self.closest_packet::<E>(lights, &rays, (1u32 << lanes) - 1, packets::PRIMARY);
+                for i in 0..lanes {
+                    row[x0 + i] = match surfaces[i] {
+                        None => u32::MAX,
+                        Some(Surface::Mesh(h)) => h.prim,
+                        Some(Surface::Moving { index, .. }) => mesh_len + index,
+                    };
+                }
+            }
+        });
+    }
+
+    /// What the G-buffer stores for a pixel whose centre ray (direction `dir`, unit view
+    /// depth) sees `surface`: the one definition both the traced and the rasterised pass use.
+    #[inline]
+    pub(super) fn gbuffer_texel(&self, surface: Option<Surface>, dir: Vec3, camera: &CameraModel) -> GTexel {
+        let Some(s) = surface else { return GTexel::BACKGROUND };
+        // The ray has unit view depth, so t is the depth; the position is formed exactly as
+        // the compact layout rebuilds it.
+        let t = s.t();
+        let position = [0, 1, 2].map(|c| camera.centre[c] + t * dir[c]);
+        let (n, material) = match s {
+            Surface::Mesh(h) => {
+                let (_, shading_normal) = self.normals(&h, dir);
+                (shading_normal, self.scene.mesh.material[h.prim as usize])
+            }
+            Surface::Moving { normal, material, .. } => {
+                (if normal.dot(dir) > 0.0 { -normal } else { normal }, material)
+            }
+        };
+        GTexel { depth: t, position, normal: n.to_array(), oct: encode_normal(n.to_array()), material }
+    }
+}
+
+/// One pixel of a [`GBufferBuf`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct GTexel {
+    pub depth: f32,
+    pub position: [f32; 3],
+    pub normal: [f32; 3],
+    pub oct: u32,
+    pub material: u32,
+}
+
+impl GTexel {
+    /// No surface: infinite depth, NaN position and normal, no material.
+    pub const BACKGROUND: GTexel = GTexel {
+        depth: f32::INFINITY,
+        position: [f32::NAN; 3],
+        normal: [f32::NAN; 3],
+        oct: NO_NORMAL,
+        material: u32::MAX,
+    };
+}
+
+/// Eight texels of a row, plane by plane (see [`GRow::set_lanes`]).
+pub(crate) struct GLanes {
+    pub depth: F32s,
+    pub position: [F32s; 3],
+    pub normal: [F32s; 3],
+    pub oct: [u32; LANES],
+    pub material: [u32; LANES],
+}
+
+/// One row of every plane of a [`GBufferBuf`].
+pub(crate) struct GRow<'a> {
+    depth: &'a mut [f32],
+    position: [&'a mut [f32]; 3],
+    normal: [&'a mut [f32]; 3],
+    oct: &'a mut [u32],
+    material: &'a mut [u32],
+}
+
+impl GRow<'_> {
+    /// Eight texels from `x` on (lane `i` of each plane value is pixel `x + i`).
+    #[inline(always)]
+    pub(crate) fn set_lanes(&mut self, x: usize, lanes: &GLanes) {
+        let f = |dst: &mut [f32], v: &F32s| dst[x..x + LANES].copy_from_slice(&v.to_array());
+        f(self.depth, &lanes.depth);
+        for c in 0..3 {
+            f(self.position[c], &lanes.position[c]);
+            f(self.normal[c], &lanes.normal[c]);
+        }
+        self.oct[x..x + LANES].copy_from_slice(&lanes.oct);
+        self.material[x..x + LANES].copy_from_slice(&lanes.material);
+    }
+
+    /// [`GRow::set_lanes`] for the compact layout's planes only (depth, octahedral normal,
+    /// material).
+    #[inline(always)]
+    pub(crate) fn set_compact_lanes(&mut self, x: usize, lanes: &GLanes) {
+        self.depth[x..x + LANES].copy_from_slice(&lanes.depth.to_array());
+        self.oct[x..x + LANES].copy_from_slice(&lanes.oct);
+        self.material[x..x + LANES].copy_from_slice(&lanes.material);
+    }
+
+    #[inline(always)]
+    pub(crate) fn set(&mut self, x: usize, t: &GTexel) {
+        self.depth[x] = t.depth;
+        for c in 0..3 {
+            self.position[c][x] = t.position[c];
+            self.normal[c][x] = t.normal[c];
+        }
+        self.oct[x] = t.oct;
+        self.material[x] = t.material;
+    }
+}
+
+/// Runs `row` on every row of `out` in parallel, with that row of each plane.
+pub(crate) fn for_each_gbuffer_row<F>(out: &mut GBufferBuf, row: F)
+where
+    F: Fn(usize, GRow<'_>) + Sync + Send,
+{
+    let width = out.extent().width();
+    let GBufferBuf { depth, position: [px, py, pz], normal: [nx, ny, nz], normal_oct, material, .. } = out;
+    let rows = (
+        depth.as_mut_slice().par_chunks_mut(width),
+        px.as_mut_slice().par_chunks_mut(width),
+        py.as_mut_slice().par_chunks_mut(width),
+        pz.as_mut_slice().par_chunks_mut(width),
+        nx.as_mut_slice().par_chunks_mut(width),
+        ny.as_mut_slice().par_chunks_mut(width),
+        nz.as_mut_slice().par_chunks_mut(width),
+        normal_oct.as_mut_slice().par_chunks_mut(width),
+        material.as_mut_slice().par_chunks_mut(width),
+    );
+    rows.into_par_iter().enumerate().for_each(|(y, (d, px, py, pz, nx, ny, nz, oct, mat))| {
+        row(y, GRow { depth: d, position: [px, py, pz], normal: [nx, ny, nz], oct, material: mat })
+    });
+}
