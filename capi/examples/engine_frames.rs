@@ -15,6 +15,10 @@
 //! cargo run --release -p stereotrace-capi --example engine_frames -- [FRAMES] [THREADS]
 //! ```
 
+// These call the C ABI on pointers made a few lines before each call, as a C caller would;
+// what each call requires is its documentation in the header.
+#![allow(clippy::undocumented_unsafe_blocks)]
+
 use std::ffi::c_void;
 use std::time::Instant;
 

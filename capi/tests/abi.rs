@@ -2,6 +2,10 @@
 //! on a scene with depth discontinuities and background), and refuses what it must refuse
 //! without writing anything.
 
+// These call the C ABI on pointers made a few lines before each call, as a C caller would;
+// what each call requires is its documentation in the header.
+#![allow(clippy::undocumented_unsafe_blocks)]
+
 use glam::{Mat4, Vec3};
 use stereotrace_capi::*;
 use stereotrace_kernels::accumulate::{self, EmaInput, EmaParams, EmaState};

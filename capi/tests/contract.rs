@@ -7,6 +7,10 @@
 //! - cases the header documents as accepted (frame numbers in any order, swapped eyes, eyes
 //!   far apart, both eyes at one camera) do what it says.
 
+// These call the C ABI on pointers made a few lines before each call, as a C caller would;
+// what each call requires is its documentation in the header.
+#![allow(clippy::undocumented_unsafe_blocks)]
+
 mod common;
 
 use common::{RoomEngine, camera, expect, model, outputs, room_pipeline, room_pipeline_with};

@@ -2,6 +2,10 @@
 //! same value, and validation refuses exactly past it: the value at each limit is accepted,
 //! the next one refused with a message naming the limit.
 
+// These call the C ABI on pointers made a few lines before each call, as a C caller would;
+// what each call requires is its documentation in the header.
+#![allow(clippy::undocumented_unsafe_blocks)]
+
 mod common;
 
 use common::{RoomEngine, camera, expect};

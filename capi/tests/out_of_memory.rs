@@ -4,6 +4,10 @@
 //! such a pipeline cannot be allocated: every create returns `ST_STATUS_OUT_OF_MEMORY`, and the
 //! process goes on to build and render a small pipeline.
 
+// These call the C ABI on pointers made a few lines before each call, as a C caller would;
+// what each call requires is its documentation in the header.
+#![allow(clippy::undocumented_unsafe_blocks)]
+
 mod common;
 
 use std::process::Command;

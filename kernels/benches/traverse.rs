@@ -16,23 +16,25 @@
 //! Throughput is in rays (criterion's "elem/s"). Rays are generated outside the timed loop
 //! from fixed seeds; one iteration traces a whole frame of them.
 //!
-//! Run: `cargo bench --bench traversal -- --warm-up-time 1 --measurement-time 3`, with
-//! `--features peer-embree` for the Embree rows. To attribute a gap: `STEREOTRACE_BENCH_BVH`
-//! = `fast`, `medium` (default) or `high` sets our tree's build quality, and `EMBREE_ROBUST=1`
-//! puts Embree in its robust mode (watertight triangle tests, like ours)
-//! (add a filter such as `sponza/primary` to pick groups; `threshold` sweeps the packet
-//! single-ray fallback threshold).
+//! Run: `cargo bench -p stereotrace-kernels --bench traverse -- --warm-up-time 1
+//! --measurement-time 3`, with `--features peer-embree` for the Embree rows (add a filter
+//! such as `sponza/primary` to pick groups; `threshold` sweeps the packet single-ray fallback
+//! threshold). To attribute a gap: `STEREOTRACE_BENCH_BVH` = `fast`, `medium`, `high` or
+//! `sah` sets our tree's build quality (default: the renderer's, `BuildQuality::default()`),
+//! and `EMBREE_ROBUST=1` puts Embree in its robust mode (watertight triangle tests, like ours).
 //!
-//! Tree quality: `STEREOTRACE_BENCH_TREES=1 cargo bench --bench traversal -- tree` builds one
-//! tree per obvhs parameter set of `tree_settings` on each scene (three builds, the median
-//! build time printed with the tree's size and depth) and traces the same single rays
-//! (primary, shadow, diffuse) through it, in groups `traversal/{scene}/tree/{setting}`. It is
-//! off by default: the builds take minutes whatever criterion's filter selects.
+//! Tree quality: `STEREOTRACE_BENCH_TREES=1 cargo bench -p stereotrace-kernels --bench
+//! traverse -- tree` builds one tree per obvhs parameter set of `tree_settings` on each scene
+//! (three builds, the median build time printed with the tree's size and depth) and traces
+//! the same single rays (primary, shadow, diffuse) through it, in groups
+//! `traversal/{scene}/tree/{setting}`. It is off by default: the builds take minutes whatever
+//! criterion's filter selects.
 //!
-//! Attribution: `STEREOTRACE_BENCH_ATTRIBUTION=1 cargo bench --bench traversal --features
-//! peer-embree -- attribution` prints, per scene and ray kind, what the single-ray traversal
-//! does per ray (nodes, boxes, leaves, triangles) and the tree's SAH cost beside other
-//! builders' trees of the same triangles (Embree's with spatial splits among them).
+//! Attribution: `STEREOTRACE_BENCH_ATTRIBUTION=1 cargo bench -p stereotrace-kernels --bench
+//! traverse --features peer-embree -- attribution` prints, per scene and ray kind, what the
+//! single-ray traversal does per ray (nodes, boxes, leaves, triangles) and the tree's SAH
+//! cost beside other builders' trees of the same triangles (Embree's with spatial splits
+//! among them).
 
 use std::hint::black_box;
 use std::path::{Path, PathBuf};

@@ -149,7 +149,7 @@ impl SurfaceLayout for GBuffer<'_> {
 
     #[inline(always)]
     unsafe fn surfels_row_unchecked(&self, x: usize, y: usize) -> Surfels {
-        // SAFETY (all loads): every plane has the G-buffer's extent (checked by `new`) and
+        // SAFETY: (all loads) every plane has the G-buffer's extent (checked by `new`) and
         // the caller keeps the lanes inside it.
         unsafe {
             Surfels {

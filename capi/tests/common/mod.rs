@@ -2,6 +2,9 @@
 //! analytic room (closed-form G-buffers) whose "path-traced" samples are its texture times
 //! a deterministic noise, for tests of the callback pipeline.
 
+// These call the C ABI on pointers made a few lines before each call, as a C caller would;
+// what each call requires is its documentation in the header.
+#![allow(clippy::undocumented_unsafe_blocks)]
 #![allow(dead_code)]
 
 use std::ffi::{CStr, c_void};

@@ -513,25 +513,30 @@ fn coherent_taps<L: SurfaceLayout, const C: usize>(
             continue;
         }
         let y = y0 + r;
-        // SAFETY (all `source_lanes` and channel loads below): `coherent_row` returned
+        // Bounds (for every `source_lanes` and channel load below): `coherent_row` returned
         // (x0, y0) only with x0 + LANES < width and y0 + 1 < height of the source extent,
         // and the x0 + LANES (next vector) decode is guarded by its own bounds test.
         if slot.x != x0 || slot.y != y {
+            // SAFETY: (x0, y) is within the source as above.
             *slot = SourceCache { x: x0, y, lanes: unsafe { source_lanes::<L, C>(p, x0, y) } };
         }
         if p0.any() {
+            // SAFETY: as above; every channel has the source's extent (checked in `prepare`).
             let values = unsafe { core::array::from_fn(|c| F32s::from(p.channels[c].lanes_unchecked::<LANES>(x0, y))) };
             tap_test(p, t, &slot.lanes, values, w0, p0, depth_tolerance, &mut acc);
         }
         if p1.any() {
             let b = if x0 + 2 * LANES <= width {
+                // SAFETY: x0 + 2·LANES <= width (the test above) and y as above.
                 let next = unsafe { source_lanes::<L, C>(p, x0 + LANES, y) };
                 let b = slot.lanes.shifted(&next);
                 *slot = SourceCache { x: x0 + LANES, y, lanes: next };
                 b
             } else {
+                // SAFETY: x0 + LANES < width (`coherent_row`), so x0 + 1 + LANES <= width.
                 unsafe { source_lanes::<L, C>(p, x0 + 1, y) }
             };
+            // SAFETY: as for the decode above; the channels share the source's extent.
             let values =
                 unsafe { core::array::from_fn(|c| F32s::from(p.channels[c].lanes_unchecked::<LANES>(x0 + 1, y))) };
             tap_test(p, t, &b, values, w1, p1, depth_tolerance, &mut acc);
