@@ -53,6 +53,10 @@ pub fn write_exr(path: &Path, img: &RgbBuf) -> Result<(), ImageError> {
         .map_err(|err| ImageError::new(path, format!("cannot write EXR: {err}")))
 }
 
+/// The largest EXR tile accepted beyond the layer's own size, in pixels (a 256×256 tile;
+/// writers use 16–256 pixels a side, ours 64).
+pub const MAX_EXR_TILE_PIXELS: usize = 256 * 256;
+
 /// The extent of an EXR's first layer, read from its header alone, after checking every
 /// layer's size against the frame bounds. Readers call this before the decoder allocates: a
 /// 28 KB file can claim 65536×65536 pixels, and the decoder would try to allocate them all.
@@ -64,6 +68,23 @@ pub fn exr_extent(path: &Path) -> Result<Extent, ImageError> {
         let size = header.layer_size;
         let extent = Extent::new(size.width(), size.height())
             .map_err(|err| ImageError::new(path, format!("EXR layer refused before reading its pixels: {err}")))?;
+        // The decoder allocates a whole tile per block, whatever the layer's size: a 4×3
+        // image whose header claims 64×4,194,304-pixel tiles took 2 GB (a fuzz finding).
+        if let exr::meta::BlockDescription::Tiles(tiles) = &header.blocks {
+            let tile = tiles.tile_size;
+            if tile.width().saturating_mul(tile.height()) > extent.pixels().max(MAX_EXR_TILE_PIXELS) {
+                return Err(ImageError::new(
+                    path,
+                    format!(
+                        "EXR tiles of {}x{} pixels refused for a {}x{} layer (tiles may exceed the layer only up to {MAX_EXR_TILE_PIXELS} pixels)",
+                        tile.width(),
+                        tile.height(),
+                        size.width(),
+                        size.height()
+                    ),
+                ));
+            }
+        }
         first.get_or_insert(extent);
     }
     first.ok_or_else(|| ImageError::new(path, "EXR file has no layer"))
@@ -137,6 +158,19 @@ mod tests {
         let err = read_exr(&dir.join("missing.exr")).unwrap_err();
         assert!(err.to_string().contains("missing.exr"), "{err}");
         std::fs::remove_dir_all(&dir).ok();
+    }
+
+    /// A header claiming tiles far larger than its layer is refused before the decoder
+    /// allocates them (the fuzz input took 2 GB before the check).
+    #[test]
+    fn huge_tiles_are_refused_from_the_header() {
+        // The fuzz input's first byte picks the reader; the file is the rest.
+        let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fuzz/corpus/image/oom-huge-tiles-on-a-4x3-layer");
+        let path = std::env::temp_dir().join(format!("stereotrace-huge-tiles-{}.exr", std::process::id()));
+        std::fs::write(&path, &std::fs::read(&input).unwrap()[1..]).unwrap();
+        let err = read_exr(&path).unwrap_err();
+        std::fs::remove_file(&path).unwrap();
+        assert!(err.message.contains("EXR tiles of 64x4194304 pixels refused for a 4x3 layer"), "{}", err.message);
     }
 
     /// The same image always gives the same bytes (the encoder compresses tiles in parallel;
