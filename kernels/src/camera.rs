@@ -218,6 +218,12 @@ impl CameraPose {
     pub fn offset_right(&self, offset: f32) -> Self {
         Self { eye: self.eye + self.right * offset, ..*self }
     }
+
+    /// An eye of a parallel stereo rig `separation` wide on this head pose: the left one for
+    /// `side` −1, the right one for +1 (moved by `side · separation / 2` along `right`).
+    pub fn stereo_eye(&self, side: f32, separation: f32) -> Self {
+        self.offset_right(side * 0.5 * separation)
+    }
 }
 
 /// Near and far planes of the projection. Only the x, y and w rows matter to the kernels,
@@ -231,6 +237,15 @@ impl CameraModel {
     pub fn from_pose(pose: &CameraPose, extent: Extent) -> Result<Self, FrameError> {
         let aspect = extent.width() as f32 / extent.height() as f32;
         Self::from_f64(pose.view_proj(aspect, NEAR, FAR), extent)
+    }
+
+    /// The left and right eyes' cameras of a parallel stereo rig `separation` wide on `head`
+    /// ([`CameraPose::stereo_eye`]).
+    pub fn stereo_pair(head: &CameraPose, separation: f32, extent: Extent) -> Result<[Self; 2], FrameError> {
+        Ok([
+            Self::from_pose(&head.stereo_eye(-1.0, separation), extent)?,
+            Self::from_pose(&head.stereo_eye(1.0, separation), extent)?,
+        ])
     }
 }
 

@@ -25,7 +25,7 @@ const SEPARATION: f32 = 0.065;
 
 /// The left and right eyes' cameras of a parallel rig `separation` wide on `head`.
 fn eye_cameras(head: &CameraPose, separation: f32, extent: Extent) -> [CameraModel; 2] {
-    [-1.0f32, 1.0].map(|sign| CameraModel::from_pose(&head.offset_right(sign * 0.5 * separation), extent).unwrap())
+    CameraModel::stereo_pair(head, separation, extent).unwrap()
 }
 
 fn pose(eye: Vec3, target: Vec3) -> CameraPose {

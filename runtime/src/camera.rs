@@ -89,7 +89,7 @@ impl StereoRig {
 
     /// The pose of `eye` for the head pose `head`.
     pub fn eye_pose(&self, head: &CameraPose, eye: Eye) -> CameraPose {
-        head.offset_right(eye.sign() * 0.5 * self.separation)
+        head.stereo_eye(eye.sign(), self.separation)
     }
 
     /// The camera of `eye` for `head` at `extent`.

@@ -254,10 +254,8 @@ fn raster_case(data: &[u8]) -> Option<RasterCase> {
     let n = usize::from(bytes.u8() % 25);
     let tris: Vec<TriVerts> =
         (0..n).map(|_| core::array::from_fn(|_| coordinate(&mut bytes, scale, RASTER_FUZZ_EXTENT))).collect();
-    // The stereo rig's eyes: ±half the separation along the head's right vector.
-    let [left, right] =
-        [-1.0f32, 1.0].map(|sign| CameraModel::from_pose(&head.offset_right(sign * 0.5 * separation), extent));
-    Some(RasterCase { extent, head, separation, tris, left: left.ok()?, right: right.ok()? })
+    let [left, right] = CameraModel::stereo_pair(&head, separation, extent).ok()?;
+    Some(RasterCase { extent, head, separation, tris, left, right })
 }
 
 /// Fuzzes the stereo rasteriser: up to 24 triangles around a camera (the grid puts many
