@@ -15,7 +15,7 @@ use glam::{Vec2, Vec3};
 use super::spawn::{ShadowTarget, barycentric_point};
 use crate::scene::light::sample_triangle;
 use crate::scene::sampling::luminance;
-use crate::scene::{Environment, MovingShape, Scene, SunLight};
+use crate::scene::{Environment, MovingShape, Scene, SpotCone, SunLight};
 
 /// The material id stored for pixels showing a moving light.
 pub const MOVING_LIGHT_MATERIAL: u32 = u32::MAX - 1;
@@ -38,8 +38,10 @@ pub enum LightRecord {
     Point {
         /// Its position.
         position: Vec3,
-        /// Radiant intensity (W/sr per channel).
+        /// Radiant intensity (W/sr per channel), on the axis for a spot light.
         intensity: Vec3,
+        /// A spot light's cone.
+        spot: Option<SpotCone>,
     },
     /// A sun: a distant disc of a given angular radius.
     Sun(SunLight),
@@ -117,7 +119,7 @@ impl FrameLights {
             self.push_triangle(mesh.positions[tri as usize], emission);
         }
         for p in &scene.lights.points {
-            self.records.push(LightRecord::Point { position: p.position, intensity: p.intensity });
+            self.records.push(LightRecord::Point { position: p.position, intensity: p.intensity, spot: p.spot });
         }
         let previous_frame = self.last_frame.unwrap_or(frame);
         self.last_frame = Some(frame);
@@ -125,9 +127,11 @@ impl FrameLights {
             let transform = m.path.transform(frame as f32);
             let previous = m.path.transform(previous_frame as f32);
             match &m.shape {
-                MovingShape::Point { intensity } => self
-                    .records
-                    .push(LightRecord::Point { position: transform.translation.into(), intensity: *intensity }),
+                MovingShape::Point { intensity } => self.records.push(LightRecord::Point {
+                    position: transform.translation.into(),
+                    intensity: *intensity,
+                    spot: None,
+                }),
                 MovingShape::Area { triangles, radiance } => {
                     for t in triangles {
                         let v = t.map(|p| transform.transform_point3(p));
@@ -265,15 +269,26 @@ impl FrameLights {
                 let target = ShadowTarget::Surface { point: q, error, normal };
                 Some(LightSample { wi, distance: dist, radiance, pdf, target })
             }
-            LightRecord::Point { position, intensity } => {
+            LightRecord::Point { position, intensity, spot } => {
                 let d = position - p;
                 let dist2 = d.length_squared();
                 if !(dist2 > 0.0) {
                     return None;
                 }
                 let dist = dist2.sqrt();
+                let wi = d / dist;
+                let radiance = match spot {
+                    None => intensity / dist2,
+                    Some(cone) => {
+                        let falloff = cone.falloff(-wi);
+                        if !(falloff > 0.0) {
+                            return None;
+                        }
+                        intensity * falloff / dist2
+                    }
+                };
                 let target = ShadowTarget::Point(position);
-                Some(LightSample { wi: d / dist, distance: dist, radiance: intensity / dist2, pdf: pick, target })
+                Some(LightSample { wi, distance: dist, radiance, pdf: pick, target })
             }
             LightRecord::Sun(sun) => {
                 let (wi, pdf) = sun.sample(u);

@@ -37,7 +37,8 @@ pub fn write_builtin_table(out: &mut dyn Write) -> io::Result<()> {
     }
     writeln!(
         out,
-        "\nAlso accepted by --scene: a manifest (*.toml, paths relative to it) or a scene folder (scene.obj, camera.json, lights.json)."
+        "\nAlso accepted by --scene: a manifest (*.toml, paths relative to it), a glTF 2.0 file (*.gltf, *.glb) or a \
+         scene folder (scene.obj or scene.glb, camera.json, lights.json)."
     )
 }
 
@@ -57,8 +58,25 @@ pub fn run(specs: &[String], out: &mut dyn Write) -> Result<(), CommandError> {
         for w in &scene.warnings {
             writeln!(out, "  warning: {w}")?;
         }
+        if reads_gltf(&scene) {
+            for line in super::gltf_file::MATERIAL_RULES.lines() {
+                writeln!(out, "  {line}")?;
+            }
+        }
     }
     Ok(())
+}
+
+/// True when the scene's mesh came from a glTF file (directly, in a folder, or a manifest's).
+fn reads_gltf(scene: &Scene) -> bool {
+    use super::folder::{is_gltf, scene_file};
+    use super::model::SceneSource;
+    match &scene.source {
+        SceneSource::File(p) => is_gltf(p),
+        SceneSource::Folder(dir) => scene_file(dir).is_some_and(|f| is_gltf(&f)),
+        SceneSource::Manifest(_) => scene.units.from == super::model::UnitsFrom::Gltf,
+        SceneSource::Builtin(_) => false,
+    }
 }
 
 /// What the default eye separation means in this scene: the stereo disparity in pixels, at

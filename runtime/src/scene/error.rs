@@ -89,8 +89,8 @@ pub enum SceneError {
     },
     /// `--scene` matched no built-in name, manifest or scene folder.
     #[error(
-        "unknown scene '{spec}': not a built-in scene, a manifest (*.toml) or a scene folder (with scene.obj); \
-         built-in scenes: {}",
+        "unknown scene '{spec}': not a built-in scene, a manifest (*.toml), a glTF file (*.gltf, *.glb) or a \
+         scene folder (with scene.obj, scene.glb or scene.gltf); built-in scenes: {}",
         .builtins.join(", ")
     )]
     UnknownScene {

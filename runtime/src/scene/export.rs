@@ -103,7 +103,17 @@ pub fn export_folder(scene: &Scene, dir: &Path) -> Result<ExportSummary, SceneEr
         .lights
         .points
         .iter()
-        .map(|p| json!({"type": "point", "position": p.position.to_array(), "intensity": p.intensity.to_array()}))
+        .map(|p| match &p.spot {
+            None => json!({"type": "point", "position": p.position.to_array(), "intensity": p.intensity.to_array()}),
+            Some(cone) => json!({
+                "type": "spot",
+                "position": p.position.to_array(),
+                "intensity": p.intensity.to_array(),
+                "direction": cone.direction.to_array(),
+                "inner_cone_deg": cone.cos_inner.clamp(-1.0, 1.0).acos().to_degrees(),
+                "outer_cone_deg": cone.cos_outer.clamp(-1.0, 1.0).acos().to_degrees(),
+            }),
+        })
         .collect();
     let mut mtl_frozen = String::new();
     for (k, light) in scene.lights.moving.iter().enumerate() {

@@ -33,7 +33,8 @@
 //!   classroom's 25° sun elevation and a well-exposed interior at exposure 1.
 //! - `constant`: a constant environment.
 //! - Extensions (not in the shared scenes, accepted for hand-written folders): `point`
-//!   (`position`, `intensity`), `sun` (`direction`, `irradiance`, `angular_radius_deg`),
+//!   (`position`, `intensity`), `spot` (`position`, `intensity`, `direction`,
+//!   `inner_cone_deg` = 0, `outer_cone_deg` = 45: glTF's cone and falloff), `sun` (`direction`, `irradiance`, `angular_radius_deg`),
 //!   `sky` (`zenith`, `horizon`, `ground`).
 //!
 //! A folder without `lights.json` is fine if its MTL has emitters; `camera.json` is required.
@@ -46,10 +47,11 @@ use serde::Deserialize;
 use super::effects::EffectSet;
 use super::envmap::EnvMap;
 use super::error::{Location, SceneError};
-use super::light::{Environment, Lights, PointLight, SkyGradient, SunLight};
+use super::gltf_file::load_gltf;
+use super::light::{Environment, Lights, PointLight, SkyGradient, SpotCone, SunLight};
 use super::mesh::Mesh;
 use super::model::{Scene, SceneSource, SceneTolerances, Units, UnitsFrom};
-use super::obj::{GlassMode, ObjData, ObjOptions, load_obj};
+use super::obj::{GlassMode, MeshData, ObjOptions, load_obj};
 use super::path::{CameraKey, CameraPath, DEFAULT_FRAMES};
 
 /// Mitsuba's apparent sun radius in degrees (half its 0.5358° diameter).
@@ -181,6 +183,21 @@ pub enum LightJson {
         /// Radiant intensity.
         intensity: [f32; 3],
     },
+    /// A spot light (extension): a point light with glTF's cone and falloff.
+    Spot {
+        /// Position (scaled with the geometry).
+        position: [f32; 3],
+        /// Radiant intensity on the axis.
+        intensity: [f32; 3],
+        /// Direction the light points to.
+        direction: [f32; 3],
+        /// Inner cone angle in degrees (full intensity within it).
+        #[serde(default)]
+        inner_cone_deg: f32,
+        /// Outer cone angle in degrees (no light beyond it).
+        #[serde(default = "spot_outer")]
+        outer_cone_deg: f32,
+    },
     /// A directional sun (extension).
     Sun {
         /// Unit vector towards the sun.
@@ -207,6 +224,9 @@ fn one() -> f32 {
 }
 fn ground_albedo() -> f32 {
     0.15
+}
+fn spot_outer() -> f32 {
+    45.0
 }
 fn sun_radius() -> f32 {
     SUN_RADIUS_DEG
@@ -320,7 +340,7 @@ pub(crate) fn apply_light_json(
     json_path: &Path,
     dir: &Path,
     scale: f32,
-    obj: &ObjData,
+    obj: &MeshData,
     lights: &mut Lights,
     warnings: &mut Vec<String>,
 ) -> Result<(), SceneError> {
@@ -382,9 +402,19 @@ pub(crate) fn apply_light_json(
                 lights.environment = Some(Environment::Sky(sky));
             }
             LightJson::Constant { radiance } => lights.environment = Some(Environment::Constant(Vec3::from(*radiance))),
-            LightJson::Point { position, intensity } => lights
-                .points
-                .push(PointLight { position: Vec3::from(*position) * scale, intensity: Vec3::from(*intensity) }),
+            LightJson::Point { position, intensity } => {
+                lights.points.push(PointLight::isotropic(Vec3::from(*position) * scale, Vec3::from(*intensity)))
+            }
+            LightJson::Spot { position, intensity, direction, inner_cone_deg, outer_cone_deg } => {
+                let cone =
+                    SpotCone::new(Vec3::from(*direction), inner_cone_deg.to_radians(), outer_cone_deg.to_radians())
+                        .map_err(|m| bad(i, m))?;
+                lights.points.push(PointLight {
+                    position: Vec3::from(*position) * scale,
+                    intensity: Vec3::from(*intensity),
+                    spot: Some(cone),
+                })
+            }
             LightJson::Sun { direction, irradiance, angular_radius_deg } => {
                 lights.sun = Some(SunLight {
                     direction: Vec3::from(*direction).normalize_or_zero(),
@@ -522,23 +552,40 @@ fn paper_scene(folder: &str) -> Option<&'static str> {
 
 /// The parts of a folder a manifest builds on.
 pub(crate) struct FolderParts {
-    pub obj: ObjData,
+    /// Triangles, materials and textures, in metres.
+    pub geometry: MeshData,
+    /// What `path_around` multiplies the camera by: the mesh file's unit in metres.
     pub scale: f32,
     pub units: Units,
+    /// The camera (glTF's own, else `camera.json`'s), in the mesh file's units.
     pub camera: Option<(PathBuf, CameraJson)>,
     pub lights: Lights,
     pub warnings: Vec<String>,
 }
 
-/// Loads the OBJ at `obj_path` plus `camera.json` / `lights.json` / `SOURCE.md` beside it
-/// when present (`with_lights = false` ignores lights.json).
+/// True for a `.gltf` or `.glb` path.
+pub fn is_gltf(path: &Path) -> bool {
+    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb"))
+}
+
+/// The scene file of a folder: `scene.obj`, else `scene.glb`, else `scene.gltf`.
+pub fn scene_file(dir: &Path) -> Option<PathBuf> {
+    ["scene.obj", "scene.glb", "scene.gltf"].into_iter().map(|name| dir.join(name)).find(|p| p.is_file())
+}
+
+/// Loads the mesh file at `mesh_path` (OBJ or glTF) plus `camera.json` / `lights.json` /
+/// `SOURCE.md` beside it when present (`with_lights = false` ignores lights.json).
+///
+/// Beside a glTF file, which is in metres, `camera.json` and `lights.json` are in
+/// `camera.json`'s own `meters_per_unit` (metres when absent), and a camera in the glTF file
+/// wins over `camera.json`.
 pub(crate) fn load_parts(
-    obj_path: &Path,
+    mesh_path: &Path,
     scale: Option<f32>,
     glass: GlassMode,
     with_lights: bool,
 ) -> Result<FolderParts, SceneError> {
-    let dir = obj_path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let dir = mesh_path.parent().map(Path::to_path_buf).unwrap_or_default();
     let camera_path = dir.join("camera.json");
     let camera = if camera_path.is_file() {
         let c: CameraJson = read_json(&camera_path)?;
@@ -547,19 +594,55 @@ pub(crate) fn load_parts(
     } else {
         None
     };
-    let mut unit_warnings = Vec::new();
-    let units = folder_units(scale, camera.as_ref().map(|c| &c.1), &dir, &mut unit_warnings);
-    let scale = units.meters_per_unit;
-    let obj = load_obj(obj_path, &ObjOptions { scale, glass })?;
-    let mut warnings = unit_warnings;
-    warnings.extend(obj.warnings.iter().cloned());
-    let mut lights = Lights::default();
     let lights_path = dir.join("lights.json");
-    if with_lights && lights_path.is_file() {
-        let entries = read_lights(&lights_path)?;
-        apply_light_json(&entries, &lights_path, &dir, scale, &obj, &mut lights, &mut warnings)?;
+    let light_entries = if with_lights && lights_path.is_file() { Some(read_lights(&lights_path)?) } else { None };
+    let mut warnings = Vec::new();
+    if is_gltf(mesh_path) {
+        let units = match scale {
+            Some(m) => Units { meters_per_unit: m, from: UnitsFrom::Manifest },
+            None => Units { meters_per_unit: 1.0, from: UnitsFrom::Gltf },
+        };
+        let data = load_gltf(mesh_path, units.meters_per_unit)?;
+        warnings.extend(data.geometry.warnings.iter().cloned());
+        let sidecar_scale = camera.as_ref().and_then(|c| c.1.meters_per_unit).unwrap_or(1.0);
+        let camera = match (data.camera, camera) {
+            (Some(own), sidecar) => {
+                if let Some((p, _)) = sidecar {
+                    warnings.push(format!("{}: not used: {} has its own camera", p.display(), mesh_path.display()));
+                }
+                Some((mesh_path.to_path_buf(), own))
+            }
+            (None, Some((p, mut c))) => {
+                // In the glTF file's units, which `path_around` scales to metres.
+                let to_file_units = sidecar_scale / units.meters_per_unit;
+                c.eye = (Vec3::from(c.eye) * to_file_units).into();
+                c.target = (Vec3::from(c.target) * to_file_units).into();
+                Some((p, c))
+            }
+            (None, None) => None,
+        };
+        let mut lights = data.lights;
+        if let Some(entries) = &light_entries {
+            apply_light_json(entries, &lights_path, &dir, sidecar_scale, &data.geometry, &mut lights, &mut warnings)?;
+        }
+        return Ok(FolderParts {
+            geometry: data.geometry,
+            scale: units.meters_per_unit,
+            units,
+            camera,
+            lights,
+            warnings,
+        });
     }
-    Ok(FolderParts { obj, scale, units, camera, lights, warnings })
+    let units = folder_units(scale, camera.as_ref().map(|c| &c.1), &dir, &mut warnings);
+    let scale = units.meters_per_unit;
+    let geometry = load_obj(mesh_path, &ObjOptions { scale, glass })?;
+    warnings.extend(geometry.warnings.iter().cloned());
+    let mut lights = Lights::default();
+    if let Some(entries) = &light_entries {
+        apply_light_json(entries, &lights_path, &dir, scale, &geometry, &mut lights, &mut warnings)?;
+    }
+    Ok(FolderParts { geometry, scale, units, camera, lights, warnings })
 }
 
 /// The name a scene folder's scene gets: the folder's own name (after resolving `.` and `..`).
@@ -571,43 +654,91 @@ pub fn folder_name(dir: &Path) -> String {
         .unwrap_or_else(|| "scene".into())
 }
 
-/// Loads a scene folder (see the module notes).
-pub fn load_folder(dir: &Path, options: &FolderOptions) -> Result<Scene, SceneError> {
-    let obj_path = dir.join("scene.obj");
-    if !obj_path.is_file() {
-        return Err(SceneError::io(
-            &obj_path,
-            std::io::Error::new(std::io::ErrorKind::NotFound, "no scene.obj in the folder"),
-        ));
+/// The name a scene file's scene gets: its stem, or its folder's name for `scene.*`.
+pub fn file_scene_name(file: &Path) -> String {
+    match file.file_stem().map(|s| s.to_string_lossy().into_owned()) {
+        Some(stem) if stem != "scene" => stem,
+        _ => folder_name(file.parent().unwrap_or(Path::new("."))),
     }
-    let parts = load_parts(&obj_path, options.scale, options.glass, true)?;
-    let Some((camera_path, cam)) = parts.camera else {
+}
+
+/// A camera that frames the whole mesh (in file units: `mesh` is in metres, `scale` is
+/// metres per file unit), for a glTF file with no camera of its own and no `camera.json`:
+/// looking down -Z at the bounds' centre from slightly above, the bounding sphere filling a
+/// 45° field of view.
+fn framing_camera(mesh: &Mesh, scale: f32) -> CameraJson {
+    let bounds = mesh.bounds();
+    let centre = bounds.centre() / scale;
+    let radius = (0.5 * bounds.extent().length() / scale).max(1e-3);
+    let vfov_deg: f32 = 45.0;
+    let distance = radius / (0.5 * vfov_deg).to_radians().sin();
+    let eye = centre + Vec3::new(0.0, 0.25, 1.0).normalize() * distance;
+    CameraJson {
+        eye: eye.into(),
+        target: centre.into(),
+        up: [0.0, 1.0, 0.0],
+        vfov_deg,
+        width: None,
+        height: None,
+        meters_per_unit: None,
+    }
+}
+
+/// Loads a scene folder (see the module notes): its `scene.obj`, `scene.glb` or `scene.gltf`.
+pub fn load_folder(dir: &Path, options: &FolderOptions) -> Result<Scene, SceneError> {
+    let Some(file) = scene_file(dir) else {
         return Err(SceneError::io(
-            &dir.join("camera.json"),
-            std::io::Error::new(std::io::ErrorKind::NotFound, "camera.json is required in a scene folder"),
+            &dir.join("scene.obj"),
+            std::io::Error::new(std::io::ErrorKind::NotFound, "no scene.obj, scene.glb or scene.gltf in the folder"),
         ));
     };
-    let size = robust_size(&parts.obj.mesh);
+    load_scene_file(&file, options)
+}
+
+/// Loads a scene file (OBJ or glTF) with the `camera.json`, `lights.json` and `SOURCE.md`
+/// beside it. An OBJ needs `camera.json`; a glTF file without a camera of either kind gets
+/// one that frames it ([`framing_camera`]), with a warning.
+pub fn load_scene_file(file: &Path, options: &FolderOptions) -> Result<Scene, SceneError> {
+    let dir = file.parent().map(Path::to_path_buf).unwrap_or_default();
+    let mut parts = load_parts(file, options.scale, options.glass, true)?;
+    let (camera_path, cam) = match parts.camera.take() {
+        Some(camera) => camera,
+        None if is_gltf(file) => {
+            parts.warnings.push(format!(
+                "{}: no camera in the file and no camera.json beside it: a camera framing the scene is used",
+                file.display()
+            ));
+            (file.to_path_buf(), framing_camera(&parts.geometry.mesh, parts.scale))
+        }
+        None => {
+            return Err(SceneError::io(
+                &dir.join("camera.json"),
+                std::io::Error::new(std::io::ErrorKind::NotFound, "camera.json is required in a scene folder"),
+            ));
+        }
+    };
+    let size = robust_size(&parts.geometry.mesh);
     let camera =
         path_around(&cam, parts.scale, size, options.frames).map_err(|m| SceneError::invalid(&camera_path, m))?;
-    let folder = folder_name(dir);
-    let paper = paper_scene(&folder);
+    let name = file_scene_name(file);
+    let paper = paper_scene(&name);
     let title = std::fs::read_to_string(dir.join("SOURCE.md"))
         .ok()
         .and_then(|t| t.lines().next().and_then(|l| l.strip_prefix("# ")).map(str::to_owned));
     let display_name = match (paper, &title) {
-        (Some(p), _) => format!("{p} ({folder}, loaded)"),
+        (Some(p), _) => format!("{p} ({name}, loaded)"),
         (None, Some(t)) => t.clone(),
-        (None, None) => folder.clone(),
+        (None, None) => name.clone(),
     };
+    let source = if is_gltf(file) { SceneSource::File(file.to_path_buf()) } else { SceneSource::Folder(dir) };
     let mut scene = Scene {
-        name: folder,
+        name,
         display_name,
         paper_scene: paper.map(str::to_owned),
-        source: SceneSource::Folder(dir.to_path_buf()),
-        mesh: parts.obj.mesh,
-        materials: parts.obj.materials,
-        textures: parts.obj.textures,
+        source,
+        mesh: parts.geometry.mesh,
+        materials: parts.geometry.materials,
+        textures: parts.geometry.textures,
         lights: parts.lights,
         moving_objects: Vec::new(),
         camera,

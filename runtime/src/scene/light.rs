@@ -20,19 +20,62 @@ use super::mesh::Mesh;
 use super::path::TransformPath;
 use super::sampling::{Distribution1D, cone_solid_angle, luminance, uniform_cone, uniform_sphere};
 
-/// An isotropic point light.
+/// A point light: isotropic, or a spot light when it has a [`SpotCone`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PointLight {
     /// Position (scene units).
     pub position: Vec3,
-    /// Radiant intensity (W/sr).
+    /// Radiant intensity (W/sr) on the axis (everywhere for an isotropic light).
     pub intensity: Vec3,
+    /// The cone of a spot light; `None` for an isotropic point light.
+    pub spot: Option<SpotCone>,
 }
 
 impl PointLight {
-    /// Emitted power, `4π I`.
+    /// An isotropic point light.
+    pub fn isotropic(position: Vec3, intensity: Vec3) -> Self {
+        Self { position, intensity, spot: None }
+    }
+
+    /// Emitted power if it were isotropic, `4π I` (an upper bound for a spot light, which is
+    /// what light selection needs).
     pub fn power(&self) -> Vec3 {
         self.intensity * (4.0 * PI)
+    }
+}
+
+/// The cone of a spot light, as glTF's `KHR_lights_punctual` defines one: full intensity
+/// within `inner` of the axis, none beyond `outer`, and between them the falloff the
+/// extension recommends, the square of a linear ramp in the cosine.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SpotCone {
+    /// Unit direction the light points to.
+    pub direction: Vec3,
+    /// Cosine of the inner cone angle.
+    pub cos_inner: f32,
+    /// Cosine of the outer cone angle.
+    pub cos_outer: f32,
+}
+
+impl SpotCone {
+    /// A cone around `direction` with angles (radians) `0 <= inner < outer <= π/2`, the
+    /// extension's rule.
+    pub fn new(direction: Vec3, inner: f32, outer: f32) -> Result<Self, String> {
+        let direction = direction.try_normalize().ok_or_else(|| format!("spot direction {direction} has no length"))?;
+        if !(inner >= 0.0 && inner < outer && outer <= std::f32::consts::FRAC_PI_2 + 1e-6) {
+            return Err(format!(
+                "spot cone angles inner {inner} and outer {outer} rad need 0 <= inner < outer <= pi/2"
+            ));
+        }
+        Ok(Self { direction, cos_inner: inner.cos(), cos_outer: outer.cos() })
+    }
+
+    /// The fraction of the axial intensity sent along unit direction `towards` (from the light).
+    #[inline]
+    pub fn falloff(&self, towards: Vec3) -> f32 {
+        let scale = 1.0 / (self.cos_inner - self.cos_outer).max(1e-3);
+        let ramp = ((self.direction.dot(towards) - self.cos_outer) * scale).clamp(0.0, 1.0);
+        ramp * ramp
     }
 }
 
@@ -294,7 +337,7 @@ impl MovingLight {
         let m = self.path.transform(frame);
         match &self.shape {
             MovingShape::Point { intensity } => {
-                PlacedLight::Point(PointLight { position: m.translation.into(), intensity: *intensity })
+                PlacedLight::Point(PointLight::isotropic(m.translation.into(), *intensity))
             }
             MovingShape::Area { triangles, radiance } => PlacedLight::Area {
                 triangles: triangles.iter().map(|t| t.map(|p| m.transform_point3(p))).collect(),
@@ -360,6 +403,16 @@ impl Lights {
                 return Err(format!("point light at {} has intensity {}", p.position, p.intensity));
             }
             check_emission(&format!("point light at {}: intensity", p.position), p.intensity)?;
+            if let Some(cone) = &p.spot {
+                let unit = (cone.direction.length() - 1.0).abs() < 1e-3;
+                let ordered = cone.cos_inner > cone.cos_outer && cone.cos_outer >= -1e-6 && cone.cos_inner <= 1.0;
+                if !(unit && ordered) {
+                    return Err(format!(
+                        "spot light at {}: cone {cone:?} is not a unit axis with 0 <= inner < outer <= 90 deg",
+                        p.position
+                    ));
+                }
+            }
         }
         if let Some(s) = &self.sun {
             if !ok(s.irradiance) {

@@ -4,7 +4,8 @@
 //! name = "sponza-moving-light"          # stable id (default: the file stem)
 //! display_name = "Sponza (Moving Light)"
 //! paper_scene = "Sponza (Moving Light)"
-//! mesh = "../../shared/scenes/sponza"   # an .obj, or a scene folder (its scene.obj);
+//! mesh = "../../shared/scenes/sponza"   # an .obj, .gltf or .glb, or a scene folder (its
+//!                                       # scene.obj, scene.glb or scene.gltf);
 //!                                       # RELATIVE TO THIS MANIFEST FILE
 //! meters_per_unit = 1.0                 # the mesh's unit in metres (alias: scale; default:
 //!                                       # camera.json's meters_per_unit, SOURCE.md's Units line)
@@ -72,7 +73,7 @@ use serde::Deserialize;
 use super::effects::{Effect, EffectSet};
 use super::envmap::EnvMap;
 use super::error::{Location, SceneError, line_column};
-use super::folder::{load_parts, path_around, robust_size};
+use super::folder::{load_parts, path_around, robust_size, scene_file};
 use super::light::Lights;
 use super::light::{Environment, MovingLight, MovingShape, PointLight, SkyGradient, SunLight};
 use super::material::{Material, MaterialKind};
@@ -363,7 +364,7 @@ pub fn load_manifest(path: &Path) -> Result<Scene, SceneError> {
     let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let mut mesh_path: PathBuf = base.join(&m.mesh);
     if mesh_path.is_dir() {
-        mesh_path = mesh_path.join("scene.obj");
+        mesh_path = scene_file(&mesh_path).unwrap_or_else(|| mesh_path.join("scene.obj"));
     }
     if !mesh_path.is_file() {
         return Err(bad(
@@ -390,9 +391,9 @@ pub fn load_manifest(path: &Path) -> Result<Scene, SceneError> {
     }
     let parts = load_parts(&mesh_path, unit.map(|u| u.1), glass, m.folder_lights.unwrap_or(true))?;
     let mut warnings = parts.warnings;
-    let mut mesh = parts.obj.mesh;
-    let mut materials = parts.obj.materials;
-    let textures = parts.obj.textures;
+    let mut mesh = parts.geometry.mesh;
+    let mut materials = parts.geometry.materials;
+    let textures = parts.geometry.textures;
     let mut lights = parts.lights;
     let frames = m.frames.unwrap_or(DEFAULT_FRAMES);
     // Checked here so that the message names the manifest's field, not camera.json.
@@ -455,7 +456,7 @@ pub fn load_manifest(path: &Path) -> Result<Scene, SceneError> {
         let key = format!("lights[{i}]");
         match l {
             LightToml::Point { position, intensity } => {
-                lights.points.push(PointLight { position: (*position).into(), intensity: (*intensity).into() })
+                lights.points.push(PointLight::isotropic((*position).into(), (*intensity).into()))
             }
             LightToml::MovingPoint { name, intensity, keys } => lights.moving.push(MovingLight {
                 name: name.clone().unwrap_or_else(|| key.clone()),

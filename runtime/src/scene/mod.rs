@@ -41,6 +41,7 @@ pub mod envmap;
 pub mod error;
 pub mod export;
 pub mod folder;
+pub mod gltf_file;
 pub mod light;
 pub mod manifest;
 pub mod material;
@@ -58,7 +59,7 @@ pub use effects::{Effect, EffectSet};
 pub use envmap::{EnvMap, EnvSample};
 pub use error::{Location, SceneError};
 pub use light::{
-    AreaLights, Environment, Lights, MovingLight, MovingShape, PlacedLight, PointLight, SkyGradient, SunLight,
+    AreaLights, Environment, Lights, MovingLight, MovingShape, PlacedLight, PointLight, SkyGradient, SpotCone, SunLight,
 };
 pub use material::{Material, MaterialKind};
 pub use mesh::{Aabb, Mesh};

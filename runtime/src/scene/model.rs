@@ -101,6 +101,8 @@ pub enum UnitsFrom {
     SourceMd,
     /// Nothing conclusive: metres assumed (with a warning).
     Assumed,
+    /// A glTF file: metres, by the specification.
+    Gltf,
 }
 
 impl Units {
@@ -116,6 +118,7 @@ impl std::fmt::Display for Units {
             UnitsFrom::Manifest => "manifest",
             UnitsFrom::SourceMd => "SOURCE.md Units line",
             UnitsFrom::Assumed => "assumed: nothing stated it",
+            UnitsFrom::Gltf => "glTF: metres by specification",
         };
         write!(f, "1 unit = {} m ({from})", self.meters_per_unit)
     }
@@ -130,6 +133,8 @@ pub enum SceneSource {
     Folder(PathBuf),
     /// A TOML manifest.
     Manifest(PathBuf),
+    /// A scene file given directly (glTF), with any `camera.json` / `lights.json` beside it.
+    File(PathBuf),
 }
 
 impl SceneSource {
@@ -137,7 +142,7 @@ impl SceneSource {
     pub fn path(&self) -> PathBuf {
         match self {
             Self::Builtin(n) => PathBuf::from(format!("builtin:{n}")),
-            Self::Folder(p) | Self::Manifest(p) => p.clone(),
+            Self::Folder(p) | Self::Manifest(p) | Self::File(p) => p.clone(),
         }
     }
 }
@@ -313,6 +318,10 @@ impl Scene {
         for p in &l.points {
             h.vec3(p.position);
             h.vec3(p.intensity);
+            if let Some(cone) = &p.spot {
+                h.vec3(cone.direction);
+                h.f32s(&[cone.cos_inner, cone.cos_outer]);
+            }
         }
         if let Some(s) = &l.sun {
             h.vec3(s.direction);
@@ -379,8 +388,12 @@ impl Scene {
         if !l.area.is_empty() {
             lights.push(format!("{} emissive triangles", l.area.len()));
         }
-        if !l.points.is_empty() {
-            lights.push(format!("{} point", l.points.len()));
+        let spots = l.points.iter().filter(|p| p.spot.is_some()).count();
+        if l.points.len() > spots {
+            lights.push(format!("{} point", l.points.len() - spots));
+        }
+        if spots > 0 {
+            lights.push(format!("{spots} spot"));
         }
         if let Some(s) = &l.sun {
             lights.push(format!("sun (radius {:.2} deg)", s.angular_radius_deg));

@@ -86,7 +86,7 @@ impl Default for ObjOptions {
 
 /// A loaded OBJ: geometry, materials and textures, ready for a [`Scene`](super::model::Scene).
 #[derive(Clone, Debug)]
-pub struct ObjData {
+pub struct MeshData {
     /// Triangles (scaled).
     pub mesh: Mesh,
     /// Materials in MTL order (plus `default` for faces without a known material).
@@ -100,7 +100,7 @@ pub struct ObjData {
 }
 
 /// Loads `path` (an `.obj`) and its material libraries and textures.
-pub fn load_obj(path: &Path, options: &ObjOptions) -> Result<ObjData, SceneError> {
+pub fn load_obj(path: &Path, options: &ObjOptions) -> Result<MeshData, SceneError> {
     if !(options.scale.is_finite() && options.scale > 0.0) {
         return Err(SceneError::invalid(path, format!("scale {} must be finite and > 0", options.scale)));
     }
@@ -258,7 +258,7 @@ pub fn load_obj(path: &Path, options: &ObjOptions) -> Result<ObjData, SceneError
         return Err(SceneError::invalid(path, "no triangles left after loading"));
     }
     let degenerate = mesh.degenerate_count();
-    Ok(ObjData { mesh, materials, textures, warnings, degenerate })
+    Ok(MeshData { mesh, materials, textures, warnings, degenerate })
 }
 
 /// A `BufRead` that counts the lines handed out (for tobj errors without positions).
@@ -528,6 +528,7 @@ fn load_texture_cached(
             let what = match usage {
                 TextureUsage::Albedo => "keeps its flat Kd",
                 TextureUsage::Mask => "stays opaque",
+                TextureUsage::Linear => "keeps its flat values",
             };
             warnings.push(format!("material {material:?}: {e}; the material {what}"));
             None

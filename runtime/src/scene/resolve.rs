@@ -1,10 +1,10 @@
-//! `--scene <spec>`: a built-in name, a manifest path (`*.toml`) or a scene folder.
+//! `--scene <spec>`: a built-in name, a manifest path (`*.toml`), a glTF file or a scene folder.
 
 use std::path::Path;
 
 use super::builtin;
 use super::error::SceneError;
-use super::folder::{FolderOptions, folder_name, load_folder};
+use super::folder::{FolderOptions, file_scene_name, folder_name, is_gltf, load_folder, load_scene_file, scene_file};
 use super::manifest::{load_manifest, manifest_name};
 use super::model::Scene;
 
@@ -14,6 +14,7 @@ enum SceneSpec<'a> {
     Builtin(&'a str),
     Manifest(&'a Path),
     Folder(&'a Path),
+    File(&'a Path),
 }
 
 fn classify(spec: &str) -> Result<SceneSpec<'_>, SceneError> {
@@ -24,7 +25,10 @@ fn classify(spec: &str) -> Result<SceneSpec<'_>, SceneError> {
     if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml")) {
         return Ok(SceneSpec::Manifest(path));
     }
-    if path.is_dir() && path.join("scene.obj").is_file() {
+    if is_gltf(path) {
+        return Ok(SceneSpec::File(path));
+    }
+    if path.is_dir() && scene_file(path).is_some() {
         return Ok(SceneSpec::Folder(path));
     }
     if path.is_file() && path.file_name().is_some_and(|n| n == "scene.obj") {
@@ -37,7 +41,10 @@ fn classify(spec: &str) -> Result<SceneSpec<'_>, SceneError> {
 ///
 /// 1. a built-in name (`cornell`, `atrium-glossy`, ...; see [`builtin::builtin_names`]);
 /// 2. a path ending in `.toml`: a manifest (a missing file is an I/O error naming it);
-/// 3. a folder containing `scene.obj`, or a `scene.obj` path: a scene folder.
+/// 3. a path ending in `.gltf` or `.glb`: a glTF scene, with any `camera.json` and
+///    `lights.json` beside it (a missing file is an I/O error naming it);
+/// 4. a folder containing `scene.obj` (or `scene.glb`, `scene.gltf`), or a `scene.obj` path:
+///    a scene folder.
 ///
 /// Anything else is [`SceneError::UnknownScene`], whose message lists the built-in names.
 pub fn resolve(spec: &str) -> Result<Scene, SceneError> {
@@ -47,6 +54,7 @@ pub fn resolve(spec: &str) -> Result<Scene, SceneError> {
         }),
         SceneSpec::Manifest(path) => load_manifest(path),
         SceneSpec::Folder(dir) => load_folder(dir, &FolderOptions::default()),
+        SceneSpec::File(file) => load_scene_file(file, &FolderOptions::default()),
     }
 }
 
@@ -58,6 +66,7 @@ pub fn scene_name(spec: &str) -> Result<String, SceneError> {
         SceneSpec::Builtin(name) => Ok(name.to_owned()),
         SceneSpec::Manifest(path) => manifest_name(path),
         SceneSpec::Folder(dir) => Ok(folder_name(dir)),
+        SceneSpec::File(file) => Ok(file_scene_name(file)),
     }
 }
 

@@ -31,6 +31,8 @@ pub enum TextureUsage {
     Albedo,
     /// Coverage in [0, 1]: 1 channel (alpha, or grey level without alpha).
     Mask,
+    /// Linear data (a glTF metallic-roughness map): 3 or 4 channels as stored, no sRGB curve.
+    Linear,
 }
 
 /// A decoded texture.
@@ -124,10 +126,18 @@ impl Texture {
     /// panics on a corrupt file gives [`SceneError::Image`] too (the process's panic hook
     /// still prints the decoder's message first).
     pub fn load(path: &Path, usage: TextureUsage) -> Result<Self, SceneError> {
-        let img_err = |m: String| SceneError::Image { path: path.to_path_buf(), message: m };
         let bytes = std::fs::read(path).map_err(|e| SceneError::io(path, e))?;
+        let name = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
+        Self::decode(&name, &bytes, usage, path)
+    }
+
+    /// Decodes an encoded image (PNG or JPEG) held in memory, as [`load`](Self::load) does a
+    /// file: what a glTF file's embedded images need. `origin` names the image in errors (the
+    /// file, or `file.glb#image3`).
+    pub fn decode(name: &str, bytes: &[u8], usage: TextureUsage, origin: &Path) -> Result<Self, SceneError> {
+        let img_err = |m: String| SceneError::Image { path: origin.to_path_buf(), message: m };
         let reader = || {
-            image::ImageReader::new(std::io::Cursor::new(&bytes))
+            image::ImageReader::new(std::io::Cursor::new(bytes))
                 .with_guessed_format()
                 .map_err(|e| img_err(e.to_string()))
         };
@@ -146,7 +156,7 @@ impl Texture {
         }));
         let img = decoded
             .unwrap_or_else(|panic| Err(img_err(format!("the decoder failed: {}", panic_message(panic.as_ref())))))?;
-        let name = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
+        let name = name.to_owned();
         let (w, h) = (img.width(), img.height());
         let has_alpha = img.color().has_alpha();
         let eight_bit = img.color().bytes_per_pixel() / img.color().channel_count() == 1;
@@ -162,6 +172,11 @@ impl Texture {
                     .map(|(i, &v)| if c == 4 && i % 4 == 3 { v } else { srgb_to_linear(v) })
                     .collect();
                 Self::new(name, w, h, c as u8, data)
+            }
+            TextureUsage::Linear => {
+                let c = if has_alpha { 4 } else { 3 };
+                let data = if has_alpha { img.to_rgba32f().into_raw() } else { img.to_rgb32f().into_raw() };
+                Self::new(name, w, h, c, data)
             }
             TextureUsage::Mask => {
                 let data: Vec<f32> = if has_alpha {
