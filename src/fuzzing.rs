@@ -1,4 +1,4 @@
-//! Fuzz entry points above the kernels: the scene loaders (OBJ, MTL, `camera.json`, `lights.json`, TOML manifests), image decoding
+//! Fuzz entry points above the kernels: the scene loaders (OBJ, MTL, `camera.json`, `lights.json`, TOML manifests, glTF), image decoding
 //! (EXR, PNG, JPEG) and the evaluation cache's entry decoding. Each takes arbitrary bytes
 //! and panics only when a property fails:
 //!
@@ -18,7 +18,7 @@ use glam::{Mat3, Vec3};
 
 use crate::eval::cache;
 use crate::render::Renderer;
-use crate::scene::folder::{FolderOptions, load_folder};
+use crate::scene::folder::{FolderOptions, load_folder, load_scene_file};
 use crate::scene::manifest::load_manifest;
 use crate::scene::{EnvMap, Texture, TextureUsage};
 
@@ -94,6 +94,22 @@ pub fn manifest(data: &[u8]) {
     let path = dir.join("scene.toml");
     std::fs::write(&path, data).expect("scratch file");
     if let Ok(scene) = load_manifest(&path) {
+        check_scene(scene);
+    }
+}
+
+/// Fuzzes the glTF loader with a whole file, GLB or JSON (buffers in the GLB chunk or in
+/// `data:` URIs; a relative URI can only name the input itself, alone in its scratch folder).
+/// Loading must succeed with a valid scene or fail with a `SceneError`. Run with
+/// [`let_caught_panics_pass`]: the loader catches its image decoders' panics, and the `gltf`
+/// crate's, and returns errors.
+pub fn gltf(data: &[u8]) {
+    let dir = scratch().join("gltf");
+    std::fs::create_dir_all(&dir).expect("scratch folder");
+    let path = dir.join("scene.glb");
+    std::fs::write(&path, data).expect("scratch file");
+    let options = FolderOptions { frames: 4, ..FolderOptions::default() };
+    if let Ok(scene) = load_scene_file(&path, &options) {
         check_scene(scene);
     }
 }

@@ -19,6 +19,11 @@ fn scene_folder_corpus() {
 }
 
 #[test]
+fn gltf_corpus() {
+    replay("gltf", stereotrace::fuzzing::gltf);
+}
+
+#[test]
 fn manifest_corpus() {
     replay("manifest", stereotrace::fuzzing::manifest);
 }

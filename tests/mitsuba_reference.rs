@@ -106,3 +106,34 @@ fn features_without_a_mitsuba_equivalent_are_refused_with_a_reason() {
     assert_eq!(out.status.code(), Some(2), "glossy / alpha / glass without overrides: exit 2");
     assert!(String::from_utf8_lossy(&out.stderr).contains("unsupported"));
 }
+
+/// The Cornell box converted to glTF by independent tools (`tools/gltf/convert.sh`:
+/// obj2gltf and glTF-Transform, checked by the Khronos validator): stereotrace reads the
+/// glTF, Mitsuba the OBJ. Needs Node.js as `tests/gltf_shared_scenes.rs` does (SKIP without
+/// it unless `STEREOTRACE_REQUIRE_GLTF_TOOLS=1`).
+#[test]
+fn shared_cornell_box_as_gltf_matches_mitsuba_reading_the_obj() {
+    if !mitsuba_available() {
+        common::skip("python3 with mitsuba and numpy not found");
+        return;
+    }
+    let Some(dir) = shared("cornell-box") else { return };
+    let node = Command::new("node").arg("--version").output().is_ok_and(|o| o.status.success());
+    if !node {
+        if std::env::var("STEREOTRACE_REQUIRE_GLTF_TOOLS").is_ok_and(|v| v == "1") {
+            panic!("STEREOTRACE_REQUIRE_GLTF_TOOLS=1 but node is not installed");
+        }
+        common::skip("node not found");
+        return;
+    }
+    let out = root().join("target/gltf-scenes");
+    let run = Command::new("bash")
+        .arg(root().join("tools/gltf/convert.sh"))
+        .arg(root().join("../shared/scenes"))
+        .arg(&out)
+        .output()
+        .expect("bash runs");
+    assert!(run.status.success(), "conversion failed: {}", String::from_utf8_lossy(&run.stderr));
+    let gltf = out.join("cornell-box/scene.glb");
+    check(&dir, "128x128", 1024, &["--ours", gltf.to_str().unwrap(), "--label", "cornell-box (glTF)"]);
+}

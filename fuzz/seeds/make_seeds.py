@@ -161,6 +161,100 @@ def cache_seeds(rng):
     random_seeds("cache_entry", rng, 4, [0, 7, 40, 200])
 
 
+def gltf_document(bin_bytes, rest, glb=False):
+    """A glTF document of one buffer around `rest`: JSON with a data URI, or a GLB."""
+    import base64
+    import json
+
+    doc = {"asset": {"version": "2.0"}, "buffers": [{"byteLength": len(bin_bytes)}]}
+    if not glb:
+        doc["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64.b64encode(bin_bytes).decode()
+    doc.update(rest)
+    text = json.dumps(doc, separators=(",", ":")).encode()
+    if not glb:
+        return text
+    text += b" " * (-len(text) % 4)
+    body = bin_bytes + b"\0" * (-len(bin_bytes) % 4)
+    total = 12 + 8 + len(text) + 8 + len(body)
+    return (b"glTF" + struct.pack("<II", 2, total) + struct.pack("<I", len(text)) + b"JSON" + text
+            + struct.pack("<I", len(body)) + b"BIN\0" + body)
+
+
+def gltf_seeds():
+    """A lit quad: as JSON and GLB; with a camera, point/spot/directional lights and PBR
+    materials; as a strip; with an alpha-masked PNG texture; with node transforms."""
+    positions = struct.pack("<12f", 0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0)
+    normals = struct.pack("<12f", *([0, 0, 1] * 4))
+    uvs = struct.pack("<8f", 0, 1, 1, 1, 1, 0, 0, 0)
+    indices = struct.pack("<6H", 0, 1, 2, 0, 2, 3) + b"\0\0"
+    bin_bytes = positions + normals + uvs + indices
+    views = [{"buffer": 0, "byteOffset": 0, "byteLength": 48}, {"buffer": 0, "byteOffset": 48, "byteLength": 48},
+             {"buffer": 0, "byteOffset": 96, "byteLength": 32}, {"buffer": 0, "byteOffset": 128, "byteLength": 12}]
+    accessors = [
+        {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+        {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC3"},
+        {"bufferView": 2, "componentType": 5126, "count": 4, "type": "VEC2"},
+        {"bufferView": 3, "componentType": 5123, "count": 6, "type": "SCALAR"},
+    ]
+    primitive = {"attributes": {"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2}, "indices": 3, "material": 0}
+    lamp = {"emissiveFactor": [1, 0.8, 0.6], "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 5}}}
+    base = {"bufferViews": views, "accessors": accessors, "scene": 0, "scenes": [{"nodes": [0]}],
+            "nodes": [{"mesh": 0}], "meshes": [{"primitives": [primitive]}], "materials": [lamp]}
+    put("gltf", gltf_document(bin_bytes, base))
+    put("gltf", gltf_document(bin_bytes, base, glb=True))
+    q = 0.70710677
+    lit = dict(base)
+    lit["nodes"] = [
+        {"mesh": 0, "children": [1], "rotation": [-q, 0, 0, q], "scale": [-2, 2, 2]},
+        {"mesh": 0, "translation": [0, 0, 0.5]},
+        {"camera": 0, "translation": [0.5, 0.5, 3]},
+        {"translation": [0, 2, 0], "extensions": {"KHR_lights_punctual": {"light": 0}}},
+        {"translation": [1, 2, 0], "rotation": [-q, 0, 0, q], "extensions": {"KHR_lights_punctual": {"light": 1}}},
+        {"rotation": [-q, 0, 0, q], "extensions": {"KHR_lights_punctual": {"light": 2}}},
+    ]
+    lit["scenes"] = [{"nodes": [0, 2, 3, 4, 5]}]
+    lit["cameras"] = [{"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.01}}]
+    lit["materials"] = [
+        {"pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.7, 0.6, 1], "metallicFactor": 1, "roughnessFactor": 0.3},
+         "extensions": {"KHR_materials_specular": {"specularFactor": 0.5}}},
+    ]
+    lit["extensionsUsed"] = ["KHR_lights_punctual", "KHR_materials_specular"]
+    lit["extensions"] = {"KHR_lights_punctual": {"lights": [
+        {"type": "point", "intensity": 10, "color": [1, 0.9, 0.8]},
+        {"type": "spot", "intensity": 30, "spot": {"innerConeAngle": 0.2, "outerConeAngle": 0.5}, "range": 9},
+        {"type": "directional", "intensity": 2},
+    ]}}
+    put("gltf", gltf_document(bin_bytes, lit, glb=True))
+    strip = dict(base)
+    strip["meshes"] = [{"primitives": [{"attributes": {"POSITION": 0}, "mode": 5, "material": 0}]}]
+    put("gltf", gltf_document(bin_bytes, strip))
+    # Refused files: a cycle, an index past the vertices, an unsupported required extension,
+    # a truncated GLB.
+    put("gltf", gltf_document(bin_bytes, dict(base, nodes=[{"mesh": 0, "children": [1]}, {"children": [0]}])))
+    far = [dict(a) for a in accessors]
+    far[3]["count"] = 600
+    put("gltf", gltf_document(bin_bytes, dict(base, accessors=far)))
+    put("gltf", gltf_document(bin_bytes, dict(base, extensionsUsed=["KHR_draco_mesh_compression"],
+                                             extensionsRequired=["KHR_draco_mesh_compression"])))
+    put("gltf", gltf_document(bin_bytes, base, glb=True)[:300])
+    try:
+        from PIL import Image
+    except ImportError:
+        print("Pillow missing: the textured glTF seed is not written", file=sys.stderr)
+        return
+    png = io.BytesIO()
+    Image.frombytes("RGBA", (2, 2), bytes([255, 0, 0, 255, 0, 255, 0, 40, 0, 0, 255, 200, 255, 255, 255, 0])).save(png, "PNG")
+    import base64
+
+    textured = dict(base)
+    textured["materials"] = [lamp, {"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}, "metallicFactor": 0},
+                                    "alphaMode": "MASK", "alphaCutoff": 0.3}]
+    textured["meshes"] = [{"primitives": [primitive, dict(primitive, material=1)]}]
+    textured["textures"] = [{"source": 0}]
+    textured["images"] = [{"uri": "data:image/png;base64," + base64.b64encode(png.getvalue()).decode()}]
+    put("gltf", gltf_document(bin_bytes, textured))
+
+
 def main():
     rng = random.Random(2026)
     random_seeds("ssim", rng, 12, [0, 8, 30, 120, 600])
@@ -176,6 +270,7 @@ def main():
     png_and_jpeg_seeds()
     exr_seeds()
     cache_seeds(rng)
+    gltf_seeds()
 
 
 if __name__ == "__main__":

@@ -13,6 +13,8 @@ compares the result with a stereotrace render of the same view.
     mitsuba_ref.py compare OURS.exr REF.exr            # mean per channel, 8x8-block rel. RMSE
     mitsuba_ref.py check SCENE --stereotrace BIN ...   # both renders + comparison; exit 1 if
                                                        # outside the tolerances
+                   [--ours SPEC]                       # stereotrace renders SPEC (e.g. SCENE
+                                                       # as glTF) while Mitsuba reads SCENE
     mitsuba_ref.py table --stereotrace BIN             # RESULTS.md's table (every case below)
 
 SCENE for `check` is a scene folder or a built-in name (exported with
@@ -329,7 +331,7 @@ def check(args):
     work = args.work or tempfile.mkdtemp(prefix="mitsuba-ref-")
     os.makedirs(work, exist_ok=True)
     if os.path.isdir(args.scene):
-        folder, ours_spec = args.scene, args.scene
+        folder, ours_spec = args.scene, args.ours or args.scene
         if args.diffuse or args.opaque or args.skip_glass:
             ours_spec = os.path.join(work, "scene.toml")
             with open(ours_spec, "w", encoding="utf-8") as f:
@@ -416,6 +418,11 @@ def main():
             p.add_argument("--stereotrace", required=True, help="the stereotrace binary")
             p.add_argument("--work", help="folder for intermediate files (default: a new temporary one)")
             p.add_argument("--label", help="scene name in the output row")
+            p.add_argument(
+                "--ours",
+                help="what stereotrace renders instead of SCENE (a folder): the same scene in another form, "
+                "for example converted to glTF; Mitsuba still reads SCENE's OBJ",
+            )
             p.add_argument("--mean-tol", type=float, default=0.02)
             p.add_argument("--block-tol", type=float, default=0.05)
     p = sub.add_parser("table", help="the RESULTS.md comparison: every case of TABLE, one Markdown row each")
