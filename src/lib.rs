@@ -15,3 +15,4 @@ pub use stereotrace_runtime::{camera, cpu, image_io, kernels, pipeline, render, 
 pub mod commands;
 pub mod eval;
 pub mod fuzzing;
+pub mod viewer;

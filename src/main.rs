@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 use stereotrace::commands::{
     self, ExportOptions, ScenesOptions, eval::EvalOptions, render::RenderOptions, ssim::SsimOptions,
-    throughput::ThroughputOptions, tradeoff::TradeoffOptions,
+    throughput::ThroughputOptions, tradeoff::TradeoffOptions, view::ViewOptions,
 };
 
 /// Real-time stereoscopic path tracing with spatiotemporal sample reprojection.
@@ -31,6 +31,9 @@ enum Command {
     Throughput(ThroughputOptions),
     /// Path trace frames of a scene and write linear HDR EXR files and PNG previews.
     Render(RenderOptions),
+    /// Watch the pipeline live in a window: both eyes, WASD and mouse to move, keys for the
+    /// mode and the budget, a heads-up line of fps and stage times.
+    View(ViewOptions),
     /// Write a scene at frame 0 as a folder in the shared format (scene.obj, scene.mtl,
     /// camera.json, lights.json, textures), e.g. for another renderer.
     ExportScene(ExportOptions),
@@ -63,6 +66,7 @@ fn main() -> ExitCode {
     let result = match &cli.command {
         Command::Throughput(options) => commands::throughput::run_command(options),
         Command::Render(options) => commands::render::run(options),
+        Command::View(options) => commands::view::run(options),
         Command::ExportScene(options) => commands::export_scene(options),
         Command::Scenes(options) => commands::scenes(options),
         Command::Eval(options) => commands::eval::run(options),

@@ -12,7 +12,7 @@
 
 use std::borrow::Borrow;
 
-use crate::camera::StereoRig;
+use crate::camera::{CameraPose, StereoRig};
 use crate::kernels::Extent;
 use crate::pipeline::{FrameStats, Pipeline, PipelineConfig, PipelineError};
 use crate::render::{Renderer, RendererOptions, RendererSource};
@@ -135,18 +135,30 @@ impl<R: Borrow<Renderer>> Session<R> {
     /// Renders the next frame: its index keys the random numbers and moving lights, the walk
     /// gives its head pose.
     pub fn next_frame(&mut self) -> Result<FrameStats, PipelineError> {
-        let frame = self.next;
         let path = &self.pipeline.source().renderer().scene().camera;
         let head = match self.walk {
-            CameraWalk::Path => path.pose(frame),
-            CameraWalk::BackAndForth => path.pose_back_and_forth(frame),
+            CameraWalk::Path => path.pose(self.next),
+            CameraWalk::BackAndForth => path.pose_back_and_forth(self.next),
         };
+        self.next_frame_at(&head)
+    }
+
+    /// Renders the next frame with the head at `head` instead of the walk's pose: an
+    /// interactive viewer's free camera. The frame index advances as with
+    /// [`Session::next_frame`].
+    pub fn next_frame_at(&mut self, head: &CameraPose) -> Result<FrameStats, PipelineError> {
+        let frame = self.next;
         let stats = match self.view {
-            View::Stereo => self.pipeline.render_frame(frame, &head),
-            View::Mono => self.pipeline.render_mono_frame(frame, &head),
+            View::Stereo => self.pipeline.render_frame(frame, head),
+            View::Mono => self.pipeline.render_mono_frame(frame, head),
         }?;
         self.next += 1;
         Ok(stats)
+    }
+
+    /// The pipeline, to change between frames ([`Pipeline::reconfigure`], a reset).
+    pub fn pipeline_mut(&mut self) -> &mut Pipeline<RendererSource<R>> {
+        &mut self.pipeline
     }
 
     /// Frames rendered so far (the next frame's index).

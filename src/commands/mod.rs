@@ -7,6 +7,7 @@ pub mod render;
 pub mod ssim;
 pub mod throughput;
 pub mod tradeoff;
+pub mod view;
 
 use std::path::PathBuf;
 

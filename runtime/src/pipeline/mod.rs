@@ -363,6 +363,24 @@ impl<S: FrameSource> Pipeline<S> {
         Ok(())
     }
 
+    /// Changes the configuration between frames (an interactive viewer switching the mode or
+    /// the budget). A change of the budget alone keeps everything, history included. Any other
+    /// change allocates every buffer for the new configuration (fallibly: on an error nothing
+    /// changes) and forgets the history ([`Pipeline::reset`]).
+    pub fn reconfigure(&mut self, config: PipelineConfig) -> Result<(), PipelineError> {
+        config.validate().map_err(PipelineError::Config)?;
+        let budget_only = PipelineConfig { budget: self.config.budget, ..config } == self.config;
+        if budget_only {
+            self.config = config;
+            return Ok(());
+        }
+        let eyes = [EyeState::try_new(self.eyes[0].camera, &config)?, EyeState::try_new(self.eyes[1].camera, &config)?];
+        (self.eyes, self.config) = (eyes, config);
+        self.planner = BudgetPlanner::default();
+        self.reset();
+        Ok(())
+    }
+
     /// Forgets the history (the next frame starts fresh, as the first one did).
     pub fn reset(&mut self) {
         self.frames_done = 0;

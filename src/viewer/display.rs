@@ -1,0 +1,133 @@
+//! Linear RGB planes to a window's pixels: exposure, Reinhard tone mapping and the sRGB curve
+//! ([`crate::image_io::tonemap`], the PNG previews' mapping), packed as softbuffer's `0RGB`
+//! `u32`. Eight pixels at a time with `wide`; [`tonemap_row_scalar`] is the reference the
+//! tests compare it with (within one step of 255, since the vector `pow` is not the libm one).
+//! Non-finite pixels show magenta, as in the previews.
+
+use wide::f32x8;
+
+use crate::image_io::tonemap;
+
+/// Magenta, for pixels that are not finite.
+pub const NON_FINITE: u32 = 0x00ff_00ff;
+
+/// Packs 8-bit channels as `0RGB`.
+#[inline]
+pub fn pack(rgb: [u8; 3]) -> u32 {
+    (u32::from(rgb[0]) << 16) | (u32::from(rgb[1]) << 8) | u32::from(rgb[2])
+}
+
+/// The reference: [`tonemap`] pixel by pixel. `r`, `g`, `b` and `out` have one length.
+pub fn tonemap_row_scalar(r: &[f32], g: &[f32], b: &[f32], exposure: f32, out: &mut [u32]) {
+    for (i, o) in out.iter_mut().enumerate() {
+        *o = pack(tonemap([r[i], g[i], b[i]], exposure));
+    }
+}
+
+/// The sRGB-encoded value times 255 of linear `v` scaled by `exposure`, tone mapped.
+#[inline(always)]
+fn encode(v: f32x8, exposure: f32x8) -> f32x8 {
+    let x = (v * exposure).max(f32x8::ZERO);
+    let mapped = x / (f32x8::ONE + x);
+    let linear = mapped * f32x8::splat(12.92);
+    let curve = f32x8::splat(1.055) * mapped.powf_simd(f32x8::splat(1.0 / 2.4)) - f32x8::splat(0.055);
+    let srgb = mapped.simd_le(f32x8::splat(0.003_130_8)).select(linear, curve);
+    (srgb * f32x8::splat(255.0) + f32x8::splat(0.5)).max(f32x8::ZERO).min(f32x8::splat(255.0))
+}
+
+/// [`tonemap_row_scalar`], eight pixels at a time.
+pub fn tonemap_row(r: &[f32], g: &[f32], b: &[f32], exposure: f32, out: &mut [u32]) {
+    let n = out.len();
+    assert!(r.len() == n && g.len() == n && b.len() == n, "tonemap_row: planes and output of one length");
+    let full = n - n % 8;
+    let e = f32x8::splat(exposure);
+    let load = |p: &[f32], i: usize| f32x8::from(<[f32; 8]>::try_from(&p[i..i + 8]).expect("8 lanes"));
+    for i in (0..full).step_by(8) {
+        let (vr, vg, vb) = (load(r, i), load(g, i), load(b, i));
+        let finite = (vr.is_finite() & vg.is_finite() & vb.is_finite()).to_bitmask();
+        let (cr, cg, cb) = (encode(vr, e).to_array(), encode(vg, e).to_array(), encode(vb, e).to_array());
+        for k in 0..8 {
+            out[i + k] = if finite & (1 << k) == 0 {
+                NON_FINITE
+            } else {
+                (u32::from(cr[k] as u8) << 16) | (u32::from(cg[k] as u8) << 8) | u32::from(cb[k] as u8)
+            };
+        }
+    }
+    tonemap_row_scalar(&r[full..], &g[full..], &b[full..], exposure, &mut out[full..]);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn channels(p: u32) -> [i32; 3] {
+        [(p >> 16) as i32 & 255, (p >> 8) as i32 & 255, p as i32 & 255]
+    }
+
+    fn agree(values: &[f32], exposure: f32) {
+        let n = values.len();
+        let (r, g, b): (Vec<f32>, Vec<f32>, Vec<f32>) =
+            (values.to_vec(), values.iter().rev().copied().collect(), values.iter().map(|v| v * 0.5).collect());
+        let (mut fast, mut reference) = (vec![0; n], vec![0; n]);
+        tonemap_row(&r, &g, &b, exposure, &mut fast);
+        tonemap_row_scalar(&r, &g, &b, exposure, &mut reference);
+        for i in 0..n {
+            let (a, e) = (channels(fast[i]), channels(reference[i]));
+            assert!(
+                (0..3).all(|c| (a[c] - e[c]).abs() <= 1),
+                "pixel {i} ({}, {}, {}): {a:?} vs {e:?}",
+                r[i],
+                g[i],
+                b[i]
+            );
+            assert_eq!(fast[i] == NON_FINITE, reference[i] == NON_FINITE, "pixel {i}");
+        }
+    }
+
+    #[test]
+    fn the_vector_body_matches_the_reference_on_edge_values() {
+        let edges = [
+            0.0,
+            -0.0,
+            -1.0,
+            1e-9,
+            0.003_130_8 / 0.996_869,
+            0.003_2,
+            0.5,
+            1.0,
+            2.0,
+            1e3,
+            1e30,
+            f32::MAX,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+            f32::MIN_POSITIVE,
+            0.25,
+        ];
+        for exposure in [1.0, 0.25, 8.0] {
+            agree(&edges, exposure);
+        }
+        // Exact on the values that matter most: black, white-ish and NaN.
+        let mut out = [0; 9];
+        tonemap_row(&[0.0; 9], &[0.0; 9], &[f32::NAN; 9], 1.0, &mut out);
+        assert!(out.iter().all(|&p| p == NON_FINITE));
+        tonemap_row(&[0.0; 9], &[0.0; 9], &[0.0; 9], 1.0, &mut out);
+        assert!(out.iter().all(|&p| p == 0));
+    }
+
+    #[test]
+    fn the_vector_body_matches_the_reference_on_seeded_random_values() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let values: Vec<f32> = (0..4099).map(|_| next().powi(3) * 20.0).collect();
+        agree(&values, 1.0);
+        agree(&values, 3.0);
+    }
+}
