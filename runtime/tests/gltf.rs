@@ -472,3 +472,27 @@ fn missing_buffers_and_images_name_the_file() {
     assert!(e.contains("buffer 0 holds"), "{e}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn a_manifest_takes_a_gltf_mesh_with_its_own_unit_and_lights() {
+    let (b, mut rest) = one_quad(json!({}), json!({"emissiveFactor": [1, 1, 1]}));
+    rest["nodes"] = json!([{"mesh": 0}, {"camera": 0, "translation": [500, 500, 3000]}]);
+    rest["scenes"] = json!([{"nodes": [0, 1]}]);
+    rest["cameras"] = json!([{"type": "perspective", "perspective": {"yfov": 0.7, "znear": 0.01}}]);
+    let dir = scratch("manifest");
+    std::fs::write(dir.join("mm.glb"), b.glb(rest)).unwrap();
+    // The quad is 1 unit wide; the manifest says a unit of this file is a kilometre.
+    let manifest = dir.join("boxed.toml");
+    std::fs::write(
+        &manifest,
+        "name = \"boxed\"\nmesh = \"mm.glb\"\nmeters_per_unit = 1000.0\n\n[[lights]]\ntype = \"point\"\nposition = [0.5, 0.5, 1.0]\nintensity = [1, 1, 1]\n",
+    )
+    .unwrap();
+    let scene = resolve(manifest.to_str().unwrap()).unwrap();
+    assert_eq!(scene.units.from, UnitsFrom::Manifest);
+    assert_eq!(scene.mesh.positions[0][1], Vec3::new(1000.0, 0.0, 0.0), "scaled by meters_per_unit");
+    // The file's camera is scaled with its geometry.
+    assert!(scene.camera.pose(0).eye.abs_diff_eq(Vec3::new(500_000.0, 500_000.0, 3_000_000.0), 1.0));
+    assert_eq!(scene.lights.points.len(), 1);
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -10,7 +10,7 @@ use clap::Args;
 use crate::pipeline::{Mode, PipelineConfig};
 use crate::render::{Renderer, RendererOptions};
 use crate::viewer::window::{self, RunOptions, RunSummary};
-use crate::viewer::{StereoLayout, Viewer};
+use crate::viewer::{Action, StereoLayout, Viewer};
 
 use super::args::{GBufferArg, SceneArgs, ThreadsArg, default, parse_budget_ms, parse_frames, parse_spp};
 
@@ -39,6 +39,10 @@ pub struct ViewOptions {
     /// How the G-buffers are made.
     #[command(flatten)]
     pub gbuffer: GBufferArg,
+    /// Start following the scene's camera path back and forth, as `throughput` does (key P
+    /// stops and resumes).
+    #[arg(long)]
+    pub path: bool,
     /// Exit after this many frames.
     #[arg(long, value_parser = parse_frames)]
     pub frames: Option<u32>,
@@ -65,7 +69,10 @@ pub fn run(opts: &ViewOptions) -> Result<String, String> {
     let mut config = PipelineConfig::paper(opts.mode, opts.spp, renderer.scene().tolerances.at_height(extent.height()));
     config.budget = Some(crate::pipeline::budget_duration(opts.budget_ms)?);
     let options = RendererOptions::with_gbuffer(opts.gbuffer.gbuffer);
-    let viewer = Viewer::new(&renderer, options, config, extent, opts.stereo)?;
+    let mut viewer = Viewer::new(&renderer, options, config, extent, opts.stereo)?;
+    if opts.path {
+        viewer.act(Action::TogglePath)?;
+    }
     let run = RunOptions { frames: opts.frames, screenshot: opts.screenshot.clone(), record: opts.record.clone() };
     let summary = window::run(viewer, &pool, run)?;
     Ok(report(&name, opts, &summary))
@@ -80,8 +87,10 @@ fn median(values: &[f64]) -> f64 {
 fn report(scene: &str, opts: &ViewOptions, s: &RunSummary) -> String {
     let loop_ms = median(&s.loop_ms);
     format!(
-        "view {scene}: {} frames at {}x{} per eye, {} threads, {} mode, budget {} ms: {:.1} fps (median loop {:.1} ms, \
-         of which the pipeline's frame {:.1} ms; {} measured after 2 warm-up frames), {} over budget",
+        "view {scene}{}: {} frames at {}x{} per eye, {} threads, {} mode, budget {} ms: {:.1} fps (median loop {:.1} ms, \
+         of which the pipeline's frame {:.1} ms, composition {:.1} ms, presentation {:.1} ms; {} measured after 2 \
+         warm-up frames), {} over budget",
+        if opts.path { " (following its camera path)" } else { "" },
         s.frames,
         opts.input.res.width(),
         opts.input.res.height(),
@@ -91,6 +100,8 @@ fn report(scene: &str, opts: &ViewOptions, s: &RunSummary) -> String {
         1e3 / loop_ms,
         loop_ms,
         median(&s.frame_ms),
+        median(&s.compose_ms),
+        median(&s.present_ms),
         s.loop_ms.len(),
         s.budget_misses
     )

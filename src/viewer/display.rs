@@ -1,10 +1,11 @@
 //! Linear RGB planes to a window's pixels: exposure, Reinhard tone mapping and the sRGB curve
 //! ([`crate::image_io::tonemap`], the PNG previews' mapping), packed as softbuffer's `0RGB`
 //! `u32`. Eight pixels at a time with `wide`; [`tonemap_row_scalar`] is the reference the
-//! tests compare it with (within one step of 255, since the vector `pow` is not the libm one).
+//! tests compare it with (within one step of 255: the vector body fits the sRGB curve with
+//! square roots, see `encode`).
 //! Non-finite pixels show magenta, as in the previews.
 
-use wide::f32x8;
+use wide::{f32x8, i32x8};
 
 use crate::image_io::tonemap;
 
@@ -30,29 +31,33 @@ fn encode(v: f32x8, exposure: f32x8) -> f32x8 {
     let x = (v * exposure).max(f32x8::ZERO);
     let mapped = x / (f32x8::ONE + x);
     let linear = mapped * f32x8::splat(12.92);
-    let curve = f32x8::splat(1.055) * mapped.powf_simd(f32x8::splat(1.0 / 2.4)) - f32x8::splat(0.055);
+    // The curve `1.055 x^(1/2.4) - 0.055` as a fit in x^(1/2), x^(1/4), x^(1/8) (three square
+    // roots instead of a log and an exp, 4x faster here): off by at most 0.25 of an 8-bit
+    // step on [0.0031308, 1], so the packed byte is the reference's or one next to it.
+    let (s1, s2) = (mapped.sqrt(), mapped.sqrt().sqrt());
+    let s3 = s2.sqrt();
+    let curve = f32x8::splat(0.662_002_7) * s1 + f32x8::splat(0.684_122_06) * s2
+        - f32x8::splat(0.323_583_6) * s3
+        - f32x8::splat(0.022_541_147) * mapped;
     let srgb = mapped.simd_le(f32x8::splat(0.003_130_8)).select(linear, curve);
     (srgb * f32x8::splat(255.0) + f32x8::splat(0.5)).max(f32x8::ZERO).min(f32x8::splat(255.0))
 }
 
-/// [`tonemap_row_scalar`], eight pixels at a time.
+/// [`tonemap_row_scalar`], eight pixels at a time (packing included).
 pub fn tonemap_row(r: &[f32], g: &[f32], b: &[f32], exposure: f32, out: &mut [u32]) {
     let n = out.len();
     assert!(r.len() == n && g.len() == n && b.len() == n, "tonemap_row: planes and output of one length");
     let full = n - n % 8;
     let e = f32x8::splat(exposure);
     let load = |p: &[f32], i: usize| f32x8::from(<[f32; 8]>::try_from(&p[i..i + 8]).expect("8 lanes"));
+    let magenta = i32x8::splat(NON_FINITE as i32);
     for i in (0..full).step_by(8) {
         let (vr, vg, vb) = (load(r, i), load(g, i), load(b, i));
-        let finite = (vr.is_finite() & vg.is_finite() & vb.is_finite()).to_bitmask();
-        let (cr, cg, cb) = (encode(vr, e).to_array(), encode(vg, e).to_array(), encode(vb, e).to_array());
-        for k in 0..8 {
-            out[i + k] = if finite & (1 << k) == 0 {
-                NON_FINITE
-            } else {
-                (u32::from(cr[k] as u8) << 16) | (u32::from(cg[k] as u8) << 8) | u32::from(cb[k] as u8)
-            };
-        }
+        let finite: i32x8 = bytemuck::cast(vr.is_finite() & vg.is_finite() & vb.is_finite());
+        // `encode` is in [0.5, 255.5): truncation rounds, as the scalar `as u8` of `+ 0.5` does.
+        let (cr, cg, cb) = (encode(vr, e).trunc_int(), encode(vg, e).trunc_int(), encode(vb, e).trunc_int());
+        let packed = finite.select(cr << 16 | cg << 8 | cb, magenta);
+        out[i..i + 8].copy_from_slice(&bytemuck::cast::<[i32; 8], [u32; 8]>(packed.to_array()));
     }
     tonemap_row_scalar(&r[full..], &g[full..], &b[full..], exposure, &mut out[full..]);
 }

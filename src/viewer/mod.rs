@@ -13,6 +13,7 @@ pub mod window;
 use std::fmt::Write as _;
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use crate::camera::{CameraPose, Eye, StereoRig};
 use crate::kernels::Extent;
@@ -101,6 +102,8 @@ pub enum Action {
     ToggleHud,
     /// Forget the history.
     Reset,
+    /// Follow the scene's camera path back and forth (as `throughput` does), or stop.
+    TogglePath,
 }
 
 /// The modes the keys 1, 2 and 3 pick.
@@ -117,14 +120,15 @@ pub struct Viewer<'r> {
     exposure: f32,
     show_mask: bool,
     show_hud: bool,
+    follow_path: bool,
     scene: String,
     last: Option<FrameStats>,
     /// Whole loop iterations (frame, composition, presentation), milliseconds, a ring.
     loop_ms: [f64; WINDOW],
     loops: usize,
     budget_misses: u64,
-    /// One tone-mapped row of each eye, for the anaglyph.
-    rows: [Vec<u32>; 2],
+    /// The right eye tone mapped, for the anaglyph (empty in other layouts).
+    right_eye: Vec<u32>,
     hud: String,
 }
 
@@ -144,18 +148,19 @@ impl<'r> Viewer<'r> {
         // A tenth of the scene's size per second: a room is crossed in a few seconds.
         let speed = (0.1 * scene.bounds().extent().length()).clamp(0.05, 20.0);
         Ok(Self {
-            session: Session::new(pipeline, CameraWalk::Path),
+            session: Session::new(pipeline, CameraWalk::BackAndForth),
             camera: FlyCamera::new(&scene.camera.pose(0), speed),
             layout,
             exposure: 1.0,
             show_mask: false,
             show_hud: true,
+            follow_path: false,
             scene: scene.name.clone(),
             last: None,
             loop_ms: [0.0; WINDOW],
             loops: 0,
             budget_misses: 0,
-            rows: [vec![0; extent.width()], vec![0; extent.width()]],
+            right_eye: if layout == StereoLayout::Anaglyph { vec![0; extent.pixels()] } else { Vec::new() },
             hud: String::with_capacity(1024),
         })
     }
@@ -167,10 +172,19 @@ impl<'r> Viewer<'r> {
         (eyes * e.width(), e.height())
     }
 
-    /// Moves the camera by `controls` and renders one stereo frame.
+    /// Moves the camera by `controls` (or along the scene's camera path, when following it)
+    /// and renders one stereo frame.
     pub fn step(&mut self, controls: &Controls) -> Result<&FrameStats, String> {
-        self.camera.apply(controls);
-        let stats = self.session.next_frame_at(&self.camera.pose()).map_err(|e| e.to_string())?;
+        let stats = if self.follow_path {
+            let stats = self.session.next_frame().map_err(|e| e.to_string())?;
+            // Leaving the path later starts where it is now.
+            let path = &self.session.pipeline().source().renderer().scene().camera;
+            self.camera = FlyCamera::new(&path.pose_back_and_forth(stats.frame), self.camera.speed);
+            stats
+        } else {
+            self.camera.apply(controls);
+            self.session.next_frame_at(&self.camera.pose()).map_err(|e| e.to_string())?
+        };
         self.budget_misses += u64::from(stats.budget.is_some() && !stats.budget_met);
         Ok(self.last.insert(stats))
     }
@@ -211,6 +225,7 @@ impl<'r> Viewer<'r> {
             Action::ToggleMask => self.show_mask = !self.show_mask,
             Action::ToggleHud => self.show_hud = !self.show_hud,
             Action::Reset => self.session.pipeline_mut().reset(),
+            Action::TogglePath => self.follow_path = !self.follow_path,
         }
         Ok(())
     }
@@ -220,55 +235,45 @@ impl<'r> Viewer<'r> {
     }
 
     /// Draws the last frame into `out` (`size()` pixels, `0RGB`): the eyes in the layout, the
-    /// traced mask if on, and the heads-up lines if on.
+    /// traced mask if on, and the heads-up lines if on. Rows are shared out over the current
+    /// rayon pool.
     pub fn compose(&mut self, out: &mut [u32]) {
         let (width, height) = self.size();
         assert_eq!(out.len(), width * height, "compose: the output must be size() pixels");
         let pipeline = self.session.pipeline();
         let eye_width = pipeline.extent().width();
-        let exposure = self.exposure;
+        let (exposure, show_mask) = (self.exposure, self.show_mask);
         let row_of = |eye: Eye, y: usize, into: &mut [u32]| {
             let img = pipeline.output(eye);
             let span = y * eye_width..(y + 1) * eye_width;
             let (r, g, b) =
                 (&img.r().as_slice()[span.clone()], &img.g().as_slice()[span.clone()], &img.b().as_slice()[span]);
             display::tonemap_row(r, g, b, exposure, into);
-        };
-        let tint = |eye: Eye, y: usize, row: &mut [u32]| {
-            let mask = &pipeline.traced_mask(eye).as_slice()[y * eye_width..(y + 1) * eye_width];
-            for (p, &m) in row.iter_mut().zip(mask) {
-                if m != 0 {
-                    *p = ((*p >> 1) & 0x007f_7f7f) + 0x0000_7f00;
-                }
-            }
-        };
-        for (y, row) in out.chunks_exact_mut(width).enumerate() {
-            match self.layout {
-                StereoLayout::SideBySide => {
-                    let (left, right) = row.split_at_mut(eye_width);
-                    row_of(Eye::Left, y, left);
-                    row_of(Eye::Right, y, right);
-                    if self.show_mask {
-                        tint(Eye::Left, y, left);
-                        tint(Eye::Right, y, right);
-                    }
-                }
-                StereoLayout::Left | StereoLayout::Right => {
-                    let eye = if self.layout == StereoLayout::Left { Eye::Left } else { Eye::Right };
-                    row_of(eye, y, row);
-                    if self.show_mask {
-                        tint(eye, y, row);
-                    }
-                }
-                StereoLayout::Anaglyph => {
-                    let [left, right] = &mut self.rows;
-                    row_of(Eye::Left, y, left);
-                    row_of(Eye::Right, y, right);
-                    for ((p, l), r) in row.iter_mut().zip(left.iter()).zip(right.iter()) {
-                        *p = (l & 0x00ff_0000) | (r & 0x0000_ffff);
+            if show_mask {
+                let mask = &pipeline.traced_mask(eye).as_slice()[y * eye_width..(y + 1) * eye_width];
+                for (p, &m) in into.iter_mut().zip(mask) {
+                    if m != 0 {
+                        *p = ((*p >> 1) & 0x007f_7f7f) + 0x0000_7f00;
                     }
                 }
             }
+        };
+        let rows = out.par_chunks_mut(width).enumerate();
+        match self.layout {
+            StereoLayout::SideBySide => rows.for_each(|(y, row)| {
+                let (left, right) = row.split_at_mut(eye_width);
+                row_of(Eye::Left, y, left);
+                row_of(Eye::Right, y, right);
+            }),
+            StereoLayout::Left => rows.for_each(|(y, row)| row_of(Eye::Left, y, row)),
+            StereoLayout::Right => rows.for_each(|(y, row)| row_of(Eye::Right, y, row)),
+            StereoLayout::Anaglyph => rows.zip(self.right_eye.par_chunks_mut(width)).for_each(|((y, row), right)| {
+                row_of(Eye::Left, y, row);
+                row_of(Eye::Right, y, right);
+                for (p, r) in row.iter_mut().zip(right.iter()) {
+                    *p = (*p & 0x00ff_0000) | (r & 0x0000_ffff);
+                }
+            }),
         }
         if self.show_hud {
             self.write_hud();
@@ -307,7 +312,7 @@ impl<'r> Viewer<'r> {
         }
         let _ = write!(
             self.hud,
-            "\nWASD QE move, drag to look | 1 path traced, 2 spatiotemporal, 3 blend | +/- budget | M traced | H hud | R reset | Esc quit"
+            "\nWASD QE move, drag to look | P follow the path | 1 path traced, 2 spatiotemporal, 3 blend | +/- budget | M traced | H hud | R reset | Esc quit"
         );
     }
 }

@@ -36,6 +36,10 @@ pub struct RunSummary {
     pub loop_ms: Vec<f64>,
     /// Pipeline frame times, milliseconds.
     pub frame_ms: Vec<f64>,
+    /// Composition (tone mapping, layout, mask, heads-up lines), milliseconds.
+    pub compose_ms: Vec<f64>,
+    /// Handing the pixels to the window system, milliseconds.
+    pub present_ms: Vec<f64>,
     /// Frames over budget.
     pub budget_misses: u64,
 }
@@ -174,11 +178,16 @@ impl App<'_, '_> {
         self.turn = (0.0, 0.0);
         let viewer = &mut self.viewer;
         let frame_ms = self.pool.install(|| viewer.step(&controls).map(|s| s.times.total.as_secs_f64() * 1e3))?;
-        self.viewer.compose(&mut self.pixels);
+        let composing = Instant::now();
+        let (viewer, pixels) = (&mut self.viewer, &mut self.pixels);
+        self.pool.install(|| viewer.compose(pixels));
+        let presenting = Instant::now();
         let shown = self.window.as_mut().ok_or("no window")?;
         let mut buffer = shown.surface.buffer_mut().map_err(|e| format!("softbuffer: {e}"))?;
         buffer.copy_from_slice(&self.pixels);
         buffer.present().map_err(|e| format!("softbuffer: {e}"))?;
+        let presented = Instant::now();
+        let ms = |from: Instant, to: Instant| to.duration_since(from).as_secs_f64() * 1e3;
         let (width, height) = self.viewer.size();
         if let Some(dir) = &self.options.record {
             let path = dir.join(format!("frame_{:05}.png", self.summary.frames));
@@ -191,6 +200,8 @@ impl App<'_, '_> {
             if self.summary.frames >= 2 && self.summary.loop_ms.len() < self.summary.loop_ms.capacity() {
                 self.summary.loop_ms.push(loop_ms);
                 self.summary.frame_ms.push(frame_ms);
+                self.summary.compose_ms.push(ms(composing, presenting));
+                self.summary.present_ms.push(ms(presenting, presented));
             }
         }
         self.last = Some(now);
@@ -220,6 +231,7 @@ impl App<'_, '_> {
             KeyCode::KeyM => self.viewer.act(Action::ToggleMask)?,
             KeyCode::KeyH => self.viewer.act(Action::ToggleHud)?,
             KeyCode::KeyR => self.viewer.act(Action::Reset)?,
+            KeyCode::KeyP => self.viewer.act(Action::TogglePath)?,
             _ => {}
         }
         Ok(())
