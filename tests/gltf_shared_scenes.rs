@@ -14,8 +14,6 @@
 mod common;
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
-use std::sync::OnceLock;
 
 use stereotrace::camera::{Eye, StereoRig};
 use stereotrace::kernels::{Extent, RgbBuf};
@@ -24,43 +22,6 @@ use stereotrace::scene::{Scene, UnitsFrom, resolve};
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-/// The converted scenes' folder, converting once per test process; `None` (after a SKIP
-/// line) without the shared scenes or Node.js.
-fn converted() -> Option<&'static Path> {
-    static OUT: OnceLock<Option<PathBuf>> = OnceLock::new();
-    let out = OUT.get_or_init(|| {
-        let shared = root().join("../shared/scenes");
-        if !shared.is_dir() {
-            return None;
-        }
-        let node = Command::new("node").arg("--version").output().is_ok_and(|o| o.status.success());
-        if !node {
-            if std::env::var("STEREOTRACE_REQUIRE_GLTF_TOOLS").is_ok_and(|v| v == "1") {
-                panic!("STEREOTRACE_REQUIRE_GLTF_TOOLS=1 but node is not installed");
-            }
-            return None;
-        }
-        let out = root().join("target/gltf-scenes");
-        let run = Command::new("bash")
-            .arg(root().join("tools/gltf/convert.sh"))
-            .arg(&shared)
-            .arg(&out)
-            .output()
-            .expect("bash runs");
-        assert!(
-            run.status.success(),
-            "converting the shared scenes to glTF failed\n{}\n{}",
-            String::from_utf8_lossy(&run.stdout),
-            String::from_utf8_lossy(&run.stderr)
-        );
-        Some(out)
-    });
-    if out.is_none() {
-        common::skip("../shared/scenes or node not found");
-    }
-    out.as_deref()
 }
 
 /// The left eye of frame 0 (a mono rig at the head pose) at `spp`, seed 7.
@@ -123,7 +84,7 @@ fn obj_and_gltf_agree(obj: &Path, gltf: &Path, width: usize, height: usize, spp:
 }
 
 fn shared_pair(name: &str, width: usize, height: usize, spp: u32) {
-    let Some(out) = converted() else { return };
+    let Some(out) = common::gltf_scenes() else { return };
     let (_, gltf) =
         obj_and_gltf_agree(&root().join("../shared/scenes").join(name), &out.join(name), width, height, spp);
     assert_eq!(gltf.units.from, UnitsFrom::Gltf);
@@ -158,7 +119,7 @@ fn classroom_gltf_renders_as_the_obj() {
 /// camera.json or lights.json beside it), written by glTF-Transform.
 #[test]
 fn camera_and_punctual_lights_from_the_file_render_as_the_obj_with_the_same_lights() {
-    let Some(out) = converted() else { return };
+    let Some(out) = common::gltf_scenes() else { return };
     let gltf = out.join("cornell-box-punctual");
     assert!(!gltf.join("camera.json").exists() && !gltf.join("lights.json").exists());
     let (obj, scene) = obj_and_gltf_agree(&out.join("cornell-box-punctual-obj"), &gltf, 128, 128, 256);

@@ -118,22 +118,7 @@ fn shared_cornell_box_as_gltf_matches_mitsuba_reading_the_obj() {
         return;
     }
     let Some(dir) = shared("cornell-box") else { return };
-    let node = Command::new("node").arg("--version").output().is_ok_and(|o| o.status.success());
-    if !node {
-        if std::env::var("STEREOTRACE_REQUIRE_GLTF_TOOLS").is_ok_and(|v| v == "1") {
-            panic!("STEREOTRACE_REQUIRE_GLTF_TOOLS=1 but node is not installed");
-        }
-        common::skip("node not found");
-        return;
-    }
-    let out = root().join("target/gltf-scenes");
-    let run = Command::new("bash")
-        .arg(root().join("tools/gltf/convert.sh"))
-        .arg(root().join("../shared/scenes"))
-        .arg(&out)
-        .output()
-        .expect("bash runs");
-    assert!(run.status.success(), "conversion failed: {}", String::from_utf8_lossy(&run.stderr));
+    let Some(out) = common::gltf_scenes() else { return };
     let gltf = out.join("cornell-box/scene.glb");
     check(&dir, "128x128", 1024, &["--ours", gltf.to_str().unwrap(), "--label", "cornell-box (glTF)"]);
 }

@@ -496,3 +496,14 @@ fn a_manifest_takes_a_gltf_mesh_with_its_own_unit_and_lights() {
     assert_eq!(scene.lights.points.len(), 1);
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn an_attribute_naming_a_missing_accessor_is_refused_before_validation() {
+    // gltf-json 1.4.1's validation would index past the accessors (the gltf fuzz target's
+    // first find).
+    let (b, rest) = one_quad(json!({}), json!({}));
+    let mut doc = b.gltf(rest);
+    doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = json!(5);
+    let e = error_of(&doc);
+    assert!(e.contains("accessor 5") && e.contains("has 4"), "{e}");
+}

@@ -36,7 +36,7 @@ fn encode(v: f32x8, exposure: f32x8) -> f32x8 {
     // step on [0.0031308, 1], so the packed byte is the reference's or one next to it.
     let (s1, s2) = (mapped.sqrt(), mapped.sqrt().sqrt());
     let s3 = s2.sqrt();
-    let curve = f32x8::splat(0.662_002_7) * s1 + f32x8::splat(0.684_122_06) * s2
+    let curve = f32x8::splat(0.662_002_7) * s1 + f32x8::splat(0.684_122_1) * s2
         - f32x8::splat(0.323_583_6) * s3
         - f32x8::splat(0.022_541_147) * mapped;
     let srgb = mapped.simd_le(f32x8::splat(0.003_130_8)).select(linear, curve);

@@ -89,3 +89,40 @@ pub fn write_box_scene(dir: &Path, extra_obj: &str, lamp_ke: f32) {
 }
 
 pub mod eval;
+
+/// The shared scenes converted to glTF by independent tools (`tools/gltf/convert.sh`:
+/// obj2gltf and glTF-Transform, checked by the Khronos validator) in `target/gltf-scenes`,
+/// converted once per test process. `None`, after a SKIP line, without `../shared/scenes` or
+/// Node.js; a missing Node.js fails instead when `STEREOTRACE_REQUIRE_GLTF_TOOLS=1` (CI).
+pub fn gltf_scenes() -> Option<&'static Path> {
+    use std::path::PathBuf;
+    use std::process::Command;
+    static OUT: std::sync::OnceLock<Option<PathBuf>> = std::sync::OnceLock::new();
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let out = OUT.get_or_init(|| {
+        let shared = root.join("../shared/scenes");
+        if !shared.is_dir() {
+            return None;
+        }
+        if !Command::new("node").arg("--version").output().is_ok_and(|o| o.status.success()) {
+            if std::env::var("STEREOTRACE_REQUIRE_GLTF_TOOLS").is_ok_and(|v| v == "1") {
+                panic!("STEREOTRACE_REQUIRE_GLTF_TOOLS=1 but node is not installed");
+            }
+            return None;
+        }
+        let out = root.join("target/gltf-scenes");
+        let run = Command::new("bash").arg(root.join("tools/gltf/convert.sh")).arg(&shared).arg(&out).output();
+        let run = run.expect("bash runs");
+        assert!(
+            run.status.success(),
+            "converting the shared scenes to glTF failed\n{}\n{}",
+            String::from_utf8_lossy(&run.stdout),
+            String::from_utf8_lossy(&run.stderr)
+        );
+        Some(out)
+    });
+    if out.is_none() {
+        skip("../shared/scenes or node not found");
+    }
+    out.as_deref()
+}

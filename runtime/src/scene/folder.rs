@@ -697,7 +697,7 @@ pub fn load_folder(dir: &Path, options: &FolderOptions) -> Result<Scene, SceneEr
 
 /// Loads a scene file (OBJ or glTF) with the `camera.json`, `lights.json` and `SOURCE.md`
 /// beside it. An OBJ needs `camera.json`; a glTF file without a camera of either kind gets
-/// one that frames it ([`framing_camera`]), with a warning.
+/// one that frames it (looking down -Z at the bounds from slightly above), with a warning.
 pub fn load_scene_file(file: &Path, options: &FolderOptions) -> Result<Scene, SceneError> {
     let dir = file.parent().map(Path::to_path_buf).unwrap_or_default();
     let mut parts = load_parts(file, options.scale, options.glass, true)?;

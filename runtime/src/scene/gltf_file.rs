@@ -10,6 +10,8 @@
 //!   rule). UVs come from the set the base-colour texture names (`TEXCOORD_0` by default),
 //!   with `v` flipped to this crate's convention (glTF's `v = 0` is the top row). Points and
 //!   lines are skipped with a warning; skins and morph targets are read in their rest pose.
+//!   Vertex colours are not read, and textures always wrap and filter bilinearly (samplers
+//!   and `KHR_texture_transform` are not read).
 //! - **Units**: metres, as the specification says. A manifest's `meters_per_unit` overrides
 //!   it for files that are not.
 //! - **Camera**: the first perspective camera met walking the scene's nodes in order. Its
@@ -154,8 +156,31 @@ fn parse(path: &Path, bytes: &[u8]) -> Result<(gltf::Document, Option<Vec<u8>>),
             ),
         ));
     }
-    let document =
-        gltf::Document::from_json(document.into_json()).map_err(|e| SceneError::invalid(path, e.to_string()))?;
+    // gltf-json 1.4.1's validation indexes the accessors by each POSITION attribute without a
+    // bounds check (found by fuzzing): out-of-range attribute indices are refused here first.
+    let root = document.as_json();
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            if let Some(index) = primitive.attributes.values().find(|i| i.value() >= root.accessors.len()) {
+                return Err(SceneError::invalid(
+                    path,
+                    format!(
+                        "mesh {m} primitive {p}: an attribute names accessor {}, but the file has {}",
+                        index.value(),
+                        root.accessors.len()
+                    ),
+                ));
+            }
+        }
+    }
+    // A net for any other unchecked index in the crate's validation.
+    let json = document.into_json();
+    let validated = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| gltf::Document::from_json(json)));
+    let document = validated
+        .unwrap_or_else(|panic| {
+            Err(gltf::Error::Io(std::io::Error::other(format!("validation failed: {}", panic_text(panic.as_ref())))))
+        })
+        .map_err(|e| SceneError::invalid(path, e.to_string()))?;
     Ok((document, blob))
 }
 
