@@ -1,6 +1,7 @@
 //! `stereotrace view` in a real window (an X server in memory, `xvfb-run`): it runs a few
-//! frames, writes what the window showed, and the screenshot holds both eyes of the scene,
-//! lit, with the right eye's image shifted by the stereo disparity the scene's depths give.
+//! frames, writes what the window showed (every frame with `--record`, the last with
+//! `--screenshot`), and the screenshot holds both eyes of the scene, lit, with the right
+//! eye's image shifted by the stereo disparity the scene's depths give.
 //!
 //! Needs `xvfb-run` (Debian's `xvfb`; `.ci/run` installs it). Without it the test prints
 //! SKIP and passes, unless `STEREOTRACE_REQUIRE_XVFB=1` is set (CI sets it).
@@ -80,15 +81,22 @@ fn the_window_shows_both_eyes_apart_by_the_scenes_disparity() {
     let dir = std::env::temp_dir().join(format!("stereotrace-view-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let shot = dir.join("view.png");
+    let recorded = dir.join("frames");
     let out = Command::new("xvfb-run")
         .args(["-a", "-s", "-screen 0 1280x720x24", env!("CARGO_BIN_EXE_stereotrace"), "view", "--scene", "cornell"])
         .args(["--res", &format!("{WIDTH}x{HEIGHT}"), "--frames", "8", "--budget-ms", "200", "--screenshot"])
         .arg(&shot)
+        .arg("--record")
+        .arg(&recorded)
         .output()
         .expect("xvfb-run runs");
     let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
     assert!(out.status.success(), "view failed:\n{stdout}\n{stderr}");
     assert!(stdout.contains("fps"), "{stdout}");
+    // --record wrote every frame; the last is the screenshot.
+    let frames: Vec<_> = std::fs::read_dir(&recorded).unwrap().map(|e| e.unwrap().path()).collect();
+    assert_eq!(frames.len(), 8, "{frames:?}");
+    assert_eq!(std::fs::read(recorded.join("frame_00007.png")).unwrap(), std::fs::read(&shot).unwrap());
     let image = image::open(&shot).unwrap().to_rgb8();
     assert_eq!((image.width() as usize, image.height() as usize), (2 * WIDTH, HEIGHT), "side by side");
     let luminance = |x0: usize| -> Vec<f32> {

@@ -327,8 +327,8 @@ fn cameras_and_punctual_lights_come_from_the_nodes() {
     ]}});
     let data = load_doc(&b.gltf(rest)).unwrap();
     let camera = data.camera.unwrap();
-    assert_eq!(camera.eye, [0.0, 1.0, 5.0]);
-    assert_eq!(camera.target, [0.0, 1.0, 4.0]);
+    assert_eq!(camera.eye, Vec3::new(0.0, 1.0, 5.0));
+    assert_eq!(camera.target, Vec3::new(0.0, 1.0, 4.0));
     assert!((camera.vfov_deg - 0.8f32.to_degrees()).abs() < 1e-4);
     let points = &data.lights.points;
     assert_eq!(points.len(), 2);

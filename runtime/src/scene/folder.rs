@@ -48,14 +48,11 @@ use super::effects::EffectSet;
 use super::envmap::EnvMap;
 use super::error::{Location, SceneError};
 use super::gltf_file::load_gltf;
-use super::light::{Environment, Lights, PointLight, SkyGradient, SpotCone, SunLight};
+use super::light::{Environment, Lights, PointLight, SUN_RADIUS_DEG, SkyGradient, SpotCone, SunLight};
 use super::mesh::Mesh;
 use super::model::{Scene, SceneSource, SceneTolerances, Units, UnitsFrom};
 use super::obj::{GlassMode, MeshData, ObjOptions, load_obj};
 use super::path::{CameraKey, CameraPath, DEFAULT_FRAMES};
-
-/// Mitsuba's apparent sun radius in degrees (half its 0.5358° diameter).
-pub const SUN_RADIUS_DEG: f32 = 0.5358 / 2.0;
 
 /// Options for [`load_folder`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -610,7 +607,16 @@ pub(crate) fn load_parts(
                 if let Some((p, _)) = sidecar {
                     warnings.push(format!("{}: not used: {} has its own camera", p.display(), mesh_path.display()));
                 }
-                Some((mesh_path.to_path_buf(), own))
+                let camera = CameraJson {
+                    eye: own.eye.into(),
+                    target: own.target.into(),
+                    up: own.up.into(),
+                    vfov_deg: own.vfov_deg,
+                    width: None,
+                    height: None,
+                    meters_per_unit: None,
+                };
+                Some((mesh_path.to_path_buf(), camera))
             }
             (None, Some((p, mut c))) => {
                 // In the glTF file's units, which `path_around` scales to metres.

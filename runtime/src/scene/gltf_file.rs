@@ -16,7 +16,7 @@
 //!   it for files that are not.
 //! - **Camera**: the first perspective camera met walking the scene's nodes in order. Its
 //!   `yfov` is the vertical field of view; the aspect ratio is the render's. The camera path
-//!   starts there (see [`folder::path_around`](super::folder::path_around)).
+//!   starts there (`folder::path_around` builds the path around it).
 //! - **Lights**: emissive materials are area lights (one-sided, on the winding normal, like
 //!   every emitter here). `KHR_lights_punctual` point and spot lights keep their intensity
 //!   (candela) as radiant intensity and directional lights their illuminance (lux) as
@@ -59,8 +59,7 @@ use gltf::accessor::{DataType, Dimensions};
 use gltf::mesh::Mode;
 
 use super::error::{Location, SceneError};
-use super::folder::{CameraJson, SUN_RADIUS_DEG};
-use super::light::{Lights, PointLight, SpotCone, SunLight};
+use super::light::{Lights, PointLight, SUN_RADIUS_DEG, SpotCone, SunLight};
 use super::material::{MIN_GLOSSY_ROUGHNESS, MIRROR_MAX_ROUGHNESS, Material, MaterialKind};
 use super::mesh::Mesh;
 use super::obj::MeshData;
@@ -83,14 +82,26 @@ glTF material rules (PBR metallic-roughness -> diffuse / glossy / mirror):
   normal, occlusion textures: not used
   lights: KHR_lights_punctual point/spot (candela as W/sr), directional (lux as W/m2, a 0.27 deg sun disc)";
 
+/// A camera of the file, in the file's units (not scaled).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GltfCamera {
+    /// Its position.
+    pub eye: Vec3,
+    /// A point straight ahead (one unit along its -Z).
+    pub target: Vec3,
+    /// Its +Y.
+    pub up: Vec3,
+    /// Its vertical field of view in degrees.
+    pub vfov_deg: f32,
+}
+
 /// A loaded glTF file: what [`load_gltf`] returns.
 #[derive(Clone, Debug)]
 pub struct GltfData {
     /// Triangles (scaled), materials and textures.
     pub geometry: MeshData,
-    /// The first perspective camera, in the file's units (not scaled), as `camera.json` would
-    /// give it.
-    pub camera: Option<CameraJson>,
+    /// The first perspective camera met walking the scene's nodes.
+    pub camera: Option<GltfCamera>,
     /// `KHR_lights_punctual` lights (scaled).
     pub lights: Lights,
 }
@@ -332,7 +343,7 @@ impl Loader<'_> {
 
     /// The camera of `camera` at `world`, in file units; `None` (with a warning) for an
     /// orthographic one or a degenerate transform.
-    fn camera(&mut self, camera: &gltf::Camera, world: Mat4) -> Option<CameraJson> {
+    fn camera(&mut self, camera: &gltf::Camera, world: Mat4) -> Option<GltfCamera> {
         let gltf::camera::Projection::Perspective(perspective) = camera.projection() else {
             self.warnings.push(format!("{}: orthographic camera {} skipped", self.path.display(), camera.index()));
             return None;
@@ -348,15 +359,7 @@ impl Loader<'_> {
             ));
             return None;
         };
-        Some(CameraJson {
-            eye: eye.into(),
-            target: (eye + forward).into(),
-            up: up.into(),
-            vfov_deg: perspective.yfov().to_degrees(),
-            width: None,
-            height: None,
-            meters_per_unit: None,
-        })
+        Some(GltfCamera { eye, target: eye + forward, up, vfov_deg: perspective.yfov().to_degrees() })
     }
 
     fn light(&mut self, light: &gltf::khr_lights_punctual::Light, world: Mat4, lights: &mut Lights) {

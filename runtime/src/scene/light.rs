@@ -79,6 +79,9 @@ impl SpotCone {
     }
 }
 
+/// Mitsuba's apparent sun radius in degrees (half its 0.5358° diameter): the real sun's.
+pub const SUN_RADIUS_DEG: f32 = 0.5358 / 2.0;
+
 /// A directional light with a finite angular radius (a sun disc).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SunLight {

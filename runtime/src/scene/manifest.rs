@@ -230,7 +230,7 @@ fn one_f32() -> f32 {
     1.0
 }
 fn sun_radius() -> f32 {
-    super::folder::SUN_RADIUS_DEG
+    super::light::SUN_RADIUS_DEG
 }
 
 #[derive(Debug, Default, Deserialize)]
