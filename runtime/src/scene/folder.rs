@@ -92,6 +92,20 @@ pub struct CameraJson {
 }
 
 impl CameraJson {
+    /// A camera at `eye` looking at `target`, with no film size or unit of its own (one that
+    /// did not come from a `camera.json`).
+    pub fn looking_at(eye: Vec3, target: Vec3, up: Vec3, vfov_deg: f32) -> Self {
+        Self {
+            eye: eye.into(),
+            target: target.into(),
+            up: up.into(),
+            vfov_deg,
+            width: None,
+            height: None,
+            meters_per_unit: None,
+        }
+    }
+
     /// Checks the fields a camera needs, naming the one at fault.
     pub fn validate(&self) -> Result<(), String> {
         let finite = |v: [f32; 3]| v.iter().all(|c| c.is_finite());
@@ -607,16 +621,7 @@ pub(crate) fn load_parts(
                 if let Some((p, _)) = sidecar {
                     warnings.push(format!("{}: not used: {} has its own camera", p.display(), mesh_path.display()));
                 }
-                let camera = CameraJson {
-                    eye: own.eye.into(),
-                    target: own.target.into(),
-                    up: own.up.into(),
-                    vfov_deg: own.vfov_deg,
-                    width: None,
-                    height: None,
-                    meters_per_unit: None,
-                };
-                Some((mesh_path.to_path_buf(), camera))
+                Some((mesh_path.to_path_buf(), CameraJson::looking_at(own.eye, own.target, own.up, own.vfov_deg)))
             }
             (None, Some((p, mut c))) => {
                 // In the glTF file's units, which `path_around` scales to metres.
@@ -679,15 +684,7 @@ fn framing_camera(mesh: &Mesh, scale: f32) -> CameraJson {
     let vfov_deg: f32 = 45.0;
     let distance = radius / (0.5 * vfov_deg).to_radians().sin();
     let eye = centre + Vec3::new(0.0, 0.25, 1.0).normalize() * distance;
-    CameraJson {
-        eye: eye.into(),
-        target: centre.into(),
-        up: [0.0, 1.0, 0.0],
-        vfov_deg,
-        width: None,
-        height: None,
-        meters_per_unit: None,
-    }
+    CameraJson::looking_at(eye, centre, Vec3::Y, vfov_deg)
 }
 
 /// Loads a scene folder (see the module notes): its `scene.obj`, `scene.glb` or `scene.gltf`.

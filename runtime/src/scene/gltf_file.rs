@@ -51,7 +51,9 @@
 //! coordinates, and a missing or undecodable image are all [`SceneError`]s naming the file.
 //! Nothing here panics on bad input: the `gltf` fuzz target feeds it arbitrary files.
 
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
+use std::rc::Rc;
 
 use base64::Engine as _;
 use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
@@ -60,7 +62,7 @@ use gltf::mesh::Mode;
 
 use super::error::{Location, SceneError};
 use super::light::{Lights, PointLight, SUN_RADIUS_DEG, SpotCone, SunLight};
-use super::material::{MIN_GLOSSY_ROUGHNESS, MIRROR_MAX_ROUGHNESS, Material, MaterialKind};
+use super::material::{MIN_GLOSSY_ROUGHNESS, MIRROR_MAX_ROUGHNESS, Material};
 use super::mesh::Mesh;
 use super::obj::MeshData;
 use super::texture::{Texture, TextureUsage};
@@ -132,7 +134,9 @@ pub fn load_gltf_bytes(path: &Path, bytes: &[u8], base: Option<&Path>, scale: f3
     // document is validated, so nothing below should panic. This is a net for what the
     // `gltf` crate still unwraps on a malformed file; nothing is shared across it.
     let walked = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        Loader { path, document: &document, buffers: &buffers, base, scale, warnings: Vec::new() }.load()
+        let (decoded, placed) = (HashMap::new(), HashMap::new());
+        Loader { path, document: &document, buffers: &buffers, base, scale, warnings: Vec::new(), decoded, placed }
+            .load()
     }));
     walked.unwrap_or_else(|panic| {
         Err(SceneError::invalid(path, format!("the glTF reader failed on this file: {}", panic_text(panic.as_ref()))))
@@ -259,6 +263,21 @@ struct Loader<'a> {
     base: Option<&'a Path>,
     scale: f32,
     warnings: Vec<String>,
+    /// Images decoded so far, by image index and usage: materials sharing an image (obj2gltf
+    /// writes a copy of a material per OBJ group) decode it once.
+    decoded: HashMap<(usize, TextureUsage), Rc<Texture>>,
+    /// Scene textures made so far, by the image and what was baked into it: such copies
+    /// share one texture too.
+    placed: HashMap<(usize, Baked), u32>,
+}
+
+/// What a scene texture made from an image holds besides the image (the bits of the factors).
+#[derive(Clone, Copy, PartialEq, Eq, Hash)]
+enum Baked {
+    /// The colour times the base-colour factor's RGB.
+    Albedo([u32; 3]),
+    /// The alpha mask for the factor's alpha and the cutoff.
+    Mask([u32; 2]),
 }
 
 /// The materials of a file, the textures they use, and where each glTF material went.
@@ -560,11 +579,15 @@ impl Loader<'_> {
             roughness *= mean.y;
             metallic *= mean.z;
         }
+        // (image index, decoded image, texture-coordinate set)
         let base_texture = match pbr.base_color_texture() {
-            Some(info) => Some((self.image(&info.texture(), TextureUsage::Albedo)?, info.tex_coord())),
+            Some(info) => {
+                let texture = info.texture();
+                Some((texture.source().index(), self.image(&texture, TextureUsage::Albedo)?, info.tex_coord()))
+            }
             None => None,
         };
-        let base_mean = base_texture.as_ref().map_or(Vec3::ONE, |(t, _)| t.mean_rgb()) * factor.truncate();
+        let base_mean = base_texture.as_ref().map_or(Vec3::ONE, |(_, t, _)| t.mean_rgb()) * factor.truncate();
         let mut material = if metallic >= 0.5 {
             let mut conductor = if roughness <= MIRROR_MAX_ROUGHNESS {
                 Material::mirror(name.clone(), base_mean)
@@ -582,10 +605,14 @@ impl Loader<'_> {
             } else {
                 Material::diffuse(name.clone(), factor.truncate())
             };
-            if let Some((texture, _)) = &base_texture {
-                let mut baked = texture.clone();
-                bake_factor(&mut baked, factor.truncate());
-                dielectric.albedo_texture = Some(push(textures, baked));
+            if let Some((image, texture, _)) = &base_texture {
+                let rgb = factor.truncate();
+                dielectric.albedo_texture =
+                    Some(self.place(textures, (*image, Baked::Albedo(rgb.to_array().map(f32::to_bits))), || {
+                        let mut baked = Texture::clone(texture);
+                        bake_factor(&mut baked, rgb);
+                        Ok(baked)
+                    })?);
                 dielectric.albedo = base_mean;
             }
             dielectric
@@ -610,23 +637,22 @@ impl Loader<'_> {
             }
         };
         if let Some(cutoff) = cutoff {
-            self.alpha_test(&mut material, factor.w, base_texture.as_ref().map(|(t, _)| t), cutoff, textures)?;
+            let image = base_texture.as_ref().map(|(image, texture, _)| (*image, texture.as_ref()));
+            self.alpha_test(&mut material, factor.w, image, cutoff, textures)?;
         }
-        let uv_set = base_texture.as_ref().map_or(0, |(_, set)| *set);
-        if material.kind == MaterialKind::Mirror {
-            material.albedo_texture = None;
-        }
+        let uv_set = base_texture.as_ref().map_or(0, |(_, _, set)| *set);
         Ok((material, uv_set))
     }
 
     /// Sets the material's cut-out so that the renderer's test (coverage below 0.5 is a hole)
     /// is glTF's (alpha below `cutoff` is a hole): the mask holds `0.5 × alpha / cutoff`, a
     /// linear map, so bilinear filtering crosses the threshold where alpha crosses the cutoff.
+    /// `image` is the base-colour image (its index and its decoded texture), if any.
     fn alpha_test(
-        &self,
+        &mut self,
         material: &mut Material,
         factor_alpha: f32,
-        texture: Option<&Texture>,
+        image: Option<(usize, &Texture)>,
         cutoff: f32,
         textures: &mut Vec<Texture>,
     ) -> Result<(), SceneError> {
@@ -635,21 +661,44 @@ impl Loader<'_> {
             return Ok(());
         }
         let scale = 0.5 / cutoff;
-        match texture.filter(|t| t.channels == 4) {
-            Some(t) => {
-                let alpha = t.data.chunks_exact(4).map(|p| (p[3] * factor_alpha * scale).min(1e6)).collect();
-                let mask = Texture::new(format!("{}-alpha", t.name), t.width, t.height, 1, alpha)
-                    .map_err(|m| self.invalid(m))?;
-                material.opacity_texture = Some(push(textures, mask));
+        match image.filter(|(_, t)| t.channels == 4) {
+            Some((index, t)) => {
+                let key = (index, Baked::Mask([factor_alpha.to_bits(), cutoff.to_bits()]));
+                let path = self.path;
+                let mask = self.place(textures, key, || {
+                    let alpha = t.data.chunks_exact(4).map(|p| (p[3] * factor_alpha * scale).min(1e6)).collect();
+                    Texture::new(format!("{}-alpha", t.name), t.width, t.height, 1, alpha)
+                        .map_err(|m| SceneError::invalid(path, m))
+                })?;
+                material.opacity_texture = Some(mask);
             }
             None => material.opacity = (factor_alpha * scale).clamp(0.0, 1.0),
         }
         Ok(())
     }
 
-    /// Decodes the image of `texture` for `usage`.
-    fn image(&self, texture: &gltf::Texture, usage: TextureUsage) -> Result<Texture, SceneError> {
+    /// The scene texture `key` names: the one made before, or `make`'s, added to `textures`.
+    fn place(
+        &mut self,
+        textures: &mut Vec<Texture>,
+        key: (usize, Baked),
+        make: impl FnOnce() -> Result<Texture, SceneError>,
+    ) -> Result<u32, SceneError> {
+        if let Some(&index) = self.placed.get(&key) {
+            return Ok(index);
+        }
+        textures.push(make()?);
+        let index = (textures.len() - 1) as u32;
+        self.placed.insert(key, index);
+        Ok(index)
+    }
+
+    /// The image of `texture` decoded for `usage` (once per image and usage).
+    fn image(&mut self, texture: &gltf::Texture, usage: TextureUsage) -> Result<Rc<Texture>, SceneError> {
         let image = texture.source();
+        if let Some(decoded) = self.decoded.get(&(image.index(), usage)) {
+            return Ok(Rc::clone(decoded));
+        }
         let origin = PathBuf::from(format!("{}#image{}", self.path.display(), image.index()));
         let bytes: Vec<u8> = match image.source() {
             gltf::image::Source::View { view, .. } => {
@@ -664,7 +713,9 @@ impl Loader<'_> {
             }
         };
         let name = image.name().map_or_else(|| format!("image{}", image.index()), str::to_owned);
-        Texture::decode(&name, &bytes, usage, &origin)
+        let decoded = Rc::new(Texture::decode(&name, &bytes, usage, &origin)?);
+        self.decoded.insert((image.index(), usage), Rc::clone(&decoded));
+        Ok(decoded)
     }
 }
 
@@ -691,14 +742,8 @@ fn bake_factor(texture: &mut Texture, factor: Vec3) {
     }
     let c = texture.channels as usize;
     for (i, v) in texture.data.iter_mut().enumerate() {
-        let channel = i % c;
-        if channel < 3 {
-            *v *= factor[channel.min(2)];
+        if i % c < 3 {
+            *v *= factor[i % c];
         }
     }
-}
-
-fn push(textures: &mut Vec<Texture>, texture: Texture) -> u32 {
-    textures.push(texture);
-    (textures.len() - 1) as u32
 }
