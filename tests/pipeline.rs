@@ -5,10 +5,11 @@ use stereotrace::camera::{Eye, StereoRig};
 use stereotrace::kernels::accumulate;
 use stereotrace::kernels::reproject::{self, Reason, ReprojectInput, ReprojectOutput, ReprojectParams};
 use stereotrace::kernels::{Extent, PlaneBuf, RgbBuf};
-use stereotrace::pipeline::{GBufferView, Layout, Mode, Order, Pipeline, PipelineConfig};
-use stereotrace::render::{FrameView, GBufferBuf, Renderer};
+use stereotrace::pipeline::{Blend, GBufferView, History, Layout, Mode, Order, Pipeline, PipelineConfig};
+use stereotrace::render::{FrameView, GBufferBuf, Renderer, RendererOptions, RendererSource};
 use stereotrace::scene::resolve;
 use stereotrace::session::RendererPipeline;
+use stereotrace::source::{FrameSource, PipelineError, PixelSelection, RasterPassStats, TraceRequest, TraceStats};
 
 const W: usize = 48;
 const H: usize = 27;
@@ -548,4 +549,136 @@ fn lent_g_buffers_are_checked() {
         assert!(err.contains(needle), "{err}");
     }
     p.render_frame_lent(0, cameras, [good, good], None).unwrap();
+}
+
+/// Temporal gradients with the renderer: a static scene traces no gradient samples and gives
+/// the paper's images bit for bit in every temporal mode; a scene with a moving light traces
+/// about one per 3×3 stratum, re-shading the last frame's samples, and shortens its history
+/// somewhere (the light moves every frame).
+#[test]
+fn temporal_gradients_run_only_where_the_scene_changes() {
+    let modes = [Mode::Temporal, Mode::Spatiotemporal, Mode::SpatiotemporalBlend];
+    for (scene, changes) in [("cornell", false), ("atrium-moving-light", true)] {
+        let r = renderer(scene);
+        for mode in modes {
+            let paper = config(&r, mode, 1);
+            let gradient = PipelineConfig { history: History::Gradient, ..paper };
+            let mut a = Pipeline::new(&r, paper, StereoRig::default(), extent()).unwrap();
+            let mut b = Pipeline::new(&r, gradient, StereoRig::default(), extent()).unwrap();
+            let mut changed = 0;
+            for f in 3..7 {
+                let pose = r.scene().camera.pose_at(f as f32);
+                a.render_frame(f, &pose).unwrap();
+                let stats = b.render_frame(f, &pose).unwrap();
+                changed += stats.gradient_changed.iter().sum::<u64>();
+                let samples = stats.gradient_samples[Eye::Right as usize];
+                if !changes {
+                    assert_eq!(stats.gradient_samples, [0, 0], "{scene} {mode}");
+                    for eye in Eye::BOTH {
+                        assert_eq!(a.output(eye), b.output(eye), "{scene} {mode} {eye} frame {f}");
+                    }
+                } else if f > 3 {
+                    // Most strata have a reprojected pixel whose source was traced.
+                    let strata = (W / 3 * H / 3) as u64;
+                    assert!(samples > strata / 2 && samples <= strata, "{scene} {mode}: {samples} of {strata}");
+                    assert!(stats.trace.samples > a_samples(&stats), "{scene} {mode}");
+                }
+            }
+            assert_eq!(changed > 0, changes, "{scene} {mode}: {changed} strata changed");
+        }
+    }
+}
+
+/// Samples a frame traced for its pixels alone (the gradient samples come on top).
+fn a_samples(stats: &stereotrace::pipeline::FrameStats) -> u64 {
+    stats.traced_pixels.iter().sum()
+}
+
+/// The renderer as a source that claims its scene may change: the pipeline then re-shades
+/// every stratum's gradient sample even on a static scene.
+struct ClaimsChange<'r>(RendererSource<&'r Renderer>);
+
+impl FrameSource for ClaimsChange<'_> {
+    fn begin_frame(&mut self, frame: u32) {
+        self.0.begin_frame(frame);
+    }
+    fn fill_gbuffers(
+        &mut self,
+        gbuffers: [&mut GBufferBuf; 2],
+        layout: Layout,
+    ) -> Result<Option<RasterPassStats>, PipelineError> {
+        self.0.fill_gbuffers(gbuffers, layout)
+    }
+    fn trace(
+        &self,
+        camera: &stereotrace::kernels::CameraModel,
+        request: &TraceRequest,
+        selection: PixelSelection<'_>,
+        rows: std::ops::Range<usize>,
+        out: &mut RgbBuf,
+    ) -> Result<TraceStats, PipelineError> {
+        self.0.trace(camera, request, selection, rows, out)
+    }
+}
+
+/// A gradient sample re-shades exactly the path the last frame traced: on a static scene
+/// with a moving camera, every re-shaded sample equals its old one bit for bit, so no stratum
+/// changes and the images are the paper's, in every temporal mode (the renderer's random
+/// numbers are keyed by pixel, frame and sample, whatever else is traced beside them).
+#[test]
+fn a_gradient_sample_re_shades_the_last_frames_path_exactly() {
+    let r = renderer("living-room");
+    for mode in [Mode::Temporal, Mode::Spatiotemporal, Mode::SpatiotemporalBlend] {
+        let paper = config(&r, mode, 2);
+        let gradient = PipelineConfig { history: History::Gradient, ..paper };
+        let mut a = Pipeline::new(&r, paper, StereoRig::default(), extent()).unwrap();
+        let head = r.scene().camera.pose_at(3.0);
+        let source = ClaimsChange(RendererSource::new(&r, RendererOptions::default(), extent()).unwrap());
+        let mut b = Pipeline::with_rig(source, gradient, StereoRig::default(), &head, extent()).unwrap();
+        for f in 3..7 {
+            let pose = r.scene().camera.pose_at(f as f32);
+            a.render_frame(f, &pose).unwrap();
+            let stats = b.render_frame(f, &pose).unwrap();
+            if f > 3 {
+                assert!(stats.gradient_samples[Eye::Right as usize] > 0, "{mode}");
+            }
+            assert_eq!(stats.gradient_changed, [0, 0], "{mode} frame {f}");
+            for eye in Eye::BOTH {
+                assert_eq!(a.output(eye), b.output(eye), "{mode} {eye} frame {f}");
+            }
+        }
+    }
+}
+
+/// The variance-guided blend changes only the paper-order spatiotemporal blend (every other
+/// mode's images are the fixed blend's bit for bit), gives the fixed blend's image where no
+/// history exists yet (the first frame: both lengths 1), and weighs differently somewhere
+/// once histories of different lengths meet (a moving camera's disocclusions).
+#[test]
+fn the_variance_blend_changes_only_the_blend_of_histories() {
+    let r = renderer("living-room");
+    for mode in Mode::ALL {
+        for order in [Order::Paper, Order::StereoFirst] {
+            let fixed = PipelineConfig { order, ..config(&r, mode, 1) };
+            let variance = PipelineConfig { blend: Blend::Variance, ..fixed };
+            let mut a = Pipeline::new(&r, fixed, StereoRig::default(), extent()).unwrap();
+            let mut b = Pipeline::new(&r, variance, StereoRig::default(), extent()).unwrap();
+            let blends_histories = mode == Mode::SpatiotemporalBlend && order == Order::Paper;
+            let mut differs = false;
+            for f in 3..8 {
+                let pose = r.scene().camera.pose_at(f as f32);
+                a.render_frame(f, &pose).unwrap();
+                b.render_frame(f, &pose).unwrap();
+                for eye in Eye::BOTH {
+                    let same = a.output(eye) == b.output(eye);
+                    if !blends_histories || f == 3 {
+                        assert!(same, "{mode} {order:?} {eye} frame {f}");
+                    }
+                    differs |= !same;
+                    assert!(b.output(eye).planes().iter().all(|p| p.as_slice().iter().all(|v| v.is_finite())));
+                }
+            }
+            assert_eq!(differs, blends_histories, "{mode} {order:?}");
+        }
+    }
 }

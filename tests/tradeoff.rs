@@ -50,14 +50,19 @@ fn the_sweep_measures_the_harness_images_and_marks_a_consistent_front() {
         assert_eq!(row.effective_rmse, config.rmse, "{v}");
     }
 
-    // 1 path-traced + 7 modes + strict, ramp, full layout, traced G-buffer + 2 budgets.
-    assert_eq!(report.rows.len(), 14);
+    // 1 path-traced + 7 modes + strict, ramp, full layout, traced G-buffer, gradient
+    // history, variance blend + 2 budgets.
+    assert_eq!(report.rows.len(), 16);
     let unbudgeted = report.rows.iter().find(|r| r.mode == "spatiotemporal" && r.change == "paper").unwrap();
     let budgeted = report.rows.iter().find(|r| r.change == "budget 50%").unwrap();
     assert_eq!(budgeted.budget_ms, Some(0.5 * unbudgeted.frame.median_ms));
     let in_ms = report.rows.iter().find(|r| r.change == "budget 50 ms").unwrap();
     assert_eq!(in_ms.budget_ms, Some(50.0));
     // The traced G-buffer (the reference pass) gives the raster pass's quality.
+    // Nothing moves in the Cornell box: the gradient history traces no gradient samples and
+    // gives the paper's images, so the same quality.
+    let gradient = report.rows.iter().find(|r| r.change == "gradient history").unwrap();
+    assert_eq!(gradient.effective_ssim, unbudgeted.effective_ssim);
     let traced = report.rows.iter().find(|r| r.change == "traced G-buffer").unwrap();
     let (a, b) = (traced.effective_ssim.mean.unwrap(), unbudgeted.effective_ssim.mean.unwrap());
     assert!((a - b).abs() <= 0.01 * b, "effective spp with a traced G-buffer {a}, rasterised {b}");

@@ -1,4 +1,4 @@
-//! EMA accumulation and the stereo blend at 1280×720, the scalar references beside the SIMD
+//! EMA accumulation, the stereo blend and temporal gradients' history confidence at 1280×720, the scalar references beside the SIMD
 //! bodies, on 1 and 2 threads, throughput in pixels; the memory triad of the same run for the
 //! roofline.
 //!
@@ -12,6 +12,7 @@ use common::{Fixture, pool};
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use stereotrace_kernels::accumulate::{self, BlendParams, EmaInput, EmaParams, EmaState};
 use stereotrace_kernels::frame::PlaneBuf;
+use stereotrace_kernels::gradient::{self, GradientInput};
 use stereotrace_kernels::synth::Rng;
 
 fn ema_and_blend(c: &mut Criterion) {
@@ -76,9 +77,41 @@ fn ema_and_blend(c: &mut Criterion) {
     group.finish();
 }
 
+/// The history confidence of a 1280×720 frame from its 427×240 strata: luminance pairs with
+/// a change on a third of them (a moving light's share), throughput in pixels written.
+fn gradients(c: &mut Criterion) {
+    let e = Fixture::new().extent();
+    let strata = gradient::strata_extent(e);
+    let mut rng = Rng::new(43);
+    let old = PlaneBuf::from_vec((0..strata.pixels()).map(|_| rng.range(0.0, 2.0)).collect(), strata).unwrap();
+    let new = PlaneBuf::from_vec(
+        old.as_slice().iter().map(|&v| if rng.next_f32() < 0.33 { v * rng.range(0.0, 2.0) } else { v }).collect(),
+        strata,
+    )
+    .unwrap();
+    let mut out = PlaneBuf::new(e, 0.0f32);
+    let mut group = c.benchmark_group("gradient_confidence");
+    group.throughput(Throughput::Elements(e.pixels() as u64));
+    for threads in [1, 2] {
+        let pool = pool(threads);
+        for simd in [true, false] {
+            group.bench_function(BenchmarkId::new(if simd { "simd" } else { "scalar" }, threads), |b| {
+                b.iter(|| {
+                    pool.install(|| {
+                        let input = GradientInput { old: old.view(), new: new.view(), prior: None, gain: 1.0 };
+                        let f = if simd { gradient::history_confidence } else { gradient::history_confidence_scalar };
+                        black_box(f(&input, out.view_mut()).expect("valid input"))
+                    })
+                })
+            });
+        }
+    }
+    group.finish();
+}
+
 criterion_group! {
     name = benches;
     config = common::criterion();
-    targets = ema_and_blend, common::triad
+    targets = ema_and_blend, gradients, common::triad
 }
 criterion_main!(benches);

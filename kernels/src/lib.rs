@@ -23,6 +23,7 @@ pub mod check;
 pub mod frame;
 pub mod fuzzing;
 pub mod gbuffer;
+pub mod gradient;
 pub mod isa;
 mod lanes;
 pub mod raster;

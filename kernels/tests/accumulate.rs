@@ -216,3 +216,78 @@ fn blend_simd_equals_scalar_and_is_a_50_50_mix_where_valid() {
     accumulate::blend(&own.view(), other.view_mut(), &reason.view(), &BlendParams::default()).unwrap();
     assert_eq!(other.r().as_slice(), &[2.0, 1.0, 2.0]);
 }
+
+fn random_lengths(e: Extent, rng: &mut Rng) -> PlaneBuf {
+    let pick = |rng: &mut Rng| [0.0, 1.0, 2.0, 9.0, 1e9, f32::MAX, rng.range(0.0, 40.0), 0.5][rng.below(8)];
+    PlaneBuf::from_vec((0..e.pixels()).map(|_| pick(rng)).collect(), e).unwrap()
+}
+
+#[test]
+fn variance_blend_simd_equals_scalar_on_edge_values() {
+    let mut rng = Rng::new(31);
+    for case in 0..60 {
+        let e = extent([1, 7, 8, 9, 17, 40][case % 6], 1 + rng.below(5));
+        let own = random_rgb(e, &mut rng, 0.3);
+        let reprojected = random_rgb(e, &mut rng, 0.3);
+        let reason = random_reasons(e, &mut rng);
+        let (own_len, other_len) = (random_lengths(e, &mut rng), random_lengths(e, &mut rng));
+        let lengths = accumulate::BlendLengths {
+            own: own_len.view(),
+            other: other_len.view(),
+            alpha: [0.2, 1.0, 0.05, 1e-6][case % 4],
+        };
+        let band_rows = 1 + rng.below(3);
+        let run = |simd: bool| {
+            let mut out = reprojected.clone();
+            let f = if simd { accumulate::blend_by_variance } else { accumulate::blend_by_variance_scalar };
+            (f(&own.view(), out.view_mut(), &reason.view(), &lengths, band_rows).unwrap(), out)
+        };
+        let (sa, a) = run(true);
+        let (sb, b) = run(false);
+        assert_eq!(sa, sb);
+        for (x, y) in [(a.r(), b.r()), (a.g(), b.g()), (a.b(), b.b())] {
+            assert_same_planes("variance blend", x, y);
+        }
+    }
+}
+
+/// Equal history lengths are the paper's 50/50 blend bit for bit; an eye whose history just
+/// restarted (1 sample) beside a long one (the EMA's steady `α/(2 − α)` = 1/9 of a sample's
+/// variance at α = 0.2) takes `t = 1/(1 + 1/9) = 0.9` of the other eye's reprojection.
+#[test]
+fn variance_blend_is_50_50_for_equal_lengths_and_leans_on_the_longer_history() {
+    let e = extent(19, 3);
+    let mut rng = Rng::new(32);
+    let own = random_rgb(e, &mut rng, 0.0);
+    let reprojected = random_rgb(e, &mut rng, 0.0);
+    let reason = PlaneBuf::new(e, Reason::Reprojected as u8);
+    for n in [0.0, 1.0, 3.5, 9.0, 1e9] {
+        let len = PlaneBuf::new(e, n);
+        let lengths = accumulate::BlendLengths { own: len.view(), other: len.view(), alpha: 0.2 };
+        let mut by_variance = reprojected.clone();
+        accumulate::blend_by_variance(&own.view(), by_variance.view_mut(), &reason.view(), &lengths, 4).unwrap();
+        let mut fixed = reprojected.clone();
+        accumulate::blend(&own.view(), fixed.view_mut(), &reason.view(), &BlendParams::default()).unwrap();
+        assert_eq!(by_variance, fixed, "length {n}");
+    }
+    let (short, long) = (PlaneBuf::new(e, 1.0), PlaneBuf::new(e, 1e6));
+    let lengths = accumulate::BlendLengths { own: short.view(), other: long.view(), alpha: 0.2 };
+    let mut out = reprojected.clone();
+    accumulate::blend_by_variance(&own.view(), out.view_mut(), &reason.view(), &lengths, 4).unwrap();
+    assert!((accumulate::variance_blend_toward(1.0, 1e6, 0.2) - 0.9).abs() < 1e-6);
+    for y in 0..3 {
+        for x in 0..19 {
+            let (o, r, got) = (own.get(x, y), reprojected.get(x, y), out.get(x, y));
+            for c in 0..3 {
+                let want = o[c] + 0.9 * (r[c] - o[c]);
+                assert!((got[c] - want).abs() <= 1e-5 * want.abs().max(1.0), "({x}, {y}) {got:?} {want}");
+            }
+        }
+    }
+    // A length that is not a count is refused.
+    let bad = PlaneBuf::new(e, f32::NAN);
+    let lengths = accumulate::BlendLengths { own: bad.view(), other: long.view(), alpha: 0.2 };
+    let mut out = reprojected.clone();
+    assert!(accumulate::blend_by_variance(&own.view(), out.view_mut(), &reason.view(), &lengths, 4).is_err());
+    assert_eq!(out, reprojected, "a refused blend wrote");
+}

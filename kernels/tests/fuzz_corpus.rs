@@ -27,6 +27,16 @@ fn accumulate_corpus() {
 }
 
 #[test]
+fn gradient_corpus() {
+    replay("gradient", stereotrace_kernels::fuzzing::gradient);
+}
+
+#[test]
+fn variance_blend_corpus() {
+    replay("variance_blend", stereotrace_kernels::fuzzing::variance_blend);
+}
+
+#[test]
 fn ssim_corpus() {
     replay("ssim", stereotrace_kernels::fuzzing::ssim);
 }

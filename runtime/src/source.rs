@@ -53,6 +53,16 @@ pub trait FrameSource {
         out: &mut RgbBuf,
     ) -> Result<TraceStats, PipelineError>;
 
+    /// Whether lights or geometry may differ between frames in ways the G-buffers'
+    /// reprojection cannot see (a light that moves or switches, an object whose shadow moves
+    /// over a still floor). With `History::Gradient` the pipeline then measures temporal
+    /// gradients, re-shading samples of the last frame through [`FrameSource::trace`] with
+    /// the last frame's camera and frame index under this frame's scene; a source that says
+    /// `false` is asked for none. True by default: an engine's scene may change.
+    fn scene_changes(&self) -> bool {
+        true
+    }
+
     /// Frames will be of `extent` from now on ([`crate::pipeline::Pipeline::resize`]): resize
     /// whatever the source keeps per pixel, or fail and keep it as it was. Nothing to do by
     /// default.

@@ -77,6 +77,14 @@ pub struct EvalOptions {
     /// reprojection follows; without it every surface is taken as still.
     #[arg(long)]
     pub motion_vectors: bool,
+    /// How far the pipelines' EMA trusts a reprojected history: the paper's, or shortened by
+    /// temporal gradients where the lighting changed (default: the preset's, the paper's).
+    #[arg(long, value_enum)]
+    pub history: Option<crate::pipeline::History>,
+    /// How the pipelines' stereo blend weighs the eyes: the paper's fixed ½, or by inverse
+    /// variance from the history lengths (default: the preset's, the paper's).
+    #[arg(long, value_enum)]
+    pub blend: Option<crate::pipeline::Blend>,
     /// List the run's work units and their estimated CPU time (writes OUT/plan.tsv); compute
     /// nothing.
     #[arg(long, conflicts_with_all = ["shard", "merge"])]
@@ -165,6 +173,12 @@ pub fn build_spec(opts: &EvalOptions) -> Result<EvalSpec, String> {
         spec.gbuffer = g;
     }
     spec.motion_vectors |= opts.motion_vectors;
+    if let Some(h) = opts.history {
+        spec.history = h;
+    }
+    if let Some(b) = opts.blend {
+        spec.blend = b;
+    }
     // Figure options name scenes as the run will know them (a manifest's `name`, not its path).
     let names = spec
         .scenes

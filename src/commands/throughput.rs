@@ -20,7 +20,7 @@ use serde::Serialize;
 
 use crate::camera::{Eye, StereoRig};
 use crate::kernels::Extent;
-use crate::pipeline::{FrameStats, Layout, Mode, Order, Pipeline, PipelineConfig};
+use crate::pipeline::{Blend, FrameStats, History, Layout, Mode, Order, Pipeline, PipelineConfig};
 use crate::render::{Renderer, RendererOptions};
 use crate::session::{CameraWalk, Session, View};
 
@@ -51,6 +51,14 @@ pub struct ThroughputOptions {
     /// G-buffer layout the reprojection reads.
     #[arg(long, value_enum, default_value_t = Layout::Compact)]
     pub layout: Layout,
+    /// How far the EMA trusts a reprojected history: the paper's, or shortened by temporal
+    /// gradients where the lighting changed (scenes with moving lights or objects).
+    #[arg(long, value_enum, default_value_t = History::Paper)]
+    pub history: History,
+    /// How the stereo blend weighs the eyes: the paper's fixed ½, or by inverse variance
+    /// from each eye's history length (the paper-order spatiotemporal-blend mode).
+    #[arg(long, value_enum, default_value_t = Blend::Fixed)]
+    pub blend: Blend,
     /// How the G-buffers are made.
     #[command(flatten)]
     pub gbuffer: GBufferArg,
@@ -105,6 +113,10 @@ pub struct ThroughputReport {
     pub mode: String,
     /// Order of stereo and temporal reprojection.
     pub order: String,
+    /// How far the EMA trusted the history (`paper` or `gradient`).
+    pub history: String,
+    /// How the stereo blend weighed the eyes (`fixed` or `variance`).
+    pub blend: String,
     /// G-buffer layout the reprojection read (`compact` or `full`).
     pub layout: String,
     /// How the G-buffers were made (`raster` or `traced`).
@@ -127,6 +139,8 @@ pub struct ThroughputReport {
     pub tracing: Spread,
     /// EMA accumulation and stereo blending.
     pub accumulation: Spread,
+    /// Temporal gradients outside their traced samples (zero with the paper's history).
+    pub gradients: Spread,
     /// Rays traced per second of tracing time, in millions.
     pub mrays_per_s: f64,
     /// Share of left-eye pixels path traced (median over frames).
@@ -195,7 +209,7 @@ impl ScheduleRun {
         let pixels = extent.pixels() as f64;
         let share = |eye: usize| {
             eyes[eye].then(|| {
-                let mut v: Vec<f64> = stats.iter().map(|s| s.traced_pixels[eye] as f64 / pixels).collect();
+                let mut v: Vec<f64> = stats.iter().map(|s| s.pixels_traced(eye) as f64 / pixels).collect();
                 v.sort_by(f64::total_cmp);
                 v[v.len() / 2]
             })
@@ -265,6 +279,8 @@ pub fn run(opts: &ThroughputOptions) -> Result<ThroughputReport, String> {
     let mut config = PipelineConfig::paper(opts.mode, opts.spp, tolerances);
     config.order = opts.order;
     config.layout = opts.layout;
+    config.history = opts.history;
+    config.blend = opts.blend;
     let options = RendererOptions::with_gbuffer(opts.gbuffer.gbuffer);
     config.budget = opts.budget_ms.map(crate::pipeline::budget_duration).transpose()?;
     let stats = pool.install(|| run_frames(&renderer, options, config, opts.input.res, opts.frames, false))?;
@@ -296,7 +312,7 @@ pub fn run(opts: &ThroughputOptions) -> Result<ThroughputReport, String> {
     let frame = series(|s| s.times.total);
     let pixels = opts.input.res.pixels() as f64;
     let share = |eye: Eye| {
-        let mut v: Vec<f64> = stats.iter().map(|s| s.traced_pixels[eye as usize] as f64 / pixels).collect();
+        let mut v: Vec<f64> = stats.iter().map(|s| s.pixels_traced(eye as usize) as f64 / pixels).collect();
         v.sort_by(f64::total_cmp);
         v[v.len() / 2]
     };
@@ -317,6 +333,8 @@ pub fn run(opts: &ThroughputOptions) -> Result<ThroughputReport, String> {
         threads: usize::from(opts.threads.threads),
         mode: opts.mode.name().into(),
         order: opts.order.name().into(),
+        history: opts.history.name().into(),
+        blend: opts.blend.name().into(),
         layout: format!("{:?}", opts.layout).to_lowercase(),
         gbuffer_pass: opts.gbuffer.gbuffer.name().into(),
         spp: opts.spp,
@@ -328,6 +346,7 @@ pub fn run(opts: &ThroughputOptions) -> Result<ThroughputReport, String> {
         reprojection: series(|s| s.times.reprojection),
         tracing: series(|s| s.times.tracing),
         accumulation: series(|s| s.times.accumulation),
+        gradients: series(|s| s.times.gradients),
         mrays_per_s: if tracing_time > 0.0 { rays as f64 / tracing_time / 1e6 } else { 0.0 },
         left_traced_share: share(Eye::Left),
         right_traced_share: share(Eye::Right),
@@ -343,7 +362,10 @@ pub fn run(opts: &ThroughputOptions) -> Result<ThroughputReport, String> {
         always_run_ms: Spread::of(
             stats
                 .iter()
-                .map(|s| ms(s.times.gbuffer + s.times.reprojection + s.times.accumulation + s.times.urgent_tracing))
+                .map(|s| {
+                    let t = &s.times;
+                    ms(t.gbuffer + t.reprojection + t.accumulation + t.gradients + t.urgent_tracing)
+                })
                 .collect(),
         )
         .median_ms,
@@ -356,13 +378,15 @@ impl ThroughputReport {
         let stage =
             |name: &str, s: &Spread| format!("  {name:<13} {:>9.2} ms median {:>9.2} ms p95\n", s.median_ms, s.p95_ms);
         let mut out = format!(
-            "{} {}x{} {} threads, mode {} (order {}, {} {} G-buffer), {} spp, {}: {} frames measured\n",
+            "{} {}x{} {} threads, mode {} (order {}, {} history, {} blend, {} {} G-buffer), {} spp, {}: {} frames measured\n",
             self.scene,
             self.width,
             self.height,
             self.threads,
             self.mode,
             self.order,
+            self.history,
+            self.blend,
             self.layout,
             self.gbuffer_pass,
             self.spp,
@@ -375,6 +399,9 @@ impl ThroughputReport {
         out += &stage("reprojection", &self.reprojection);
         out += &stage("path tracing", &self.tracing);
         out += &stage("accumulation", &self.accumulation);
+        if self.history == History::Gradient.name() {
+            out += &stage("gradients", &self.gradients);
+        }
         out += &format!("  Mrays/s       {:>9.2} (while tracing)\n", self.mrays_per_s);
         out += &format!(
             "  traced        {:>8.1} % of left-eye pixels, {:.1} % of right-eye pixels\n",

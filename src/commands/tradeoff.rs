@@ -27,7 +27,7 @@ use crate::eval::stats::Summary;
 use crate::eval::{EvalSpec, Metric, Preset, Reporter, Variant};
 use crate::kernels::Extent;
 use crate::kernels::reproject::TapPolicy;
-use crate::pipeline::{Layout, Mode, Order, Pipeline};
+use crate::pipeline::{Blend, History, Layout, Mode, Order, Pipeline};
 use crate::render::{GBufferPass, RendererOptions};
 use crate::session::{CameraWalk, Session};
 
@@ -133,6 +133,10 @@ pub struct Setting {
     pub layout: Layout,
     /// How the G-buffers are made.
     pub gbuffer: GBufferPass,
+    /// How far the EMA trusts a reprojected history.
+    pub history: History,
+    /// How the stereo blend weighs the eyes.
+    pub blend: Blend,
     /// A fraction of the unbudgeted spatiotemporal (paper order) time at the same spp.
     pub budget_fraction: Option<f64>,
     /// A budget in milliseconds.
@@ -150,6 +154,8 @@ impl Setting {
             ramp: false,
             layout: Layout::Compact,
             gbuffer,
+            history: History::Paper,
+            blend: Blend::Fixed,
             budget_fraction: None,
             budget_ms: None,
         }
@@ -169,6 +175,12 @@ impl Setting {
         }
         if self.gbuffer != GBufferPass::default() {
             parts.push(format!("{} G-buffer", self.gbuffer.name()));
+        }
+        if self.history != History::Paper {
+            parts.push(format!("{} history", self.history.name()));
+        }
+        if self.blend != Blend::Fixed {
+            parts.push(format!("{} blend", self.blend.name()));
         }
         if let Some(f) = self.budget_fraction {
             parts.push(format!("budget {:.0}%", f * 100.0));
@@ -214,6 +226,12 @@ pub fn settings(opts: &TradeoffOptions) -> Vec<Setting> {
         out.push(Setting { ramp: true, ..base });
         out.push(Setting { layout: Layout::Full, ..base });
         out.push(Setting { gbuffer: other_pass, ..base });
+        // Temporal gradients: the same points as the paper's on a scene where nothing moves
+        // (it traces no gradient samples there).
+        out.push(Setting { history: History::Gradient, ..base });
+        // The variance-guided blend changes the blend of histories only.
+        let blend = paper(Mode::SpatiotemporalBlend, Order::Paper);
+        out.push(Setting { blend: Blend::Variance, ..blend });
         for &f in &opts.budgets {
             out.push(Setting { budget_fraction: Some(f), ..base });
         }
@@ -302,6 +320,8 @@ fn measure_setting(
     config.policy = setting.policy;
     config.ramp = setting.ramp;
     config.layout = setting.layout;
+    config.history = setting.history;
+    config.blend = setting.blend;
     config.budget = budget_ms.map(crate::pipeline::budget_duration).transpose()?;
     let rig = StereoRig::new(spec.eye_separation)?;
     let options = RendererOptions::with_gbuffer(setting.gbuffer);
@@ -317,8 +337,8 @@ fn measure_setting(
         if f > 0 {
             let t = ms(stats.times.total);
             times.push(t);
-            left.push(stats.traced_pixels[Eye::Left as usize] as f64 / pixels);
-            right.push(stats.traced_pixels[Eye::Right as usize] as f64 / pixels);
+            left.push(stats.pixels_traced(Eye::Left as usize) as f64 / pixels);
+            right.push(stats.pixels_traced(Eye::Right as usize) as f64 / pixels);
             if let Some(b) = budget_ms {
                 misses += usize::from(t > b);
                 worst = worst.max(t - b);

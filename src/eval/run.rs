@@ -653,7 +653,7 @@ impl Runner<'_> {
             let stats = session.next_frame().map_err(|e| format!("{}: frame {f}: {e}", plan.name))?;
             let p = session.pipeline();
             self.counters.samples += stats.trace.samples;
-            result.traced_left_pixels += stats.traced_pixels[Eye::Left as usize];
+            result.traced_left_pixels += stats.pixels_traced(Eye::Left as usize);
             result.stereo_reasons.push(FrameReasons { frame: f, counts: stats.stereo_reasons[Eye::Left as usize].0 });
             result
                 .temporal_reasons
@@ -917,6 +917,8 @@ pub fn pipeline_config(
     cfg.order = variant.order;
     cfg.seed = spec.seeds.pipeline;
     cfg.motion_vectors = spec.motion_vectors;
+    cfg.history = spec.history;
+    cfg.blend = spec.blend;
     cfg
 }
 

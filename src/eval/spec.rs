@@ -183,6 +183,12 @@ pub struct EvalSpec {
     /// Whether the pipelines get the surfaces' motion vectors (older specs: off).
     #[serde(default)]
     pub motion_vectors: bool,
+    /// How far the pipelines' EMA trusts a reprojected history (older specs: the paper's).
+    #[serde(default)]
+    pub history: crate::pipeline::History,
+    /// How the pipelines' stereo blend weighs the eyes (older specs: the paper's).
+    #[serde(default)]
+    pub blend: crate::pipeline::Blend,
     /// What the figures show.
     pub figures: FigureSpec,
 }
@@ -257,6 +263,8 @@ impl Preset {
             eye_separation: crate::camera::DEFAULT_EYE_SEPARATION,
             gbuffer: crate::render::GBufferPass::Raster,
             motion_vectors: false,
+            history: crate::pipeline::History::Paper,
+            blend: crate::pipeline::Blend::Fixed,
             figures,
         };
         match self {

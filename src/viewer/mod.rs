@@ -305,8 +305,8 @@ impl<'r> Viewer<'r> {
                 ms(t.reprojection),
                 ms(t.tracing + t.urgent_tracing),
                 ms(t.accumulation),
-                100.0 * s.traced_pixels[0] as f64 / pixels,
-                100.0 * s.traced_pixels[1] as f64 / pixels,
+                100.0 * s.pixels_traced(0) as f64 / pixels,
+                100.0 * s.pixels_traced(1) as f64 / pixels,
                 self.budget_misses
             );
         }

@@ -34,7 +34,7 @@ use crate::bands::{SharedRows, for_each_band};
 use crate::frame::{FrameError, Plane, PlaneMut, RgbPlanes, RgbPlanesMut, same_extent};
 use crate::reproject::check_reason_plane;
 use crate::simd::F32s;
-pub use scalar::{blend_pixel, ema_pixel, ema_pixel_trusting, lerp};
+pub use scalar::{blend_pixel, ema_pixel, ema_pixel_trusting, lerp, mean_variance_factor, variance_blend_toward};
 use scalar::{blend_scalar_at, ema_scalar_at};
 pub use simd::lerp_simd;
 
@@ -122,7 +122,7 @@ fn check_ema(input: &EmaInput<'_>, state: &EmaState<'_>, params: &EmaParams) -> 
     }
     if let Some(c) = &input.confidence {
         same_extent("history confidence plane", e, c.extent())?;
-        check_unit_interval(c)?;
+        check_unit_interval("history confidence plane", c)?;
     }
     if let Some(n) = &state.history_len {
         same_extent("history length plane", e, n.extent())?;
@@ -131,20 +131,15 @@ fn check_ema(input: &EmaInput<'_>, state: &EmaState<'_>, params: &EmaParams) -> 
     check_reason_plane("reason plane", &input.reason)
 }
 
-/// Refuses a confidence outside [0, 1] (or NaN), naming the first such pixel.
-fn check_unit_interval(plane: &Plane<'_>) -> Result<(), FrameError> {
+/// Refuses a confidence outside [0, 1] (or NaN) in the plane called `what`, naming the
+/// first such pixel.
+pub(crate) fn check_unit_interval(what: &'static str, plane: &Plane<'_>) -> Result<(), FrameError> {
     for y in 0..plane.height() {
         let row = plane.row(y);
         let unit = |v: f32| (0.0..=1.0).contains(&v);
         if !row.iter().fold(true, |ok, &v| ok & unit(v)) {
             let x = row.iter().position(|&v| !unit(v)).expect("a bad confidence is in the row");
-            return Err(FrameError::ValueOutOfRange {
-                what: "history confidence plane",
-                x,
-                y,
-                value: f64::from(row[x]),
-                allowed: "in [0, 1]",
-            });
+            return Err(FrameError::ValueOutOfRange { what, x, y, value: f64::from(row[x]), allowed: "in [0, 1]" });
         }
     }
     Ok(())
@@ -296,6 +291,48 @@ pub struct BlendParams {
     pub band_rows: usize,
 }
 
+/// The history lengths the variance-guided blend weighs by ([`blend_by_variance`]).
+#[derive(Clone, Copy)]
+pub struct BlendLengths<'a> {
+    /// The eye's own history length per pixel (samples; finite and ≥ 0, else refused).
+    pub own: Plane<'a>,
+    /// The other eye's history length, reprojected with its image (the same rule).
+    pub other: Plane<'a>,
+    /// The EMA's α, in (0, 1]: it sets the variance of a long history.
+    pub alpha: f32,
+}
+
+/// How a blend weighs the reprojection per pixel (`t` in `lerp(own, reprojected, t)`).
+#[derive(Clone, Copy)]
+pub(crate) enum BlendWeights<'a> {
+    /// The same everywhere: `1 − own_weight`.
+    Fixed(f32),
+    /// Inverse variance by history length ([`variance_blend_toward`]).
+    ByLength(BlendLengths<'a>),
+}
+
+impl BlendWeights<'_> {
+    #[inline(always)]
+    pub(crate) fn toward_reprojected(&self, x: usize, y: usize) -> f32 {
+        match self {
+            BlendWeights::Fixed(t) => *t,
+            BlendWeights::ByLength(l) => variance_blend_toward(l.own.row(y)[x], l.other.row(y)[x], l.alpha),
+        }
+    }
+
+    /// [`BlendWeights::toward_reprojected`] of the eight pixels from `x`.
+    #[inline(always)]
+    pub(crate) fn toward_reprojected_simd(&self, x: usize, y: usize) -> F32s {
+        match self {
+            BlendWeights::Fixed(t) => F32s::splat(*t),
+            BlendWeights::ByLength(l) => {
+                let (own, other) = (crate::simd::load(l.own.row(y), x), crate::simd::load(l.other.row(y), x));
+                simd::variance_blend_toward_simd(own, other, l.alpha)
+            }
+        }
+    }
+}
+
 impl Default for BlendParams {
     fn default() -> Self {
         Self { own_weight: 0.5, band_rows: 16 }
@@ -325,11 +362,75 @@ pub fn blend_scalar(
     params: &BlendParams,
 ) -> Result<AccumulateStats, FrameError> {
     check_blend(own, &reprojected, reason, params)?;
-    Ok(run_blend(reprojected, params, |y, out, stats| {
+    let weights = BlendWeights::Fixed(1.0 - params.own_weight);
+    Ok(run_blend(reprojected, params.band_rows, |y, out, stats| {
         for x in 0..out[0].len() {
-            blend_scalar_at(own, reason, params, x, y, out, stats);
+            blend_scalar_at(own, reason, &weights, x, y, out, stats);
         }
     }))
+}
+
+fn check_lengths(own: &RgbPlanes<'_>, lengths: &BlendLengths<'_>) -> Result<(), FrameError> {
+    if !(lengths.alpha > 0.0 && lengths.alpha <= 1.0) {
+        return Err(FrameError::InvalidParameter("EMA alpha must be in (0, 1]"));
+    }
+    same_extent("own history length plane", own.extent(), lengths.own.extent())?;
+    same_extent("other eye's history length plane", own.extent(), lengths.other.extent())?;
+    check_history_len(&lengths.own)?;
+    check_history_len(&lengths.other)
+}
+
+/// Scalar reference of [`blend_by_variance`].
+pub fn blend_by_variance_scalar(
+    own: &RgbPlanes<'_>,
+    reprojected: RgbPlanesMut<'_>,
+    reason: &Plane<'_, u8>,
+    lengths: &BlendLengths<'_>,
+    band_rows: usize,
+) -> Result<AccumulateStats, FrameError> {
+    check_blend(own, &reprojected, reason, &BlendParams { own_weight: 0.5, band_rows })?;
+    check_lengths(own, lengths)?;
+    let weights = BlendWeights::ByLength(*lengths);
+    Ok(run_blend(reprojected, band_rows, |y, out, stats| {
+        for x in 0..out[0].len() {
+            blend_scalar_at(own, reason, &weights, x, y, out, stats);
+        }
+    }))
+}
+
+/// The variance-guided stereo blend (SIMD, bit-identical to [`blend_by_variance_scalar`]):
+/// [`blend`] with each pixel's weights by inverse variance of the two estimates, the
+/// variance of an EMA's mean following from its history length
+/// ([`variance_blend_toward`]). An eye whose history restarted (a disocclusion) leans on the
+/// other eye's longer one; equal lengths give the paper's 50/50 bit for bit. Lengths that are
+/// not finite counts ≥ 0 are refused.
+pub fn blend_by_variance(
+    own: &RgbPlanes<'_>,
+    mut reprojected: RgbPlanesMut<'_>,
+    reason: &Plane<'_, u8>,
+    lengths: &BlendLengths<'_>,
+    band_rows: usize,
+) -> Result<AccumulateStats, FrameError> {
+    check_blend(own, &reprojected, reason, &BlendParams { own_weight: 0.5, band_rows })?;
+    check_lengths(own, lengths)?;
+    #[cfg(feature = "check-scalar")]
+    let before = snapshot(&EmaState { accum: reprojected.reborrow(), history_len: None }).0;
+    let weights = BlendWeights::ByLength(*lengths);
+    let stats = run_blend(reprojected.reborrow(), band_rows, |y, out, stats| {
+        simd::blend_row(own, reason, &weights, y, out, stats)
+    });
+    #[cfg(feature = "check-scalar")]
+    {
+        let mut reference = before;
+        let expected =
+            blend_by_variance_scalar(own, reference.view_mut(), reason, lengths, band_rows).expect("validated input");
+        assert_eq!(stats, expected, "variance blend stats differ");
+        let simd = reprojected.as_planes().channels();
+        for (c, plane) in reference.view().channels().iter().enumerate() {
+            crate::check::assert_planes_equal("variance blend colour", c, &simd[c], plane);
+        }
+    }
+    Ok(stats)
 }
 
 /// SIMD stereo blend, bit-identical to [`blend_scalar`]; writes the result over
@@ -343,9 +444,9 @@ pub fn blend(
     check_blend(own, &reprojected, reason, params)?;
     #[cfg(feature = "check-scalar")]
     let before = snapshot(&EmaState { accum: reprojected.reborrow(), history_len: None }).0;
-    let t = F32s::splat(1.0 - params.own_weight);
-    let stats = run_blend(reprojected.reborrow(), params, |y, out, stats| {
-        simd::blend_row(own, reason, params, t, y, out, stats)
+    let weights = BlendWeights::Fixed(1.0 - params.own_weight);
+    let stats = run_blend(reprojected.reborrow(), params.band_rows, |y, out, stats| {
+        simd::blend_row(own, reason, &weights, y, out, stats)
     });
     #[cfg(feature = "check-scalar")]
     {
@@ -360,7 +461,7 @@ pub fn blend(
     Ok(stats)
 }
 
-fn run_blend<F>(out: RgbPlanesMut<'_>, params: &BlendParams, body: F) -> AccumulateStats
+fn run_blend<F>(out: RgbPlanesMut<'_>, band_rows: usize, body: F) -> AccumulateStats
 where
     F: for<'r> Fn(usize, &mut EmaRow<'r>, &mut AccumulateStats) + Sync,
 {
@@ -369,7 +470,7 @@ where
     let rows = [r, g, b].map(SharedRows::new);
     for_each_band(
         height,
-        params.band_rows,
+        band_rows,
         |range| {
             let mut stats = AccumulateStats::default();
             for y in range {

@@ -1,7 +1,7 @@
 //! The scalar references of the EMA and the stereo blend: one pixel at a time, the
 //! definitions of the module notes; [`super::simd`] computes the same bits.
 
-use super::{AccumulateStats, BlendParams, EmaInput, EmaParams, EmaRow};
+use super::{AccumulateStats, BlendParams, BlendWeights, EmaInput, EmaParams, EmaRow};
 use crate::frame::{Plane, RgbPlanes};
 use crate::reproject::Reason;
 use crate::simd::clamp_finite1;
@@ -29,6 +29,28 @@ pub fn lerp(a: f32, b: f32, t: f32) -> f32 {
 pub(super) fn finish(v: f32) -> f32 {
     let v = clamp_finite1(v);
     if v.abs() < f32::MIN_POSITIVE { 0.0 } else { v }
+}
+
+/// The variance of an EMA's mean over `n` samples, as a multiple of one sample's:
+/// `Σw²`, which is `1/n` while the samples are few and `α/(2 − α)` once the EMA's weights
+/// take over (the larger of the two: the exact sum lies between them and both limits). A
+/// length below 1 (a hole, a restart) counts as 1.
+#[inline(always)]
+pub fn mean_variance_factor(n: f32, alpha: f32) -> f32 {
+    let n = if n >= 1.0 { n } else { 1.0 };
+    let running_mean = 1.0 / n;
+    let steady = alpha / (2.0 - alpha);
+    if running_mean > steady { running_mean } else { steady }
+}
+
+/// The reprojection's weight in the variance-guided blend: inverse-variance weights
+/// `w_own = v_other / (v_own + v_other)`, so `t = v_own / (v_own + v_other)` with each
+/// eye's [`mean_variance_factor`] (a sample's own variance taken as the same in both eyes:
+/// one surface seen twice). Equal lengths give exactly ½.
+#[inline(always)]
+pub fn variance_blend_toward(own_len: f32, other_len: f32, alpha: f32) -> f32 {
+    let (own, other) = (mean_variance_factor(own_len, alpha), mean_variance_factor(other_len, alpha));
+    own / (own + other)
 }
 
 /// One pixel of the EMA (scalar reference) with a history confidence of 1. Returns the new
@@ -120,11 +142,22 @@ pub fn blend_pixel(
     params: &BlendParams,
     stats: &mut AccumulateStats,
 ) -> [f32; 3] {
+    blend_pixel_toward(own, reprojected, valid, 1.0 - params.own_weight, stats)
+}
+
+/// [`blend_pixel`] with the reprojection's weight `t` given: `lerp(own, reprojected, t)`.
+#[inline]
+pub(super) fn blend_pixel_toward(
+    own: [f32; 3],
+    reprojected: [f32; 3],
+    valid: bool,
+    t: f32,
+    stats: &mut AccumulateStats,
+) -> [f32; 3] {
     let finite = own.iter().all(|v| v.is_finite());
     if !finite {
         stats.non_finite += 1;
     }
-    let t = 1.0 - params.own_weight;
     match (finite, valid) {
         (true, true) => [0, 1, 2].map(|c| lerp(own[c], reprojected[c], t)),
         (true, false) => own.map(finish),
@@ -140,14 +173,15 @@ pub fn blend_pixel(
 pub(super) fn blend_scalar_at(
     own: &RgbPlanes<'_>,
     reason: &Plane<'_, u8>,
-    params: &BlendParams,
+    weights: &BlendWeights<'_>,
     x: usize,
     y: usize,
     out: &mut EmaRow<'_>,
     stats: &mut AccumulateStats,
 ) {
     let valid = reason.row(y)[x] == Reason::Reprojected as u8;
-    let v = blend_pixel(own.get(x, y), [out[0][x], out[1][x], out[2][x]], valid, params, stats);
+    let t = weights.toward_reprojected(x, y);
+    let v = blend_pixel_toward(own.get(x, y), [out[0][x], out[1][x], out[2][x]], valid, t, stats);
     for c in 0..3 {
         out[c][x] = v[c];
     }

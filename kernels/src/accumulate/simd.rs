@@ -2,7 +2,7 @@
 //! expressions as [`super::scalar`] lane for lane.
 
 use super::scalar::{blend_scalar_at, ema_scalar_at};
-use super::{AccumulateStats, BlendParams, EmaInput, EmaParams, EmaRow};
+use super::{AccumulateStats, BlendWeights, EmaInput, EmaParams, EmaRow};
 use crate::frame::{Plane, RgbPlanes};
 use crate::reproject::Reason;
 use crate::simd::{F32s, I32s, LANES, clamp_finite, load, store};
@@ -127,14 +127,26 @@ pub(super) fn ema_row<'r>(
     }
 }
 
-/// One row of [`super::blend`] (`t` = 1 − the own weight): eight pixels at a time, the tail
-/// through the scalar reference.
+/// [`super::variance_blend_toward`] on eight lanes.
+#[inline(always)]
+pub(super) fn variance_blend_toward_simd(own_len: F32s, other_len: F32s, alpha: f32) -> F32s {
+    let steady = F32s::splat(alpha / (2.0 - alpha));
+    let factor = |n: F32s| {
+        let n = n.simd_ge(F32s::ONE).select(n, F32s::ONE);
+        let running_mean = F32s::ONE / n;
+        running_mean.simd_gt(steady).select(running_mean, steady)
+    };
+    let (own, other) = (factor(own_len), factor(other_len));
+    own / (own + other)
+}
+
+/// One row of [`super::blend`] and [`super::blend_by_variance`] (the reprojection's weight
+/// per pixel from `weights`): eight pixels at a time, the tail through the scalar reference.
 #[inline(always)]
 pub(super) fn blend_row(
     own: &RgbPlanes<'_>,
     reason: &Plane<'_, u8>,
-    params: &BlendParams,
-    t: F32s,
+    weights: &BlendWeights<'_>,
     y: usize,
     out: &mut EmaRow<'_>,
     stats: &mut AccumulateStats,
@@ -149,6 +161,7 @@ pub(super) fn blend_row(
         let theirs = [0, 1, 2].map(|c| load(out[c], x));
         let finite = mine[0].is_finite() & mine[1].is_finite() & mine[2].is_finite();
         let hole = !finite & !valid;
+        let t = weights.toward_reprojected_simd(x, y);
         for c in 0..3 {
             let mixed = lerp_simd(mine[c], theirs[c], t);
             let v = finite
@@ -160,6 +173,6 @@ pub(super) fn blend_row(
         x += LANES;
     }
     for x in x..width {
-        blend_scalar_at(own, reason, params, x, y, out, stats);
+        blend_scalar_at(own, reason, weights, x, y, out, stats);
     }
 }

@@ -1,5 +1,5 @@
 //! The image kernels' entry points: backward reprojection, bilinear resampling,
-//! accumulation and SSIM, each over an analytic scene edited by the input's trailing bytes.
+//! accumulation, temporal gradients and SSIM, each over an analytic scene edited by the input's trailing bytes.
 
 use glam::{Mat4, Vec3};
 
@@ -9,6 +9,7 @@ use crate::camera::{CameraModel, look_at_perspective};
 use crate::check::same_bits;
 use crate::frame::{Extent, FrameError, PlaneBuf, RgbBuf};
 use crate::gbuffer::SurfaceLayout;
+use crate::gradient::{self, GradientInput};
 use crate::isa::Isa;
 use crate::reproject::{self, Reason, ReprojectInput, ReprojectOutput, ReprojectParams, TapPolicy, Tolerances};
 use crate::synth::{AnalyticScene, SynthFrame, camera_at};
@@ -575,5 +576,132 @@ pub fn ssim(data: &[u8]) {
         assert!(fast.rmse.is_finite() && fast.rmse >= 0.0, "RMSE not finite: {fast:?}");
     } else {
         assert!(fast.rmse.is_nan(), "no usable sample but RMSE {fast:?}");
+    }
+}
+
+/// Fuzzes temporal gradients: luminance pairs over the strata of a small frame and an
+/// optional prior confidence, edited anywhere with any f32, and any gain. A prior outside
+/// [0, 1] or a gain that is not finite and ≥ 0 must be
+/// refused by both bodies alike with the output untouched; any other input must give the
+/// same bits and counts from both, every pixel a confidence in [0, 1], and at most as many
+/// changed strata as strata.
+pub fn gradient(data: &[u8]) {
+    let mut bytes = Bytes(data);
+    let e = extent_from(&mut bytes);
+    let strata = gradient::strata_extent(e);
+    let mut old = PlaneBuf::new(strata, bytes.unit(0.0, 4.0));
+    let mut new = PlaneBuf::new(strata, bytes.unit(0.0, 4.0));
+    let mut prior = (bytes.u8() % 3 == 0).then(|| PlaneBuf::new(e, bytes.unit(0.0, 1.0)));
+    // Mostly a plausible gain, sometimes any f32.
+    let gain = if bytes.u8() % 8 == 0 { bytes.f32() } else { bytes.unit(0.0, 8.0) };
+    while !bytes.is_empty() {
+        let which = bytes.u8() % 3;
+        let index = usize::from(u16::from_le_bytes([bytes.u8(), bytes.u8()]));
+        let value = bytes.f32();
+        match which {
+            0 => old.as_mut_slice()[index % strata.pixels()] = value,
+            1 => new.as_mut_slice()[index % strata.pixels()] = value,
+            _ => {
+                if let Some(p) = &mut prior {
+                    // Mostly within [0, 1], sometimes anything.
+                    p.as_mut_slice()[index % e.pixels()] =
+                        if value.to_bits() % 16 == 0 { value } else { value.abs().fract() };
+                }
+            }
+        }
+    }
+    let prior_ok = prior.as_ref().is_none_or(|p| p.as_slice().iter().all(|v| (0.0..=1.0).contains(v)))
+        && gain.is_finite()
+        && gain >= 0.0;
+    let input = GradientInput { old: old.view(), new: new.view(), prior: prior.as_ref().map(|p| p.view()), gain };
+    let run = |simd: bool| {
+        let mut out = PlaneBuf::new(e, -2.0f32);
+        let f = if simd { gradient::history_confidence } else { gradient::history_confidence_scalar };
+        (f(&input, out.view_mut()), out)
+    };
+    let (stats, out) = run(true);
+    let (stats_ref, out_ref) = run(false);
+    assert_eq!(format!("{stats:?}"), format!("{stats_ref:?}"));
+    assert_bits("history confidence", &out, &out_ref);
+    match stats {
+        Ok(s) => {
+            assert!(prior_ok, "a prior outside [0, 1] or a bad gain was taken");
+            assert!(out.as_slice().iter().all(|c| (0.0..=1.0).contains(c)), "a confidence outside [0, 1]");
+            assert!(s.changed <= strata.pixels() as u64 && s.samples <= strata.pixels() as u64, "{s:?}");
+        }
+        Err(err) => {
+            let refusal = matches!(err, FrameError::ValueOutOfRange { .. } | FrameError::InvalidParameter(_));
+            assert!(!prior_ok && refusal, "refused with {err}");
+            assert!(out.as_slice().iter().all(|&c| c == -2.0), "a refused call wrote");
+        }
+    }
+}
+
+/// Fuzzes the variance-guided stereo blend: own and reprojected images, reason codes (~2 %
+/// undefined) and both eyes' history lengths, edited anywhere with any f32, any α. Undefined
+/// codes, lengths that are not finite counts and an α outside (0, 1] must be refused by both
+/// bodies alike with nothing written; anything else must give the same bits and counts from
+/// both, and equal lengths everywhere the fixed 50/50 blend's bits.
+pub fn variance_blend(data: &[u8]) {
+    let mut bytes = Bytes(data);
+    let e = extent_from(&mut bytes);
+    let alpha = if bytes.u8() % 8 == 0 { bytes.f32() } else { bytes.unit(0.0, 1.0).max(1e-6) };
+    let band_rows = 1 + usize::from(bytes.u8() % 4);
+    let mut own = RgbBuf::new(e, 1.0);
+    let mut reprojected = RgbBuf::new(e, 2.0);
+    let mut reason = PlaneBuf::new(e, Reason::Reprojected as u8);
+    let mut own_len = PlaneBuf::new(e, bytes.unit(0.0, 20.0));
+    let mut other_len = PlaneBuf::new(e, bytes.unit(0.0, 20.0));
+    while !bytes.is_empty() {
+        let which = bytes.u8() % 9;
+        let index = usize::from(u16::from_le_bytes([bytes.u8(), bytes.u8()])) % e.pixels();
+        let value = bytes.f32();
+        match which {
+            0 => own.r_mut()[index] = value,
+            1 => own.g_mut()[index] = value,
+            2 => own.b_mut()[index] = value,
+            3 => reprojected.r_mut()[index] = value,
+            4 => reprojected.g_mut()[index] = value,
+            5 => reprojected.b_mut()[index] = value,
+            6 => own_len.as_mut_slice()[index] = value,
+            7 => other_len.as_mut_slice()[index] = value,
+            _ => {
+                let code = value.to_bits() as u8;
+                reason.as_mut_slice()[index] = if code < 250 { code % 6 } else { code };
+            }
+        }
+    }
+    let counts = |p: &PlaneBuf| p.as_slice().iter().all(|&v| (0.0..=f32::MAX).contains(&v));
+    let acceptable = reason.as_slice().iter().all(|&c| usize::from(c) < crate::reproject::REASON_COUNT)
+        && counts(&own_len)
+        && counts(&other_len)
+        && alpha > 0.0
+        && alpha <= 1.0;
+    let lengths = accumulate::BlendLengths { own: own_len.view(), other: other_len.view(), alpha };
+    let run = |simd: bool| {
+        let mut out = reprojected.clone();
+        let f = if simd { accumulate::blend_by_variance } else { accumulate::blend_by_variance_scalar };
+        (f(&own.view(), out.view_mut(), &reason.view(), &lengths, band_rows), out)
+    };
+    let (stats, out) = run(true);
+    let (stats_ref, out_ref) = run(false);
+    assert_eq!(format!("{stats:?}"), format!("{stats_ref:?}"));
+    for (a, b) in [(out.r(), out_ref.r()), (out.g(), out_ref.g()), (out.b(), out_ref.b())] {
+        assert_bits("variance blend", a, b);
+    }
+    assert_eq!(stats.is_ok(), acceptable, "the variance blend refuses exactly the bad inputs: {stats:?}");
+    if stats.is_err() {
+        for (a, b) in [(out.r(), reprojected.r()), (out.g(), reprojected.g()), (out.b(), reprojected.b())] {
+            assert_bits("a refused variance blend wrote", a, b);
+        }
+        return;
+    }
+    if own_len.as_slice() == other_len.as_slice() {
+        let mut fixed = reprojected.clone();
+        let params = BlendParams { own_weight: 0.5, band_rows };
+        accumulate::blend(&own.view(), fixed.view_mut(), &reason.view(), &params).expect("accepted above");
+        for (a, b) in [(out.r(), fixed.r()), (out.g(), fixed.g()), (out.b(), fixed.b())] {
+            assert_bits("variance blend of equal lengths against 50/50", a, b);
+        }
     }
 }

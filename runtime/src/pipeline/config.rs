@@ -127,6 +127,59 @@ impl Order {
     }
 }
 
+/// How far the EMA trusts a reprojected history.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum History {
+    /// The paper's: wherever reprojection keeps it, which sees geometry only (a history
+    /// lags a moving light by about 1/α frames).
+    #[default]
+    Paper,
+    /// Also shortened where the lighting changed, measured by temporal gradients (A-SVGF):
+    /// one re-shaded sample of the last frame per 3×3 stratum, traced inside the frame
+    /// (`kernels::gradient`). A source whose scene cannot change between frames
+    /// ([`crate::source::FrameSource::scene_changes`]) traces none, and the images are the
+    /// paper's bit for bit.
+    Gradient,
+}
+
+impl History {
+    /// The CLI's and the tables' name.
+    pub fn name(self) -> &'static str {
+        match self {
+            History::Paper => "paper",
+            History::Gradient => "gradient",
+        }
+    }
+}
+
+/// How the stereo blend weighs an eye's own image against the other eye's reprojection.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum Blend {
+    /// The paper's: `blend_own_weight` everywhere (½).
+    #[default]
+    Fixed,
+    /// By inverse variance of the two accumulated estimates, from each eye's history length
+    /// (`kernels::accumulate::blend_by_variance`): where one eye's history restarted, the
+    /// other eye's longer one counts more. It changes only the paper-order
+    /// `spatiotemporal-blend` mode (the other blends mix two single-frame images, whose
+    /// lengths are equal); equal lengths give the fixed blend bit for bit.
+    Variance,
+}
+
+impl Blend {
+    /// The CLI's and the tables' name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Blend::Fixed => "fixed",
+            Blend::Variance => "variance",
+        }
+    }
+}
+
 /// Everything that decides a pipeline's images.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PipelineConfig {
@@ -161,9 +214,19 @@ pub struct PipelineConfig {
     /// last frame) for the source to fill, which temporal reprojection follows (see
     /// `kernels::reproject::ReprojectInput::motion`); off, every surface is taken as still.
     pub motion_vectors: bool,
+    /// How far the EMA trusts a reprojected history (see [`History`]).
+    pub history: History,
+    /// How the stereo blend weighs the two eyes (see [`Blend`]).
+    pub blend: Blend,
 }
 
 impl PipelineConfig {
+    /// Whether each eye keeps its per-pixel history length: for the α ramp, and for the
+    /// variance-guided blend.
+    pub fn tracks_history_length(&self) -> bool {
+        self.ramp || self.blend == Blend::Variance
+    }
+
     /// The paper's settings for `mode` at `spp` with `tolerances`.
     pub fn paper(mode: Mode, spp: u32, tolerances: Tolerances) -> Self {
         Self {
@@ -181,6 +244,8 @@ impl PipelineConfig {
             tile_rows: 8,
             history_confidence: false,
             motion_vectors: false,
+            history: History::Paper,
+            blend: Blend::Fixed,
         }
     }
 

@@ -55,18 +55,23 @@ use crate::camera::{CameraPose, Eye, StereoRig};
 use crate::kernels::accumulate::{self, BlendParams, EmaInput, EmaParams, EmaState};
 use crate::kernels::frame::{Plane, RgbPlanes};
 use crate::kernels::gbuffer::{CompactGBuffer, GBuffer, SurfaceLayout};
+use crate::kernels::gradient::{self, GradientInput, STRATUM};
 use crate::kernels::reproject::{self, Reason, ReasonCounts, ReprojectInput, ReprojectOutput, ReprojectParams};
 use crate::kernels::{CameraModel, Extent, FrameError, GBufferBuf, PlaneBuf, RgbBuf};
 use crate::source::{FrameSource, PixelSelection, TraceRequest};
 
 mod budget;
 pub(crate) mod config;
+mod gradients;
 mod lent;
 mod plan;
 mod stats;
 
 use budget::BudgetPlanner;
-pub use config::{MAX_BUDGET_MS, MAX_SPP, Mode, Order, PipelineConfig, budget_duration, check_spp, readable};
+pub use config::{
+    Blend, History, MAX_BUDGET_MS, MAX_SPP, Mode, Order, PipelineConfig, budget_duration, check_spp, readable,
+};
+use gradients::GradientBuffers;
 // The seam's types a pipeline user names, where the pipeline's own are.
 pub use crate::source::{Layout, PipelineError};
 pub use lent::GBufferView;
@@ -132,6 +137,9 @@ impl FrameBuffers {
 /// `traced` (module notes).
 struct EyeState {
     camera: CameraModel,
+    /// The committed frame's camera (unjittered) while a frame is in flight: temporal
+    /// gradients re-shade its pixels.
+    last_camera: CameraModel,
     cur: FrameBuffers,
     prev: FrameBuffers,
     /// The history-validity plane the EMA reads (a combination in some modes).
@@ -141,6 +149,10 @@ struct EyeState {
     has_new: PlaneBuf<u8>,
     /// Pixels with no valid reprojected data (traced first under a budget).
     urgent: PlaneBuf<u8>,
+    /// Temporal gradients' buffers (with `History::Gradient` only).
+    gradient: Option<GradientBuffers>,
+    /// The other eye's history length reprojected into this eye (with `Blend::Variance`).
+    stereo_len: Option<PlaneBuf>,
 }
 
 impl EyeState {
@@ -148,14 +160,24 @@ impl EyeState {
     /// allocator refuses one.
     fn try_new(camera: CameraModel, config: &PipelineConfig) -> Result<Self, FrameError> {
         let e = camera.extent;
+        let gradient = match config.history {
+            History::Gradient => Some(GradientBuffers::try_new(e)?),
+            History::Paper => None,
+        };
         Ok(Self {
             camera,
+            last_camera: camera,
             cur: FrameBuffers::try_new(camera, config)?,
             prev: FrameBuffers::try_new(camera, config)?,
             ema_reason: PlaneBuf::try_new(e, Reason::Invalid as u8)?,
             wanted: PlaneBuf::try_new(e, 0)?,
             has_new: PlaneBuf::try_new(e, 0)?,
             urgent: PlaneBuf::try_new(e, 0)?,
+            gradient,
+            stereo_len: match config.blend {
+                Blend::Variance => Some(PlaneBuf::try_new(e, 0.0)?),
+                Blend::Fixed => None,
+            },
         })
     }
 }
@@ -164,6 +186,8 @@ impl EyeState {
 /// planner's predictions. (The previous frame's cameras are its G-buffers'.)
 struct Committed {
     cameras: [CameraModel; 2],
+    last_cameras: [CameraModel; 2],
+    last_frame: u32,
     planner: BudgetPlanner,
 }
 
@@ -183,6 +207,9 @@ pub struct Pipeline<S: FrameSource> {
     planner: BudgetPlanner,
     /// The sub-pixel jitter of the next frames' G-buffers ([`Pipeline::set_jitter`]).
     jitter: [f32; 2],
+    /// The frame index of the last committed frame (temporal gradients re-shade with its
+    /// random numbers).
+    last_frame: u32,
     /// Whether the committed frame's G-buffers were lent ([`Pipeline::render_frame_lent`]):
     /// then the pipeline's own planes do not hold them, and the next lent frame must lend
     /// them again as its previous frame's.
@@ -286,6 +313,7 @@ impl<S: FrameSource> Pipeline<S> {
             extent,
             eyes: [EyeState::try_new(left, &config)?, EyeState::try_new(right, &config)?],
             frames_done: 0,
+            last_frame: 0,
             planner: BudgetPlanner::default(),
             jitter: [0.0; 2],
             gbuffers_lent: false,
@@ -514,6 +542,7 @@ impl<S: FrameSource> Pipeline<S> {
         match self.run_frame(frame, lent.as_ref()) {
             Ok(stats) => {
                 self.frames_done += 1;
+                self.last_frame = frame;
                 self.gbuffers_lent = lent.is_some();
                 Ok(stats)
             }
@@ -528,9 +557,15 @@ impl<S: FrameSource> Pipeline<S> {
     /// jitter): the committed frame's buffers become the previous frame's (see
     /// [`EyeState`]). Returns what [`Pipeline::roll_back`] restores.
     fn begin_frame(&mut self, cameras: [CameraModel; 2], gbuffer_cameras: [CameraModel; 2]) -> Committed {
-        let committed = Committed { cameras: self.eyes.each_ref().map(|s| s.camera), planner: self.planner };
+        let committed = Committed {
+            cameras: self.eyes.each_ref().map(|s| s.camera),
+            last_cameras: self.eyes.each_ref().map(|s| s.last_camera),
+            last_frame: self.last_frame,
+            planner: self.planner,
+        };
         for ((s, camera), gbuffer_camera) in self.eyes.iter_mut().zip(cameras).zip(gbuffer_cameras) {
             std::mem::swap(&mut s.cur, &mut s.prev);
+            s.last_camera = s.camera;
             s.camera = camera;
             (s.cur.gbuffer.camera, s.cur.gbuffer.jitter) = (gbuffer_camera, self.jitter);
         }
@@ -540,11 +575,11 @@ impl<S: FrameSource> Pipeline<S> {
     /// Undoes [`Pipeline::begin_frame`] after a refused frame: the committed buffers,
     /// cameras and planner are back, as if the call had never been made.
     fn roll_back(&mut self, committed: Committed) {
-        for (s, camera) in self.eyes.iter_mut().zip(committed.cameras) {
+        for ((s, camera), last_camera) in self.eyes.iter_mut().zip(committed.cameras).zip(committed.last_cameras) {
             std::mem::swap(&mut s.cur, &mut s.prev);
-            s.camera = camera;
+            (s.camera, s.last_camera) = (camera, last_camera);
         }
-        self.planner = committed.planner;
+        (self.planner, self.last_frame) = (committed.planner, committed.last_frame);
     }
 
     /// The body of [`Pipeline::render_frame_at`], between [`Pipeline::begin_frame`] and the
@@ -666,7 +701,7 @@ impl<S: FrameSource> Pipeline<S> {
         lent: Option<&Lent<'_>>,
     ) -> Result<ReasonCounts, PipelineError> {
         let params = self.reproject_params();
-        let ramp = self.config.ramp;
+        let ramp = self.config.tracks_history_length();
         let layout = self.config.layout;
         let s = &mut self.eyes[eye as usize];
         if !has_history {
@@ -697,11 +732,13 @@ impl<S: FrameSource> Pipeline<S> {
         reproject_in(layout, (&target, g.camera), (&source, &prev_camera), carried, out, &params)
     }
 
-    /// Stereo reprojection of the other eye's `source` image into `eye`'s `work` buffer.
+    /// Stereo reprojection of the other eye's `source` image into `eye`'s `work` buffer (`for_blend`:
+    /// with the other eye's history length too, where the variance-guided blend needs it).
     fn stereo_into(
         &mut self,
         eye: Eye,
         source: StereoSource,
+        for_blend: bool,
         lent: Option<&Lent<'_>>,
     ) -> Result<ReasonCounts, PipelineError> {
         let params = self.reproject_params();
@@ -720,18 +757,24 @@ impl<S: FrameSource> Pipeline<S> {
             StereoSource::Traced => other.cur.traced.view(),
             StereoSource::History => other.cur.history.view(),
         };
+        // The variance-guided blend of histories weighs by their lengths: the other eye's
+        // comes along with its image.
+        let (extra, extra_out) = match (&mut target.stereo_len, source) {
+            (Some(len), StereoSource::History) if for_blend => (Some(other.cur.len.view()), Some(len.view_mut())),
+            _ => (None, None),
+        };
         let (target_planes, source_planes) = match lent {
             Some(l) => (l.current[eye as usize], l.current[1 - eye as usize]),
             None => (planes_of(&target.cur.gbuffer), planes_of(&other.cur.gbuffer)),
         };
         let out = ReprojectOutput {
             colour: target.cur.work.view_mut(),
-            extra: None,
+            extra: extra_out,
             reason: target.cur.stereo_reason.view_mut(),
             weight: None,
         };
         let jitter = jitter_between(&target.cur.gbuffer, &other.cur.gbuffer);
-        let carried = Carried { colour, extra: None, pixel_mask: None, motion: None, jitter };
+        let carried = Carried { colour, extra, pixel_mask: None, motion: None, jitter };
         let target_view = (&target_planes, target.cur.gbuffer.camera);
         reproject_in(layout, target_view, (&source_planes, &other.cur.gbuffer.camera), carried, out, &params)
     }
@@ -746,7 +789,7 @@ impl<S: FrameSource> Pipeline<S> {
         lent: Option<&Lent<'_>>,
     ) -> Result<(), PipelineError> {
         let t = Instant::now();
-        stats.stereo_reasons[L] = self.stereo_into(Eye::Left, source, lent)?;
+        stats.stereo_reasons[L] = self.stereo_into(Eye::Left, source, false, lent)?;
         // Wanted (traced, and the left history reprojected): where stereo was discarded.
         let s = &mut self.eyes[L];
         for (wanted, &stereo) in s.wanted.as_mut_slice().iter_mut().zip(s.cur.stereo_reason.as_slice()) {
@@ -782,7 +825,7 @@ impl<S: FrameSource> Pipeline<S> {
         lent: Option<&Lent<'_>>,
     ) -> Result<(), PipelineError> {
         let t = Instant::now();
-        stats.stereo_reasons[eye as usize] = self.stereo_into(eye, source, lent)?;
+        stats.stereo_reasons[eye as usize] = self.stereo_into(eye, source, true, lent)?;
         stats.times.reprojection += t.elapsed();
         let t = Instant::now();
         let params = BlendParams { own_weight: self.config.blend_own_weight, band_rows: 16 };
@@ -791,7 +834,18 @@ impl<S: FrameSource> Pipeline<S> {
             StereoSource::Traced => s.cur.traced.view(),
             StereoSource::History => s.cur.history.view(),
         };
-        let blend = accumulate::blend(&own, s.cur.work.view_mut(), &s.cur.stereo_reason.view(), &params)?;
+        let reason = s.cur.stereo_reason.view();
+        let blend = match (&s.stereo_len, source) {
+            (Some(other_len), StereoSource::History) => {
+                let lengths = accumulate::BlendLengths {
+                    own: s.cur.len.view(),
+                    other: other_len.view(),
+                    alpha: self.config.alpha,
+                };
+                accumulate::blend_by_variance(&own, s.cur.work.view_mut(), &reason, &lengths, params.band_rows)?
+            }
+            _ => accumulate::blend(&own, s.cur.work.view_mut(), &reason, &params)?,
+        };
         let acc = &mut stats.accumulation[eye as usize];
         acc.non_finite += blend.non_finite;
         acc.holes += blend.holes;
@@ -893,21 +947,23 @@ impl<S: FrameSource> Pipeline<S> {
         stats: &mut FrameStats,
         lent: Option<&Lent<'_>>,
     ) -> Result<(), PipelineError> {
+        let gradients = self.temporal_gradients(eye, stats, lent)?;
         let t = Instant::now();
         let params = EmaParams { alpha: self.config.alpha, ramp: self.config.ramp, band_rows: 16 };
-        let ramp = self.config.ramp;
+        let track_len = self.config.tracks_history_length();
         let s = &mut self.eyes[eye as usize];
         let (new, reason) = match source {
             Source::Traced => (s.cur.traced.view(), s.cur.temporal_reason.view()),
             Source::Work => (s.cur.work.view(), s.cur.temporal_reason.view()),
             Source::WorkCombined => (s.cur.work.view(), s.ema_reason.view()),
         };
-        let confidence = match lent {
-            Some(l) => l.current[eye as usize].history_confidence,
-            None => s.cur.gbuffer.history_confidence.as_ref().map(|c| c.view()),
+        // The gradients' confidence (the engine's already multiplied in), or the engine's.
+        let confidence = match (gradients, &s.gradient) {
+            (true, Some(g)) => Some(g.confidence.view()),
+            _ => Self::engine_confidence(&s.cur.gbuffer, eye, lent),
         };
         let input = EmaInput { new, reason, has_new: Some(s.has_new.view()), confidence };
-        let state = EmaState { accum: s.cur.history.view_mut(), history_len: ramp.then(|| s.cur.len.view_mut()) };
+        let state = EmaState { accum: s.cur.history.view_mut(), history_len: track_len.then(|| s.cur.len.view_mut()) };
         let acc = accumulate::ema(&input, state, &params)?;
         let total = &mut stats.accumulation[eye as usize];
         total.non_finite += acc.non_finite;

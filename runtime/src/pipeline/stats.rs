@@ -21,6 +21,9 @@ pub struct StageTimes {
     pub urgent_tracing: Duration,
     /// EMA and blends.
     pub accumulation: Duration,
+    /// Temporal gradients (`History::Gradient`) outside their traced samples: choosing the
+    /// samples, and turning their luminance pairs into history confidence.
+    pub gradients: Duration,
     /// The whole frame.
     pub total: Duration,
 }
@@ -34,6 +37,12 @@ pub struct FrameStats {
     pub times: StageTimes,
     /// Pixels path traced per eye (left, right).
     pub traced_pixels: [u64; 2],
+    /// Gradient samples re-shaded per eye (left, right): one per 3×3 stratum with a usable
+    /// sample of the last frame, traced at `spp` like a pixel (`History::Gradient`; zero
+    /// otherwise). Not part of `traced_pixels`.
+    pub gradient_samples: [u64; 2],
+    /// Strata per eye whose gradient shortened the history (lighting changed there).
+    pub gradient_changed: [u64; 2],
     /// Pixels each eye would have traced without a budget.
     pub wanted_pixels: [u64; 2],
     /// Rays traced.
@@ -52,4 +61,12 @@ pub struct FrameStats {
     pub budget_met: bool,
     /// The rasterised G-buffer pass's counts and step times, from a source that rasterises (`None` otherwise).
     pub raster: Option<RasterPassStats>,
+}
+
+impl FrameStats {
+    /// Pixel samples traced for eye `eye` (0 left, 1 right), in pixels: the pixels traced
+    /// and the gradient samples, each `spp` samples (the share of a frame that was traced).
+    pub fn pixels_traced(&self, eye: usize) -> u64 {
+        self.traced_pixels[eye] + self.gradient_samples[eye]
+    }
 }

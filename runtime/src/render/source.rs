@@ -9,6 +9,7 @@ use super::lights::FrameLights;
 use super::raster::{RasterGBuffers, Visibility};
 use super::renderer::{RenderError, Renderer};
 use crate::kernels::{CameraModel, Extent, GBufferBuf, RgbBuf};
+use crate::scene::Effect;
 use crate::source::{FrameSource, Layout, PipelineError, PixelSelection, RasterPassStats, TraceRequest, TraceStats};
 
 /// How each frame's G-buffers are made.
@@ -115,6 +116,11 @@ impl<R: Borrow<Renderer>> RendererSource<R> {
 impl<R: Borrow<Renderer>> FrameSource for RendererSource<R> {
     fn begin_frame(&mut self, frame: u32) {
         self.lights.update(self.renderer.borrow().scene(), frame);
+    }
+
+    fn scene_changes(&self) -> bool {
+        let effects = self.renderer.borrow().scene().effects;
+        effects.has(Effect::MovingLights) || effects.has(Effect::MovingObjects)
     }
 
     fn resize(&mut self, extent: Extent) -> Result<(), PipelineError> {

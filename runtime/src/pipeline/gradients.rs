@@ -1,0 +1,247 @@
+//! Temporal gradients (`History::Gradient`): each eye's history confidence from re-shaded
+//! samples of the last frame, after A-SVGF (Schied et al. 2018).
+//!
+//! Per 3×3 stratum of this frame, one pixel whose history was reprojected is followed back
+//! to the last frame's pixel its surface came from. That pixel is traced again with the last
+//! frame's camera and random numbers (the same paths) under this frame's lights and
+//! geometry, and its luminance compared with the sample the last frame traced there: any
+//! difference is a change of the lighting, not noise. The kernel
+//! (`kernels::gradient::history_confidence`) turns the pairs into a per-pixel confidence the
+//! EMA reads. A scene that cannot change ([`FrameSource::scene_changes`]) skips all of it.
+
+use std::time::Instant;
+
+use super::{Eye, GradientInput, Lent, Pipeline, PipelineError, STRATUM, gradient, is_reprojected};
+use crate::kernels::frame::Plane;
+use rayon::prelude::*;
+
+use super::GBufferView;
+use crate::kernels::{CameraModel, Extent, FrameError, GBufferBuf, PlaneBuf, RgbBuf};
+use crate::source::{FrameSource, PixelSelection, TraceRequest};
+
+/// How strongly a relative change of the lighting shortens the history (the kernel's
+/// `gain`): A-SVGF's 1. Measured on the quick preset's moving-light scenes (RESULTS.md),
+/// gains of 2–4 buy more at 4 spp and lose more at 1 spp, where the gradient of single paths
+/// is mostly noise; below 1 they give back what 1 buys at 4 spp.
+const GRADIENT_GAIN: f32 = 1.0;
+
+/// A stratum without a gradient sample.
+const NONE: u32 = u32::MAX;
+
+/// One eye's buffers for temporal gradients, allocated with the pipeline.
+pub(super) struct GradientBuffers {
+    /// Per stratum: the last frame's pixel (`y·w + x`) re-shaded for it, or [`NONE`].
+    source_pixel: PlaneBuf<u32>,
+    /// Per stratum: the last frame's luminance there, and the re-shaded one (NaN: none).
+    old: PlaneBuf,
+    new: PlaneBuf,
+    /// The last frame's pixels to re-shade (cleared again after each frame).
+    mask: PlaneBuf<u8>,
+    /// The re-shaded samples, at the last frame's pixels.
+    reshaded: RgbBuf,
+    /// The per-pixel history confidence the EMA reads.
+    pub(super) confidence: PlaneBuf,
+}
+
+impl GradientBuffers {
+    pub(super) fn try_new(extent: Extent) -> Result<Self, FrameError> {
+        let strata = gradient::strata_extent(extent);
+        Ok(Self {
+            source_pixel: PlaneBuf::try_new(strata, NONE)?,
+            old: PlaneBuf::try_new(strata, f32::NAN)?,
+            new: PlaneBuf::try_new(strata, f32::NAN)?,
+            mask: PlaneBuf::try_new(extent, 0)?,
+            reshaded: RgbBuf::try_new(extent, 0.0)?,
+            confidence: PlaneBuf::try_new(extent, 1.0)?,
+        })
+    }
+}
+
+/// Rec. 709 luminance, the weights the evaluation's SSIM uses.
+fn luminance([r, g, b]: [f32; 3]) -> f32 {
+    0.2126 * r + 0.7152 * g + 0.0722 * b
+}
+
+/// Where a stratum's candidates start (so the sample moves around its stratum from frame to
+/// frame, as A-SVGF's does): the column from a hash of the frame and the stratum, the row
+/// from a hash of the frame and the row of strata. One pixel row in three per row of strata
+/// is then read (G-buffer, masks, samples), a third of the memory traffic of a row per
+/// stratum.
+fn first_candidate(frame: u32, sx: usize, sy: usize) -> usize {
+    let hash = |v: u64| {
+        let h = (u64::from(frame) << 32) ^ v;
+        ((h ^ (h >> 31)).wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 40) as usize
+    };
+    let row = hash(sy as u64 | 1 << 31) % STRATUM;
+    let column = hash((sy as u64) << 16 ^ sx as u64) % STRATUM;
+    row * STRATUM + column
+}
+
+/// A stratum's pixel offsets, twice over: the candidates from offset `k` are
+/// `CANDIDATES[k..k + 9]` (no division per candidate).
+const CANDIDATES: [(usize, usize); 2 * STRATUM * STRATUM] = {
+    let mut c = [(0, 0); 2 * STRATUM * STRATUM];
+    let mut i = 0;
+    while i < c.len() {
+        let k = i % (STRATUM * STRATUM);
+        c[i] = (k % STRATUM, k / STRATUM);
+        i += 1;
+    }
+    c
+};
+
+/// What choosing a stratum's gradient sample reads.
+struct Chooser<'a> {
+    frame: u32,
+    /// This frame's G-buffer camera (jittered, as the depth is) and the last frame's camera.
+    camera: CameraModel,
+    last_camera: CameraModel,
+    planes: &'a GBufferView<'a>,
+    reasons: Plane<'a, u8>,
+    /// The last frame's traced-pixel mask.
+    traced_before: Plane<'a, u8>,
+    extent: Extent,
+}
+
+impl Chooser<'_> {
+    /// The last frame's pixel (`y·w + x`) whose traced sample stratum `(sx, sy)` re-shades:
+    /// from the first of its pixels (from a per-frame offset) whose history was reprojected,
+    /// the pixel its surface lay under last frame, if that pixel was traced; [`NONE`] if no
+    /// pixel of the stratum qualifies.
+    fn in_stratum(&self, sx: usize, sy: usize) -> u32 {
+        let e = self.extent;
+        let first = first_candidate(self.frame, sx, sy);
+        let (x0, y0) = (sx * STRATUM, sy * STRATUM);
+        for &(dx, dy) in &CANDIDATES[first..first + STRATUM * STRATUM] {
+            let (x, y) = (x0 + dx, y0 + dy);
+            if x >= e.width() || y >= e.height() || !is_reprojected(self.reasons.row(y)[x]) {
+                continue;
+            }
+            let depth = self.planes.depth.get(x, y);
+            if !depth.is_finite() {
+                continue;
+            }
+            // The surface's position last frame: where it is now, less its motion.
+            let mut p = self.camera.unproject_pixel(x, y, depth);
+            if let Some(motion) = &self.planes.motion {
+                for (c, m) in p.iter_mut().zip(motion) {
+                    *c -= m.get(x, y);
+                }
+            }
+            let Some(([qx, qy], _)) = self.last_camera.project(p) else { continue };
+            if !(qx >= 0.0 && qy >= 0.0 && qx < e.width() as f32 && qy < e.height() as f32) {
+                continue;
+            }
+            let (px, py) = (qx as usize, qy as usize);
+            if self.traced_before.get(px, py) != 0 {
+                return (py * e.width() + px) as u32;
+            }
+        }
+        NONE
+    }
+}
+
+impl<S: FrameSource> Pipeline<S> {
+    /// The engine's own history confidence of `eye` this frame, if its G-buffer has one.
+    pub(super) fn engine_confidence<'a>(
+        own: &'a GBufferBuf,
+        eye: Eye,
+        lent: Option<&'a Lent<'a>>,
+    ) -> Option<Plane<'a>> {
+        match lent {
+            Some(l) => l.current[eye as usize].history_confidence,
+            None => own.history_confidence.as_ref().map(|c| c.view()),
+        }
+    }
+
+    /// Whether this eye's new samples of the last frame are in its `work` image (the left
+    /// eye filled from the right one) rather than in `traced`.
+    fn samples_in_work(&self, eye: Eye) -> bool {
+        eye == Eye::Left
+            && super::plan(self.config.mode, self.config.order)
+                .iter()
+                .any(|step| matches!(step, super::Step::StereoFillLeft(_)))
+    }
+
+    /// Measures `eye`'s temporal gradients into its confidence plane, before its EMA.
+    /// Returns whether it did: with `History::Paper`, on a frame without history, or for a
+    /// scene that cannot change, it does nothing.
+    pub(super) fn temporal_gradients(
+        &mut self,
+        eye: Eye,
+        stats: &mut super::FrameStats,
+        lent: Option<&Lent<'_>>,
+    ) -> Result<bool, PipelineError> {
+        if self.eyes[eye as usize].gradient.is_none() || self.frames_done == 0 || !self.source.scene_changes() {
+            return Ok(false);
+        }
+        let t = Instant::now();
+        let in_work = self.samples_in_work(eye);
+        let e = self.extent;
+        let frame = stats.frame;
+        let s = &mut self.eyes[eye as usize];
+        let g = s.gradient.as_mut().expect("checked above");
+        let planes = match lent {
+            Some(l) => l.current[eye as usize],
+            None => super::planes_of(&s.cur.gbuffer),
+        };
+        let (camera, last_camera) = (s.cur.gbuffer.camera, s.last_camera);
+        let (traced_before, reasons) = (s.prev.traced_mask.view(), s.cur.temporal_reason.view());
+        let strata = g.source_pixel.extent();
+        // One gradient sample per stratum, the rows of strata in parallel; then the mask of
+        // the pixels to re-shade, serially (they are the last frame's, anywhere).
+        let choose = Chooser { frame, camera, last_camera, planes: &planes, reasons, traced_before, extent: e };
+        g.source_pixel.as_mut_slice().par_chunks_mut(strata.width()).enumerate().for_each(|(sy, row)| {
+            row.iter_mut().enumerate().for_each(|(sx, found)| *found = choose.in_stratum(sx, sy))
+        });
+        let mut chosen = 0u64;
+        for &pixel in g.source_pixel.as_slice().iter().filter(|&&p| p != NONE) {
+            g.mask.as_mut_slice()[pixel as usize] = 1;
+            chosen += 1;
+        }
+        let chose = t.elapsed();
+
+        // Re-shade them: the last frame's camera and random numbers, this frame's scene.
+        let trace_start = Instant::now();
+        let request =
+            TraceRequest { eye, frame: self.last_frame, spp: self.config.spp, seed: self.config.seed, first_sample: 0 };
+        let traced =
+            self.source.trace(&last_camera, &request, PixelSelection::Mask(&g.mask), 0..e.height(), &mut g.reshaded);
+        // The mask is all zeros between frames, a refused one included.
+        for &pixel in g.source_pixel.as_slice().iter().filter(|&&p| p != NONE) {
+            g.mask.as_mut_slice()[pixel as usize] = 0;
+        }
+        stats.trace = stats.trace + traced?;
+        stats.gradient_samples[eye as usize] += chosen;
+        stats.times.tracing += trace_start.elapsed();
+
+        let t = Instant::now();
+        let before = if in_work { &s.prev.work } else { &s.prev.traced };
+        let reshaded = &g.reshaded;
+        let pair = |pixel: u32| {
+            if pixel == NONE {
+                return (f32::NAN, f32::NAN);
+            }
+            let (x, y) = (pixel as usize % e.width(), pixel as usize / e.width());
+            (luminance(before.get(x, y)), luminance(reshaded.get(x, y)))
+        };
+        let w = strata.width();
+        (
+            g.source_pixel.as_slice().par_chunks(w),
+            g.old.as_mut_slice().par_chunks_mut(w),
+            g.new.as_mut_slice().par_chunks_mut(w),
+        )
+            .into_par_iter()
+            .for_each(|(pixels, old, new)| {
+                for ((&pixel, old), new) in pixels.iter().zip(old).zip(new) {
+                    (*old, *new) = pair(pixel);
+                }
+            });
+        let prior = Self::engine_confidence(&s.cur.gbuffer, eye, lent);
+        let input = GradientInput { old: g.old.view(), new: g.new.view(), prior, gain: GRADIENT_GAIN };
+        let measured = gradient::history_confidence(&input, g.confidence.view_mut())?;
+        stats.gradient_changed[eye as usize] += measured.changed;
+        stats.times.gradients += chose + t.elapsed();
+        Ok(true)
+    }
+}
