@@ -6,8 +6,8 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 use stereotrace::commands::{
-    self, ExportOptions, ScenesOptions, eval::EvalOptions, render::RenderOptions, ssim::SsimOptions,
-    throughput::ThroughputOptions, tradeoff::TradeoffOptions, view::ViewOptions,
+    self, ExportOptions, ScenesOptions, compare::CompareOptions, eval::EvalOptions, render::RenderOptions,
+    ssim::SsimOptions, throughput::ThroughputOptions, tradeoff::TradeoffOptions, view::ViewOptions,
 };
 
 /// Real-time stereoscopic path tracing with spatiotemporal sample reprojection.
@@ -41,6 +41,9 @@ enum Command {
     Scenes(ScenesOptions),
     /// Effective spp of every mode against path tracing (the paper's Tables 1-6, Figures 3-8).
     Eval(EvalOptions),
+    /// Two evaluation runs side by side (a setting beyond the paper against the paper's):
+    /// effective spp per scene, mode and input spp, ratios, and the scene averages in a figure.
+    Compare(CompareOptions),
     /// What accuracy costs in time: sweeps pipeline settings on one scene and measures time
     /// per stereo frame and effective spp (table, CSV, JSON and a plot with the Pareto front).
     Tradeoff(TradeoffOptions),
@@ -70,6 +73,7 @@ fn main() -> ExitCode {
         Command::ExportScene(options) => commands::export_scene(options),
         Command::Scenes(options) => commands::scenes(options),
         Command::Eval(options) => commands::eval::run(options),
+        Command::Compare(options) => commands::compare::run_command(options),
         Command::Tradeoff(options) => commands::tradeoff::run_command(options),
         Command::Ssim(options) => commands::ssim::run_command(options),
     };

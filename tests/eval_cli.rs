@@ -199,3 +199,73 @@ fn eval_refuses_bad_options_with_a_message() {
     assert_refused(&run(&["--scenes", "cornell", "--frames", "500"]), &["500 frames"]);
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `compare` puts two runs side by side: the filtered run against the paper's shares their
+/// references and curves from one cache (only the configurations are computed again: the
+/// filter is in their cache key), `compare.md` has a row per scene, mode and spp with the
+/// ratio, and the figures are written; runs of different resolutions are refused.
+#[test]
+fn compare_puts_a_filtered_run_beside_the_papers() {
+    let dir = temp_dir("compare");
+    let cache = dir.join("cache");
+    let run = |name: &str, res: &str, extra: &[&str]| {
+        let out = dir.join(name);
+        let mut args = vec![
+            "eval",
+            "--scenes",
+            "cornell",
+            "--modes",
+            "temporal,spatiotemporal",
+            "--spp",
+            "1,2",
+            "--res",
+            res,
+            "--frames",
+            "4",
+            "--warmup",
+            "2",
+            "--reference-spp",
+            "16",
+            "--curve-spp",
+            "8",
+            "--no-figures",
+            "--out",
+            out.to_str().unwrap(),
+            "--cache",
+            cache.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let result = stereotrace(&args);
+        assert!(result.status.success(), "{}", String::from_utf8_lossy(&result.stderr));
+        (out, String::from_utf8_lossy(&result.stdout).into_owned())
+    };
+    let (paper, _) = run("paper", "40x24", &[]);
+    let (filtered, text) = run("filtered", "40x24", &["--filter", "atrous"]);
+    assert!(text.contains("computed: 0 references, 0 curves, 4 configurations"), "{text}");
+    let cmp = dir.join("cmp");
+    let out =
+        stereotrace(&["compare", paper.to_str().unwrap(), filtered.to_str().unwrap(), "--out", cmp.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let md = std::fs::read_to_string(cmp.join("compare.md")).unwrap();
+    assert!(md.starts_with("# atrous filter against paper"), "{md}");
+    for needle in ["| temporal | 1 |", "| spatiotemporal | 2 |", "| cornell | temporal | 2 |", "Geometric mean"] {
+        assert!(md.contains(needle), "no '{needle}' in {md}");
+    }
+    for f in ["compare_ssim.png", "compare_ssim.svg", "compare_rmse.png", "compare_rmse.svg"] {
+        assert!(cmp.join(f).is_file(), "{f} missing");
+    }
+    // A run at another resolution measured something else.
+    let (small, _) = run("small", "32x18", &[]);
+    let refused =
+        stereotrace(&["compare", paper.to_str().unwrap(), small.to_str().unwrap(), "--out", cmp.to_str().unwrap()]);
+    assert_refused(&refused, &["not comparable", "resolution 40x24 against 32x18"]);
+    let missing = stereotrace(&[
+        "compare",
+        dir.join("nowhere").to_str().unwrap(),
+        paper.to_str().unwrap(),
+        "--out",
+        cmp.to_str().unwrap(),
+    ]);
+    assert_refused(&missing, &["cannot read"]);
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -3,9 +3,12 @@
 
 use stereotrace::camera::{Eye, StereoRig};
 use stereotrace::kernels::accumulate;
+use stereotrace::kernels::atrous::{self, AtrousGuide, AtrousParams, AtrousScratch, GuideNormals};
 use stereotrace::kernels::reproject::{self, Reason, ReprojectInput, ReprojectOutput, ReprojectParams};
 use stereotrace::kernels::{Extent, PlaneBuf, RgbBuf};
-use stereotrace::pipeline::{Blend, GBufferView, History, Layout, Mode, Order, Pipeline, PipelineConfig};
+use stereotrace::pipeline::{
+    ATROUS_ITERATIONS, Blend, Filter, GBufferView, History, Layout, Mode, Order, Pipeline, PipelineConfig,
+};
 use stereotrace::render::{FrameView, GBufferBuf, Renderer, RendererOptions, RendererSource};
 use stereotrace::scene::resolve;
 use stereotrace::session::RendererPipeline;
@@ -679,6 +682,47 @@ fn the_variance_blend_changes_only_the_blend_of_histories() {
                 }
             }
             assert_eq!(differs, blends_histories, "{mode} {order:?}");
+        }
+    }
+}
+
+/// The à-trous filter is a display filter: in every mode and order, each eye's unfiltered
+/// image is the unfiltered pipeline's bit for bit frame after frame (nothing filtered feeds
+/// a history or the other eye), and the shown image is the kernel's filter of it, guided by
+/// the eye's G-buffer. A mono frame afterwards shows its traced image.
+#[test]
+fn the_atrous_filter_filters_the_shown_image_and_nothing_else() {
+    let r = renderer("living-room");
+    for mode in Mode::ALL {
+        for order in [Order::Paper, Order::StereoFirst] {
+            let plain = PipelineConfig { order, ..config(&r, mode, 1) };
+            let filtered = PipelineConfig { filter: Filter::Atrous, ..plain };
+            let mut a = Pipeline::new(&r, plain, StereoRig::default(), extent()).unwrap();
+            let mut b = Pipeline::new(&r, filtered, StereoRig::default(), extent()).unwrap();
+            for f in 3..6 {
+                let pose = r.scene().camera.pose_at(f as f32);
+                a.render_frame(f, &pose).unwrap();
+                let stats = b.render_frame(f, &pose).unwrap();
+                assert!(stats.times.filter > std::time::Duration::ZERO);
+                for eye in Eye::BOTH {
+                    assert_eq!(a.output(eye), b.unfiltered_output(eye), "{mode} {order:?} {eye} frame {f}");
+                    let g = b.gbuffer(eye);
+                    let guide =
+                        AtrousGuide { depth: g.depth.view(), normals: GuideNormals::Octahedral(g.normal_oct.view()) };
+                    let params = AtrousParams { iterations: ATROUS_ITERATIONS, ..AtrousParams::default() };
+                    let mut scratch = AtrousScratch::try_new(extent()).unwrap();
+                    let mut expected = RgbBuf::new(extent(), 0.0);
+                    let input = b.unfiltered_output(eye).view();
+                    atrous::atrous(&input, &guide, &params, &mut scratch, expected.view_mut()).unwrap();
+                    assert_eq!(b.output(eye), &expected, "{mode} {order:?} {eye} frame {f}");
+                    assert_ne!(b.output(eye), b.unfiltered_output(eye), "{mode} {order:?} {eye} frame {f}");
+                }
+            }
+            if mode == Mode::PathTraced {
+                let pose = r.scene().camera.pose_at(6.0);
+                b.render_mono_frame(6, &pose).unwrap();
+                assert_eq!(b.output(Eye::Right), b.unfiltered_output(Eye::Right));
+            }
         }
     }
 }

@@ -1,11 +1,12 @@
 //! A frame through a warmed-up pipeline, driven as every frame loop drives it (a `Session`),
 //! allocates nothing, in every mode, with either G-buffer pass, with motion vectors, and for
-//! the mono baseline (one test per file: the counting allocator sees the whole process).
+//! temporal gradients, the variance blend and the à-trous filter, and for the mono baseline
+//! (one test per file: the counting allocator sees the whole process).
 
 use stereotrace::camera::StereoRig;
 use stereotrace::kernels::Extent;
 use stereotrace::kernels::check::CountingAllocator;
-use stereotrace::pipeline::{Mode, Order, Pipeline, PipelineConfig};
+use stereotrace::pipeline::{Blend, Filter, History, Mode, Order, Pipeline, PipelineConfig};
 use stereotrace::render::{GBufferPass, Renderer, RendererOptions};
 use stereotrace::scene::resolve;
 use stereotrace::session::{CameraWalk, Session, View};
@@ -38,6 +39,15 @@ fn frames_after_the_first_allocate_nothing() {
                 "{mode} {order:?} {pass:?} G-buffer, budget {budget:?}: {allocated} allocations in two frames"
             );
         }
+    }
+    // Beyond the paper: temporal gradients (the light moves, so they trace), the variance
+    // blend and the à-trous filter, all at once.
+    for mode in [Mode::Spatiotemporal, Mode::SpatiotemporalBlend] {
+        let mut cfg = PipelineConfig::paper(mode, 1, renderer.scene().tolerances.at_height(36));
+        (cfg.history, cfg.blend, cfg.filter) = (History::Gradient, Blend::Variance, Filter::Atrous);
+        let pipeline = Pipeline::new(&renderer, cfg, StereoRig::default(), e).unwrap();
+        let allocated = warm_then_count(&pool, Session::new(pipeline, CameraWalk::Path));
+        assert_eq!(allocated, 0, "{mode} with gradients, the variance blend and the filter");
     }
     // Motion vectors, written where a moving area light is seen (atrium's sphere).
     let atrium = Renderer::new(resolve("atrium-moving-light").unwrap()).unwrap();

@@ -274,6 +274,7 @@ def main():
     # Added later, with its own stream so the seeds above stay as they were.
     random_seeds("gradient", random.Random(2030), 12, [0, 6, 40, 150, 700])
     random_seeds("variance_blend", random.Random(2031), 12, [0, 8, 40, 150, 700])
+    random_seeds("atrous", random.Random(2032), 16, [0, 8, 40, 150, 700])
 
 
 if __name__ == "__main__":

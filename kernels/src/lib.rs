@@ -2,7 +2,7 @@
 //!
 //! The hand-vectorized kernels of stereotrace: bilinear resampling, backward reprojection
 //! (stereo and temporal are one kernel with different cameras), EMA accumulation and stereo
-//! blending. Each kernel has a scalar reference and a SIMD body (`wide`, 8 lanes) in the
+//! blending, temporal gradients, and an edge-avoiding à-trous filter. Each kernel has a scalar reference and a SIMD body (`wide`, 8 lanes) in the
 //! same module; the scalar one is always compiled and public, and the two agree bit for bit
 //! (see the determinism policy in [`simd`]). SSIM also has a 16-lane AVX-512 body, chosen at
 //! run time where the CPU has it ([`isa`]).
@@ -15,6 +15,7 @@
 #![warn(missing_docs)]
 
 pub mod accumulate;
+pub mod atrous;
 mod bands;
 pub mod bilinear;
 pub mod bvh;

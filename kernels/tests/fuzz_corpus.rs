@@ -32,6 +32,11 @@ fn gradient_corpus() {
 }
 
 #[test]
+fn atrous_corpus() {
+    replay("atrous", stereotrace_kernels::fuzzing::atrous);
+}
+
+#[test]
 fn variance_blend_corpus() {
     replay("variance_blend", stereotrace_kernels::fuzzing::variance_blend);
 }

@@ -85,6 +85,10 @@ pub struct EvalOptions {
     /// variance from the history lengths (default: the preset's, the paper's).
     #[arg(long, value_enum)]
     pub blend: Option<crate::pipeline::Blend>,
+    /// A spatial filter of the pipelines' shown images after accumulation: none (the
+    /// paper's), or the edge-avoiding à-trous filter (default: the preset's, none).
+    #[arg(long, value_enum)]
+    pub filter: Option<crate::pipeline::Filter>,
     /// List the run's work units and their estimated CPU time (writes OUT/plan.tsv); compute
     /// nothing.
     #[arg(long, conflicts_with_all = ["shard", "merge"])]
@@ -178,6 +182,9 @@ pub fn build_spec(opts: &EvalOptions) -> Result<EvalSpec, String> {
     }
     if let Some(b) = opts.blend {
         spec.blend = b;
+    }
+    if let Some(f) = opts.filter {
+        spec.filter = f;
     }
     // Figure options name scenes as the run will know them (a manifest's `name`, not its path).
     let names = spec

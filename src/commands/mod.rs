@@ -2,6 +2,7 @@
 //! errors).
 
 pub mod args;
+pub mod compare;
 pub mod eval;
 pub mod render;
 pub mod ssim;

@@ -20,7 +20,7 @@ use serde::Serialize;
 
 use crate::camera::{Eye, StereoRig};
 use crate::kernels::Extent;
-use crate::pipeline::{Blend, FrameStats, History, Layout, Mode, Order, Pipeline, PipelineConfig};
+use crate::pipeline::{Blend, Filter, FrameStats, History, Layout, Mode, Order, Pipeline, PipelineConfig};
 use crate::render::{Renderer, RendererOptions};
 use crate::session::{CameraWalk, Session, View};
 
@@ -59,6 +59,10 @@ pub struct ThroughputOptions {
     /// from each eye's history length (the paper-order spatiotemporal-blend mode).
     #[arg(long, value_enum, default_value_t = Blend::Fixed)]
     pub blend: Blend,
+    /// A spatial filter of both eyes' shown images after accumulation: none (the paper's),
+    /// or the edge-avoiding à-trous filter (five passes, guided by the G-buffers).
+    #[arg(long, value_enum, default_value_t = Filter::None)]
+    pub filter: Filter,
     /// How the G-buffers are made.
     #[command(flatten)]
     pub gbuffer: GBufferArg,
@@ -117,6 +121,8 @@ pub struct ThroughputReport {
     pub history: String,
     /// How the stereo blend weighed the eyes (`fixed` or `variance`).
     pub blend: String,
+    /// The spatial filter of the shown images (`none` or `atrous`).
+    pub filter: String,
     /// G-buffer layout the reprojection read (`compact` or `full`).
     pub layout: String,
     /// How the G-buffers were made (`raster` or `traced`).
@@ -141,6 +147,8 @@ pub struct ThroughputReport {
     pub accumulation: Spread,
     /// Temporal gradients outside their traced samples (zero with the paper's history).
     pub gradients: Spread,
+    /// The spatial filter of both eyes (zero without one).
+    pub filter_ms: Spread,
     /// Rays traced per second of tracing time, in millions.
     pub mrays_per_s: f64,
     /// Share of left-eye pixels path traced (median over frames).
@@ -281,6 +289,7 @@ pub fn run(opts: &ThroughputOptions) -> Result<ThroughputReport, String> {
     config.layout = opts.layout;
     config.history = opts.history;
     config.blend = opts.blend;
+    config.filter = opts.filter;
     let options = RendererOptions::with_gbuffer(opts.gbuffer.gbuffer);
     config.budget = opts.budget_ms.map(crate::pipeline::budget_duration).transpose()?;
     let stats = pool.install(|| run_frames(&renderer, options, config, opts.input.res, opts.frames, false))?;
@@ -335,6 +344,7 @@ pub fn run(opts: &ThroughputOptions) -> Result<ThroughputReport, String> {
         order: opts.order.name().into(),
         history: opts.history.name().into(),
         blend: opts.blend.name().into(),
+        filter: opts.filter.name().into(),
         layout: format!("{:?}", opts.layout).to_lowercase(),
         gbuffer_pass: opts.gbuffer.gbuffer.name().into(),
         spp: opts.spp,
@@ -347,6 +357,7 @@ pub fn run(opts: &ThroughputOptions) -> Result<ThroughputReport, String> {
         tracing: series(|s| s.times.tracing),
         accumulation: series(|s| s.times.accumulation),
         gradients: series(|s| s.times.gradients),
+        filter_ms: series(|s| s.times.filter),
         mrays_per_s: if tracing_time > 0.0 { rays as f64 / tracing_time / 1e6 } else { 0.0 },
         left_traced_share: share(Eye::Left),
         right_traced_share: share(Eye::Right),
@@ -364,7 +375,7 @@ pub fn run(opts: &ThroughputOptions) -> Result<ThroughputReport, String> {
                 .iter()
                 .map(|s| {
                     let t = &s.times;
-                    ms(t.gbuffer + t.reprojection + t.accumulation + t.gradients + t.urgent_tracing)
+                    ms(t.gbuffer + t.reprojection + t.accumulation + t.gradients + t.filter + t.urgent_tracing)
                 })
                 .collect(),
         )
@@ -378,7 +389,7 @@ impl ThroughputReport {
         let stage =
             |name: &str, s: &Spread| format!("  {name:<13} {:>9.2} ms median {:>9.2} ms p95\n", s.median_ms, s.p95_ms);
         let mut out = format!(
-            "{} {}x{} {} threads, mode {} (order {}, {} history, {} blend, {} {} G-buffer), {} spp, {}: {} frames measured\n",
+            "{} {}x{} {} threads, mode {} (order {}, {} history, {} blend, filter {}, {} {} G-buffer), {} spp, {}: {} frames measured\n",
             self.scene,
             self.width,
             self.height,
@@ -387,6 +398,7 @@ impl ThroughputReport {
             self.order,
             self.history,
             self.blend,
+            self.filter,
             self.layout,
             self.gbuffer_pass,
             self.spp,
@@ -401,6 +413,9 @@ impl ThroughputReport {
         out += &stage("accumulation", &self.accumulation);
         if self.history == History::Gradient.name() {
             out += &stage("gradients", &self.gradients);
+        }
+        if self.filter != Filter::None.name() {
+            out += &stage("filter", &self.filter_ms);
         }
         out += &format!("  Mrays/s       {:>9.2} (while tracing)\n", self.mrays_per_s);
         out += &format!(

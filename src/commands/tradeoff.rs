@@ -27,7 +27,7 @@ use crate::eval::stats::Summary;
 use crate::eval::{EvalSpec, Metric, Preset, Reporter, Variant};
 use crate::kernels::Extent;
 use crate::kernels::reproject::TapPolicy;
-use crate::pipeline::{Blend, History, Layout, Mode, Order, Pipeline};
+use crate::pipeline::{Blend, Filter, History, Layout, Mode, Order, Pipeline};
 use crate::render::{GBufferPass, RendererOptions};
 use crate::session::{CameraWalk, Session};
 
@@ -137,6 +137,8 @@ pub struct Setting {
     pub history: History,
     /// How the stereo blend weighs the eyes.
     pub blend: Blend,
+    /// The spatial filter of the shown images.
+    pub filter: Filter,
     /// A fraction of the unbudgeted spatiotemporal (paper order) time at the same spp.
     pub budget_fraction: Option<f64>,
     /// A budget in milliseconds.
@@ -156,6 +158,7 @@ impl Setting {
             gbuffer,
             history: History::Paper,
             blend: Blend::Fixed,
+            filter: Filter::None,
             budget_fraction: None,
             budget_ms: None,
         }
@@ -181,6 +184,9 @@ impl Setting {
         }
         if self.blend != Blend::Fixed {
             parts.push(format!("{} blend", self.blend.name()));
+        }
+        if self.filter != Filter::None {
+            parts.push(format!("{} filter", self.filter.name()));
         }
         if let Some(f) = self.budget_fraction {
             parts.push(format!("budget {:.0}%", f * 100.0));
@@ -232,6 +238,8 @@ pub fn settings(opts: &TradeoffOptions) -> Vec<Setting> {
         // The variance-guided blend changes the blend of histories only.
         let blend = paper(Mode::SpatiotemporalBlend, Order::Paper);
         out.push(Setting { blend: Blend::Variance, ..blend });
+        // The à-trous filter of the shown images (the denoising study's point).
+        out.push(Setting { filter: Filter::Atrous, ..base });
         for &f in &opts.budgets {
             out.push(Setting { budget_fraction: Some(f), ..base });
         }
@@ -321,6 +329,7 @@ fn measure_setting(
     config.ramp = setting.ramp;
     config.layout = setting.layout;
     config.history = setting.history;
+    config.filter = setting.filter;
     config.blend = setting.blend;
     config.budget = budget_ms.map(crate::pipeline::budget_duration).transpose()?;
     let rig = StereoRig::new(spec.eye_separation)?;

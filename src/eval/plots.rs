@@ -68,6 +68,42 @@ pub(crate) fn tick(v: f64) -> String {
     }
 }
 
+/// A chart with both axes log-scaled.
+pub(crate) type LogLogChart<'a, DB> = ChartContext<'a, DB, Cartesian2d<LogCoord<f64>, LogCoord<f64>>>;
+
+/// The axes every effective-spp figure shares: input spp against effective spp, both
+/// log-scaled over `xs` and `ys` (min, max) with a margin, and the equal-quality diagonal.
+pub(crate) fn effective_chart<'a, DB: DrawingBackend>(
+    root: &'a DrawingArea<DB, Shift>,
+    caption: String,
+    xs: (f64, f64),
+    ys: (f64, f64),
+    metric: Metric,
+) -> Result<LogLogChart<'a, DB>, String> {
+    let mut chart = ChartBuilder::on(root)
+        .caption(caption, ("sans-serif", 16))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d(((xs.0 / 1.3)..(xs.1 * 1.3)).log_scale(), ((ys.0 / 1.5)..(ys.1 * 1.5)).log_scale())
+        .map_err(err)?;
+    chart
+        .configure_mesh()
+        .x_desc("input spp")
+        .y_desc(format!("effective spp ({})", metric.label()))
+        .x_label_formatter(&|v| tick(*v))
+        .y_label_formatter(&|v| tick(*v))
+        .draw()
+        .map_err(err)?;
+    let equal = [(xs.0 / 1.3, xs.0 / 1.3), (xs.1 * 1.3, xs.1 * 1.3)];
+    chart
+        .draw_series(DashedLineSeries::new(equal, 4, 4, BLACK.mix(0.5).stroke_width(1)))
+        .map_err(err)?
+        .label("equal quality")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.mix(0.5)));
+    Ok(chart)
+}
+
 /// Effective spp against input spp, log–log, with the equal-quality line.
 struct EffectivePlot<'a> {
     results: &'a EvalResults,
@@ -121,33 +157,9 @@ impl Figure for EffectivePlot<'_> {
             .chain([xs.0, xs.1])
             .filter(|v| *v > 0.0)
             .fold((f64::INFINITY, 0.0f64), |(lo, hi), v| (lo.min(v), hi.max(v)));
-        let x_range = (xs.0 / 1.3)..(xs.1 * 1.3);
-        let y_range = (ys.0 / 1.5)..(ys.1 * 1.5);
         let (_, title, _) = self.variant.paper_table();
-        let mut chart = ChartBuilder::on(&root)
-            .caption(
-                format!("{}: {} ({}, {} preset)", self.variant.name(), title, self.metric.label(), spec.preset),
-                ("sans-serif", 16),
-            )
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(60)
-            .build_cartesian_2d(x_range.log_scale(), y_range.log_scale())
-            .map_err(err)?;
-        chart
-            .configure_mesh()
-            .x_desc("input spp")
-            .y_desc(format!("effective spp ({})", self.metric.label()))
-            .x_label_formatter(&|v| tick(*v))
-            .y_label_formatter(&|v| tick(*v))
-            .draw()
-            .map_err(err)?;
-        let equal = [(xs.0 / 1.3, xs.0 / 1.3), (xs.1 * 1.3, xs.1 * 1.3)];
-        chart
-            .draw_series(DashedLineSeries::new(equal, 4, 4, BLACK.mix(0.5).stroke_width(1)))
-            .map_err(err)?
-            .label("equal quality")
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.mix(0.5)));
+        let caption = format!("{}: {} ({}, {} preset)", self.variant.name(), title, self.metric.label(), spec.preset);
+        let mut chart = effective_chart(&root, caption, xs, ys, self.metric)?;
         for (i, (name, pts)) in series.iter().enumerate() {
             let colour = Palette99::pick(i).to_rgba();
             chart

@@ -919,6 +919,7 @@ pub fn pipeline_config(
     cfg.motion_vectors = spec.motion_vectors;
     cfg.history = spec.history;
     cfg.blend = spec.blend;
+    cfg.filter = spec.filter;
     cfg
 }
 

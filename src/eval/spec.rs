@@ -189,6 +189,9 @@ pub struct EvalSpec {
     /// How the pipelines' stereo blend weighs the eyes (older specs: the paper's).
     #[serde(default)]
     pub blend: crate::pipeline::Blend,
+    /// The spatial filter of the pipelines' shown images (older specs: none, the paper's).
+    #[serde(default)]
+    pub filter: crate::pipeline::Filter,
     /// What the figures show.
     pub figures: FigureSpec,
 }
@@ -265,6 +268,7 @@ impl Preset {
             motion_vectors: false,
             history: crate::pipeline::History::Paper,
             blend: crate::pipeline::Blend::Fixed,
+            filter: crate::pipeline::Filter::None,
             figures,
         };
         match self {

@@ -380,6 +380,18 @@ fn check_lengths(own: &RgbPlanes<'_>, lengths: &BlendLengths<'_>) -> Result<(), 
     check_history_len(&lengths.other)
 }
 
+/// The one boundary check of both variance-blend bodies: the blend's planes and the lengths.
+fn check_variance_blend(
+    own: &RgbPlanes<'_>,
+    reprojected: &RgbPlanesMut<'_>,
+    reason: &Plane<'_, u8>,
+    lengths: &BlendLengths<'_>,
+    band_rows: usize,
+) -> Result<(), FrameError> {
+    check_blend(own, reprojected, reason, &BlendParams { own_weight: 0.5, band_rows })?;
+    check_lengths(own, lengths)
+}
+
 /// Scalar reference of [`blend_by_variance`].
 pub fn blend_by_variance_scalar(
     own: &RgbPlanes<'_>,
@@ -388,8 +400,7 @@ pub fn blend_by_variance_scalar(
     lengths: &BlendLengths<'_>,
     band_rows: usize,
 ) -> Result<AccumulateStats, FrameError> {
-    check_blend(own, &reprojected, reason, &BlendParams { own_weight: 0.5, band_rows })?;
-    check_lengths(own, lengths)?;
+    check_variance_blend(own, &reprojected, reason, lengths, band_rows)?;
     let weights = BlendWeights::ByLength(*lengths);
     Ok(run_blend(reprojected, band_rows, |y, out, stats| {
         for x in 0..out[0].len() {
@@ -411,8 +422,7 @@ pub fn blend_by_variance(
     lengths: &BlendLengths<'_>,
     band_rows: usize,
 ) -> Result<AccumulateStats, FrameError> {
-    check_blend(own, &reprojected, reason, &BlendParams { own_weight: 0.5, band_rows })?;
-    check_lengths(own, lengths)?;
+    check_variance_blend(own, &reprojected, reason, lengths, band_rows)?;
     #[cfg(feature = "check-scalar")]
     let before = snapshot(&EmaState { accum: reprojected.reborrow(), history_len: None }).0;
     let weights = BlendWeights::ByLength(*lengths);

@@ -1,9 +1,10 @@
 //! The image kernels' entry points: backward reprojection, bilinear resampling,
-//! accumulation, temporal gradients and SSIM, each over an analytic scene edited by the input's trailing bytes.
+//! accumulation, temporal gradients, the à-trous filter and SSIM, each over an analytic scene edited by the input's trailing bytes.
 
 use glam::{Mat4, Vec3};
 
 use crate::accumulate::{self, BlendParams, EmaInput, EmaParams, EmaState};
+use crate::atrous;
 use crate::bilinear::{self, ResampleInput, ResampleOutput};
 use crate::camera::{CameraModel, look_at_perspective};
 use crate::check::same_bits;
@@ -702,6 +703,84 @@ pub fn variance_blend(data: &[u8]) {
         accumulate::blend(&own.view(), fixed.view_mut(), &reason.view(), &params).expect("accepted above");
         for (a, b) in [(out.r(), fixed.r()), (out.g(), fixed.g()), (out.b(), fixed.b())] {
             assert_bits("variance blend of equal lengths against 50/50", a, b);
+        }
+    }
+}
+
+/// Fuzzes the à-trous filter: an analytic room's G-buffer and colour (depth steps, a slanted
+/// floor, sky) at up to 64×40 pixels (so every step up to 4 reaches the SIMD body), edited
+/// anywhere with any f32 (NaN, ±∞, huge or negative colours and depths, raw octahedral
+/// normals), with either normal layout, any number of passes and any sigmas. Too many iterations
+/// and sigmas that are not finite and positive must be refused by both bodies alike with
+/// nothing written; anything else must give the same bits and counts from both, every output
+/// value in [0, `VALUE_MAX`], a finite variance, and the sky (no surface) its clamped input.
+pub fn atrous(data: &[u8]) {
+    let mut bytes = Bytes(data);
+    let extent = Extent::new(1 + usize::from(bytes.u8() % 64), 1 + usize::from(bytes.u8() % 40)).expect("small extent");
+    let camera = camera_at(Vec3::new(bytes.unit(-0.3, 0.3), 0.0, 0.0), extent, bytes.unit(20.0, 100.0));
+    let mut frame = AnalyticScene::room(bytes.unit(1.0, 12.0)).render(&camera, [0.2, 0.3, 0.5]);
+    let octahedral = bytes.u8() % 2 == 0;
+    let sigma =
+        |bytes: &mut Bytes<'_>, plausible: f32| if bytes.u8().is_multiple_of(8) { bytes.f32() } else { plausible };
+    let params = atrous::AtrousParams {
+        // Mostly 0–6 passes (step 32 is past any SIMD body at these sizes), sometimes the
+        // largest accepted (10) or too many (11–14).
+        iterations: match bytes.u8() % 16 {
+            15 => 11 + u32::from(bytes.u8() % 4),
+            14 => atrous::MAX_ITERATIONS,
+            v => u32::from(v % 7),
+        },
+        sigma_luminance: sigma(&mut bytes, 4.0),
+        sigma_depth: sigma(&mut bytes, 1.0),
+        band_rows: 1 + usize::from(bytes.u8() % 8),
+    };
+    apply_edits(&mut bytes, &mut frame);
+    let acceptable = params.iterations <= atrous::MAX_ITERATIONS
+        && [params.sigma_luminance, params.sigma_depth].iter().all(|s| s.is_finite() && *s > 0.0);
+    let g = &frame.surfaces;
+    let normals = if octahedral {
+        atrous::GuideNormals::Octahedral(g.normal_oct.view())
+    } else {
+        atrous::GuideNormals::Planes(g.normal.each_ref().map(|p| p.view()))
+    };
+    let guide = atrous::AtrousGuide { depth: g.depth.view(), normals };
+    let run = |simd: bool| {
+        let mut scratch = atrous::AtrousScratch::try_new(extent).expect("small scratch");
+        let mut out = RgbBuf::new(extent, -3.0);
+        let f = if simd { atrous::atrous } else { atrous::atrous_scalar };
+        let stats = f(&frame.colour.view(), &guide, &params, &mut scratch, out.view_mut());
+        let variance = scratch.variance(params.iterations.min(atrous::MAX_ITERATIONS)).clone();
+        (stats, out, variance)
+    };
+    let (stats, out, variance) = run(true);
+    let (stats_ref, out_ref, variance_ref) = run(false);
+    assert_eq!(format!("{stats:?}"), format!("{stats_ref:?}"));
+    for (a, b) in [(out.r(), out_ref.r()), (out.g(), out_ref.g()), (out.b(), out_ref.b())] {
+        assert_bits("à-trous colour", a, b);
+    }
+    assert_eq!(stats.is_ok(), acceptable, "the filter refuses exactly the bad parameters: {stats:?}");
+    if stats.is_err() {
+        assert!(out.planes().iter().all(|p| p.as_slice().iter().all(|&v| v == -3.0)), "a refused call wrote");
+        return;
+    }
+    assert_bits("à-trous variance", &variance, &variance_ref);
+    assert!(all_finite(&variance), "a variance that is not finite");
+    for p in out.planes() {
+        assert!(p.as_slice().iter().all(|v| (0.0..=atrous::VALUE_MAX).contains(v)), "a colour outside [0, max]");
+    }
+    for (i, &z) in g.depth.as_slice().iter().enumerate() {
+        if !(z > 0.0 && z < f32::INFINITY) {
+            for (o, input) in out.planes().into_iter().zip(frame.colour.planes()) {
+                let v = input.as_slice()[i];
+                let clamped = if v > atrous::VALUE_MAX {
+                    atrous::VALUE_MAX
+                } else if v > 0.0 {
+                    v
+                } else {
+                    0.0
+                };
+                assert!(same_bits(o.as_slice()[i], clamped), "the sky changed at {i}");
+            }
         }
     }
 }

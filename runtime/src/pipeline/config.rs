@@ -180,6 +180,34 @@ impl Blend {
     }
 }
 
+/// A spatial filter of each eye's shown image after accumulation.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum Filter {
+    /// The paper's: none (the shown image is the reprojected and accumulated one).
+    #[default]
+    None,
+    /// The edge-avoiding à-trous filter (`kernels::atrous`, SVGF's edge-stopping functions,
+    /// [`ATROUS_ITERATIONS`] passes) guided by the eye's G-buffer. A display filter: the
+    /// histories and the stereo reprojection read the unfiltered images.
+    Atrous,
+}
+
+impl Filter {
+    /// The CLI's and the tables' name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Filter::None => "none",
+            Filter::Atrous => "atrous",
+        }
+    }
+}
+
+/// The à-trous filter's passes in the pipeline (SVGF's five: a 5×5 spline at steps 1 to 16,
+/// reaching 64 pixels either side).
+pub const ATROUS_ITERATIONS: u32 = 5;
+
 /// Everything that decides a pipeline's images.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PipelineConfig {
@@ -218,6 +246,8 @@ pub struct PipelineConfig {
     pub history: History,
     /// How the stereo blend weighs the two eyes (see [`Blend`]).
     pub blend: Blend,
+    /// A spatial filter of the shown images (see [`Filter`]).
+    pub filter: Filter,
 }
 
 impl PipelineConfig {
@@ -246,6 +276,7 @@ impl PipelineConfig {
             motion_vectors: false,
             history: History::Paper,
             blend: Blend::Fixed,
+            filter: Filter::None,
         }
     }
 

@@ -57,6 +57,17 @@ impl GradientBuffers {
     }
 }
 
+/// Writes `value` into `mask` at every stratum's chosen pixel (set before the re-shade,
+/// cleared after it); returns how many strata chose one.
+fn mark_chosen(mask: &mut PlaneBuf<u8>, chosen: &PlaneBuf<u32>, value: u8) -> u64 {
+    let mut count = 0;
+    for &pixel in chosen.as_slice().iter().filter(|&&p| p != NONE) {
+        mask.as_mut_slice()[pixel as usize] = value;
+        count += 1;
+    }
+    count
+}
+
 /// Rec. 709 luminance, the weights the evaluation's SSIM uses.
 fn luminance([r, g, b]: [f32; 3]) -> f32 {
     0.2126 * r + 0.7152 * g + 0.0722 * b
@@ -194,11 +205,7 @@ impl<S: FrameSource> Pipeline<S> {
         g.source_pixel.as_mut_slice().par_chunks_mut(strata.width()).enumerate().for_each(|(sy, row)| {
             row.iter_mut().enumerate().for_each(|(sx, found)| *found = choose.in_stratum(sx, sy))
         });
-        let mut chosen = 0u64;
-        for &pixel in g.source_pixel.as_slice().iter().filter(|&&p| p != NONE) {
-            g.mask.as_mut_slice()[pixel as usize] = 1;
-            chosen += 1;
-        }
+        let chosen = mark_chosen(&mut g.mask, &g.source_pixel, 1);
         let chose = t.elapsed();
 
         // Re-shade them: the last frame's camera and random numbers, this frame's scene.
@@ -208,9 +215,7 @@ impl<S: FrameSource> Pipeline<S> {
         let traced =
             self.source.trace(&last_camera, &request, PixelSelection::Mask(&g.mask), 0..e.height(), &mut g.reshaded);
         // The mask is all zeros between frames, a refused one included.
-        for &pixel in g.source_pixel.as_slice().iter().filter(|&&p| p != NONE) {
-            g.mask.as_mut_slice()[pixel as usize] = 0;
-        }
+        mark_chosen(&mut g.mask, &g.source_pixel, 0);
         stats.trace = stats.trace + traced?;
         stats.gradient_samples[eye as usize] += chosen;
         stats.times.tracing += trace_start.elapsed();

@@ -53,6 +53,7 @@ use std::time::Instant;
 
 use crate::camera::{CameraPose, Eye, StereoRig};
 use crate::kernels::accumulate::{self, BlendParams, EmaInput, EmaParams, EmaState};
+use crate::kernels::atrous::{self, AtrousGuide, AtrousParams, AtrousScratch, GuideNormals};
 use crate::kernels::frame::{Plane, RgbPlanes};
 use crate::kernels::gbuffer::{CompactGBuffer, GBuffer, SurfaceLayout};
 use crate::kernels::gradient::{self, GradientInput, STRATUM};
@@ -69,7 +70,8 @@ mod stats;
 
 use budget::BudgetPlanner;
 pub use config::{
-    Blend, History, MAX_BUDGET_MS, MAX_SPP, Mode, Order, PipelineConfig, budget_duration, check_spp, readable,
+    ATROUS_ITERATIONS, Blend, Filter, History, MAX_BUDGET_MS, MAX_SPP, Mode, Order, PipelineConfig, budget_duration,
+    check_spp, readable,
 };
 use gradients::GradientBuffers;
 // The seam's types a pipeline user names, where the pipeline's own are.
@@ -97,6 +99,8 @@ struct FrameBuffers {
     temporal_reason: PlaneBuf<u8>,
     /// 1 where this frame path traced the pixel.
     traced_mask: PlaneBuf<u8>,
+    /// The shown image filtered (with `Filter::Atrous`).
+    filtered: Option<RgbBuf>,
 }
 
 impl FrameBuffers {
@@ -120,6 +124,10 @@ impl FrameBuffers {
             stereo_reason: PlaneBuf::try_new(e, Reason::Invalid as u8)?,
             temporal_reason: PlaneBuf::try_new(e, Reason::Invalid as u8)?,
             traced_mask: PlaneBuf::try_new(e, 0)?,
+            filtered: match config.filter {
+                Filter::Atrous => Some(rgb()?),
+                Filter::None => None,
+            },
         })
     }
 }
@@ -153,6 +161,8 @@ struct EyeState {
     gradient: Option<GradientBuffers>,
     /// The other eye's history length reprojected into this eye (with `Blend::Variance`).
     stereo_len: Option<PlaneBuf>,
+    /// The à-trous filter's working planes (with `Filter::Atrous`).
+    atrous: Option<AtrousScratch>,
 }
 
 impl EyeState {
@@ -177,6 +187,10 @@ impl EyeState {
             stereo_len: match config.blend {
                 Blend::Variance => Some(PlaneBuf::try_new(e, 0.0)?),
                 Blend::Fixed => None,
+            },
+            atrous: match config.filter {
+                Filter::Atrous => Some(AtrousScratch::try_new(e)?),
+                Filter::None => None,
             },
         })
     }
@@ -214,6 +228,9 @@ pub struct Pipeline<S: FrameSource> {
     /// then the pipeline's own planes do not hold them, and the next lent frame must lend
     /// them again as its previous frame's.
     gbuffers_lent: bool,
+    /// Whether the last frame's shown images are the filtered ones (a stereo frame with a
+    /// filter; a mono frame shows its traced image).
+    filtered_shown: bool,
 }
 
 const L: usize = Eye::Left as usize;
@@ -291,6 +308,16 @@ fn jitter_between(target: &GBufferBuf, source: &GBufferBuf) -> Option<reproject:
     jittered.then_some(reproject::Jitter { target: target.jitter, source: source.jitter })
 }
 
+/// The buffer of a frame's that `eye` shows in `mode` (before any filter).
+fn shown_image(buffers: &FrameBuffers, mode: Mode, eye: Eye, order: Order) -> &RgbBuf {
+    match (mode, eye, order) {
+        (Mode::PathTraced, ..) | (Mode::Stereo, Eye::Right, _) => &buffers.traced,
+        (Mode::Stereo, Eye::Left, _) | (Mode::StereoBlend, ..) => &buffers.work,
+        (Mode::SpatiotemporalBlend, _, Order::Paper) => &buffers.work,
+        (Mode::Temporal | Mode::Spatiotemporal | Mode::SpatiotemporalBlend, ..) => &buffers.history,
+    }
+}
+
 fn is_reprojected(code: u8) -> bool {
     code == Reason::Reprojected as u8
 }
@@ -317,6 +344,7 @@ impl<S: FrameSource> Pipeline<S> {
             planner: BudgetPlanner::default(),
             jitter: [0.0; 2],
             gbuffers_lent: false,
+            filtered_shown: false,
         })
     }
 
@@ -414,15 +442,19 @@ impl<S: FrameSource> Pipeline<S> {
         self.frames_done = 0;
     }
 
-    /// The image `eye` shows for the last frame.
+    /// The image `eye` shows for the last frame (filtered, with a [`Filter`]).
     pub fn output(&self, eye: Eye) -> &RgbBuf {
         let s = &self.eyes[eye as usize];
-        match (self.config.mode, eye, self.config.order) {
-            (Mode::PathTraced, ..) | (Mode::Stereo, Eye::Right, _) => &s.cur.traced,
-            (Mode::Stereo, Eye::Left, _) | (Mode::StereoBlend, ..) => &s.cur.work,
-            (Mode::SpatiotemporalBlend, _, Order::Paper) => &s.cur.work,
-            (Mode::Temporal | Mode::Spatiotemporal | Mode::SpatiotemporalBlend, ..) => &s.cur.history,
+        match &s.cur.filtered {
+            Some(filtered) if self.filtered_shown => filtered,
+            _ => self.unfiltered_output(eye),
         }
+    }
+
+    /// The image `eye` shows for the last frame before any [`Filter`]: what reprojection and
+    /// accumulation made (the same as [`Pipeline::output`] without a filter).
+    pub fn unfiltered_output(&self, eye: Eye) -> &RgbBuf {
+        shown_image(&self.eyes[eye as usize].cur, self.config.mode, eye, self.config.order)
     }
 
     /// The G-buffer of `eye` for the last frame. With the rasterised pass and the compact
@@ -544,6 +576,7 @@ impl<S: FrameSource> Pipeline<S> {
                 self.frames_done += 1;
                 self.last_frame = frame;
                 self.gbuffers_lent = lent.is_some();
+                self.filtered_shown = self.config.filter != Filter::None;
                 Ok(stats)
             }
             Err(e) => {
@@ -634,6 +667,13 @@ impl<S: FrameSource> Pipeline<S> {
                 Step::Accumulate(eye, source) => self.accumulate(eye, source, &mut stats, lent)?,
             }
         }
+        if self.config.filter == Filter::Atrous {
+            let t = Instant::now();
+            for eye in Eye::BOTH {
+                self.filter(eye, &mut stats, lent)?;
+            }
+            stats.times.filter = t.elapsed();
+        }
         stats.times.total = start.elapsed();
         self.planner.end_frame(stats.times.total);
         stats.budget_met = self.config.budget.is_none_or(|b| stats.times.total <= b);
@@ -674,6 +714,7 @@ impl<S: FrameSource> Pipeline<S> {
         }
         stats.times.total = start.elapsed();
         stats.budget_met = self.config.budget.is_none_or(|b| stats.times.total <= b);
+        self.filtered_shown = false;
         Ok(stats)
     }
 
@@ -936,6 +977,31 @@ impl<S: FrameSource> Pipeline<S> {
         // What was traced, before a stereo fill adds its reprojected pixels to `has_new`.
         s.cur.traced_mask.as_mut_slice().copy_from_slice(s.has_new.as_slice());
         stats.times.tracing += t.elapsed();
+        Ok(())
+    }
+
+    /// The à-trous filter of `eye`'s shown image into its `filtered` buffer, guided by this
+    /// frame's G-buffer (lent or the pipeline's own).
+    fn filter(&mut self, eye: Eye, stats: &mut FrameStats, lent: Option<&Lent<'_>>) -> Result<(), PipelineError> {
+        let (mode, order, layout) = (self.config.mode, self.config.order, self.config.layout);
+        let s = &mut self.eyes[eye as usize];
+        let (Some(mut filtered), Some(scratch)) = (s.cur.filtered.take(), s.atrous.as_mut()) else {
+            return Ok(());
+        };
+        let planes = lent.map_or_else(|| planes_of(&s.cur.gbuffer), |l| l.current[eye as usize]);
+        let normals = match (layout, planes.normal_oct, planes.normal) {
+            (Layout::Compact, Some(oct), _) => GuideNormals::Octahedral(oct),
+            (_, _, Some(n)) => GuideNormals::Planes(n),
+            (_, Some(oct), None) => GuideNormals::Octahedral(oct),
+            (_, None, None) => return Err(FrameError::InvalidParameter("a G-buffer without normals").into()),
+        };
+        let guide = AtrousGuide { depth: planes.depth, normals };
+        let params = AtrousParams { iterations: ATROUS_ITERATIONS, ..AtrousParams::default() };
+        let input = shown_image(&s.cur, mode, eye, order).view();
+        let result = atrous::atrous(&input, &guide, &params, scratch, filtered.view_mut());
+        // Put the buffer back whatever happened (a refused frame rolls back to it).
+        s.cur.filtered = Some(filtered);
+        stats.filter_out_of_range[eye as usize] = result?.out_of_range;
         Ok(())
     }
 

@@ -24,6 +24,8 @@ pub struct StageTimes {
     /// Temporal gradients (`History::Gradient`) outside their traced samples: choosing the
     /// samples, and turning their luminance pairs into history confidence.
     pub gradients: Duration,
+    /// The spatial filter of both eyes' shown images (`Filter::Atrous`).
+    pub filter: Duration,
     /// The whole frame.
     pub total: Duration,
 }
@@ -55,6 +57,8 @@ pub struct FrameStats {
     pub temporal_reasons: [ReasonCounts; 2],
     /// What each eye's EMA saw (left, right).
     pub accumulation: [AccumulateStats; 2],
+    /// Colour values each eye's filter clamped (`Filter::Atrous`; `kernels::atrous`).
+    pub filter_out_of_range: [u64; 2],
     /// The frame's budget, if any.
     pub budget: Option<Duration>,
     /// False when the budget was set and the frame took longer.
