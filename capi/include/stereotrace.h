@@ -38,12 +38,15 @@
 #include <stdint.h>
 #include <stdlib.h>
 
-// The library's major version: a header and a library agree when their majors are equal.
+// The library's major version. A header and a library agree when their majors are equal
+// and, while the major is 0, their minors too (a 0.x minor may grow a struct).
 #define STEREOTRACE_VERSION_MAJOR 0
 
-// The library's minor version. 0.2: `ST_STATUS_CALLBACK_FAILED`, `_OUT_OF_MEMORY` and
-// `_BUSY`; the destroy functions return a status; the `STEREOTRACE_MAX_*` limits.
-#define STEREOTRACE_VERSION_MINOR 2
+// The library's minor version. 0.3: `StPipelineConfig.history`, `.blend` and `.filter`,
+// and their counts and times in `StFrameStats`. 0.2: `ST_STATUS_CALLBACK_FAILED`,
+// `_OUT_OF_MEMORY` and `_BUSY`; the destroy functions return a status; the
+// `STEREOTRACE_MAX_*` limits.
+#define STEREOTRACE_VERSION_MINOR 3
 
 // The library's patch version.
 #define STEREOTRACE_VERSION_PATCH 0
@@ -174,6 +177,40 @@ typedef enum StOrder {
   // Stereo reprojection of this frame's samples first, then accumulation.
   ST_ORDER_STEREO_FIRST = 1,
 } StOrder;
+
+// How far the EMA trusts a reprojected history: the values of
+// [`StPipelineConfig::history`].
+typedef enum StHistory {
+  // The paper's: wherever reprojection keeps it (it sees geometry, not lighting).
+  ST_HISTORY_PAPER = 0,
+  // Also shortened where the lighting changed, measured by temporal gradients (A-SVGF):
+  // each frame, one reprojected sample of the last frame per 3×3 stratum is re-shaded.
+  // A callback pipeline asks `trace` for them as for any pixels, but with the last
+  // frame's number and camera (and a mask of the chosen pixels): the engine renders
+  // them with that frame's random numbers under its current lights and geometry. A
+  // scene pipeline whose lights and geometry never change traces none.
+  ST_HISTORY_GRADIENT = 1,
+} StHistory;
+
+// How the stereo blend weighs an eye's own image against the other eye's reprojection:
+// the values of [`StPipelineConfig::blend`].
+typedef enum StBlend {
+  // The paper's: ½ each.
+  ST_BLEND_FIXED = 0,
+  // By inverse variance, from each eye's history length: it changes only the paper-order
+  // `ST_MODE_SPATIOTEMPORAL_BLEND` (equal lengths give the fixed blend bit for bit).
+  ST_BLEND_VARIANCE = 1,
+} StBlend;
+
+// A spatial filter of each eye's shown image: the values of [`StPipelineConfig::filter`].
+typedef enum StFilter {
+  // The paper's: none.
+  ST_FILTER_NONE = 0,
+  // The edge-avoiding à-trous filter (SVGF's edge-stopping functions, five passes)
+  // guided by each eye's G-buffer depth and normals. A display filter:
+  // `stereotrace_pipeline_output` is filtered, the histories are not.
+  ST_FILTER_ATROUS = 1,
+} StFilter;
 
 // What the kernels run on: a pool of worker threads. Opaque to C. One call at a time:
 // a kernel call on a context that is in a call on another thread is refused with
@@ -440,6 +477,12 @@ typedef struct StPipelineConfig {
   // without a job system of its own. Bands of one call cover its rows exactly once; a
   // band that fails refuses the frame like any failing call. Scene pipelines ignore it.
   uint32_t trace_band_rows;
+  // A `StHistory` value (the paper's: `ST_HISTORY_PAPER`).
+  uint32_t history;
+  // A `StBlend` value (the paper's: `ST_BLEND_FIXED`).
+  uint32_t blend;
+  // A `StFilter` value (the paper's: `ST_FILTER_NONE`).
+  uint32_t filter;
 } StPipelineConfig;
 
 // A writable plane of `uint32_t`.
@@ -501,7 +544,8 @@ typedef struct StGBufferMut {
 // **Threads.** The callbacks run on one of the pipeline's worker threads (not the thread
 // that called `stereotrace_pipeline_render_frame_at`, which waits), one at a time, only
 // during that call: first `fill_gbuffers` once, then `trace` once per eye without a budget
-// or once per tile of rows under one. With `config.trace_band_rows` ≥ 1 each of those
+// or once per tile of rows under one (and, with `ST_HISTORY_GRADIENT`, once per eye for
+// the gradient samples). With `config.trace_band_rows` ≥ 1 each of those
 // `trace` calls becomes one call per band of rows, concurrent on the pipeline's workers (the
 // engine declares `trace` thread-safe). `user` must be usable from that thread, and anything
 // the callbacks share with the engine's other threads needs the engine's own
@@ -529,6 +573,11 @@ typedef struct StFrameSourceCallbacks {
   // are those of rows `row_start .. row_end` (end exclusive) where `mask` is non-zero (a
   // null `mask`: every pixel of those rows). Other pixels of `out` must be left as they
   // are. Returns 0 on success, anything else to refuse the frame.
+  //
+  // With `ST_HISTORY_GRADIENT` there are also calls for the temporal gradients' samples:
+  // `frame` and `camera` are then the **previous** frame's (its random numbers, its
+  // view), under the scene as it is now (today's lights and geometry), and `mask` selects
+  // one pixel per 3×3 stratum.
   int32_t (*trace)(void *user,
                    uint32_t eye,
                    uint32_t frame,
@@ -567,6 +616,17 @@ typedef struct StFrameStats {
   uint64_t traced_pixels[2];
   // 1 when there was no budget or the frame kept it, 0 when it went over.
   uint32_t budget_met;
+  // Temporal gradients (`ST_HISTORY_GRADIENT`) outside their traced samples: choosing
+  // them, and turning them into history confidence (their tracing is in `tracing_ms`).
+  double gradients_ms;
+  // The spatial filter of both eyes' shown images (`ST_FILTER_ATROUS`).
+  double filter_ms;
+  // Gradient samples re-shaded per eye (left, right), not counted in `traced_pixels`.
+  uint64_t gradient_samples[2];
+  // 3×3 strata per eye whose gradient shortened the history (the lighting changed).
+  uint64_t gradient_changed[2];
+  // Colour values each eye's filter clamped to its range (NaN, ±∞, above 10¹⁸).
+  uint64_t filter_out_of_range[2];
 } StFrameStats;
 
 // One eye's G-buffer lent by the engine for one frame (zero-copy input to
@@ -603,7 +663,7 @@ extern "C" {
 // header's `STEREOTRACE_VERSION_*` constants at run time.
 uint32_t stereotrace_version(void);
 
-// The library's version as text (`"0.2.0"`); a static string, never freed.
+// The library's version as text (`"0.3.0"`); a static string, never freed.
 const char *stereotrace_version_string(void);
 
 // The message of the last failed call on this thread, or an empty string after a call
@@ -716,8 +776,8 @@ enum StStatus stereotrace_ssim(const struct StContext *context,
                                uint32_t variant,
                                struct StSsimResult *result);
 
-// Spatiotemporal mode in the paper's order, compact G-buffers, 1 spp, 1280×720, one
-// thread per CPU, no budget, seed 1.
+// Spatiotemporal mode in the paper's order and with the paper's history, blend and (no)
+// filter, compact G-buffers, 1 spp, 1280×720, one thread per CPU, no budget, seed 1.
 struct StPipelineConfig stereotrace_pipeline_config_default(void);
 
 // Creates a pipeline over this project's renderer on `scene`: a built-in scene name

@@ -12,8 +12,8 @@ use stereotrace_kernels::reproject::Tolerances;
 use stereotrace_kernels::{CameraModel, Extent, GBufferBuf, PlaneBuf, RgbBuf};
 use stereotrace_runtime::camera::{Eye, StereoRig};
 use stereotrace_runtime::pipeline::{
-    FrameStats, GBufferView, Layout, MAX_SPP, Mode, Order, Pipeline, PipelineConfig, PipelineError, budget_duration,
-    check_spp,
+    Blend, Filter, FrameStats, GBufferView, History, Layout, MAX_SPP, Mode, Order, Pipeline, PipelineConfig,
+    PipelineError, budget_duration, check_spp,
 };
 use stereotrace_runtime::render::{Renderer, RendererSource};
 use stereotrace_runtime::source::{FrameSource, PixelSelection, RasterPassStats, TraceRequest, TraceStats};
@@ -55,6 +55,46 @@ pub enum StOrder {
     Paper = 0,
     /// Stereo reprojection of this frame's samples first, then accumulation.
     StereoFirst = 1,
+}
+
+/// How far the EMA trusts a reprojected history: the values of
+/// [`StPipelineConfig::history`].
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StHistory {
+    /// The paper's: wherever reprojection keeps it (it sees geometry, not lighting).
+    Paper = 0,
+    /// Also shortened where the lighting changed, measured by temporal gradients (A-SVGF):
+    /// each frame, one reprojected sample of the last frame per 3×3 stratum is re-shaded.
+    /// A callback pipeline asks `trace` for them as for any pixels, but with the last
+    /// frame's number and camera (and a mask of the chosen pixels): the engine renders
+    /// them with that frame's random numbers under its current lights and geometry. A
+    /// scene pipeline whose lights and geometry never change traces none.
+    Gradient = 1,
+}
+
+/// How the stereo blend weighs an eye's own image against the other eye's reprojection:
+/// the values of [`StPipelineConfig::blend`].
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StBlend {
+    /// The paper's: ½ each.
+    Fixed = 0,
+    /// By inverse variance, from each eye's history length: it changes only the paper-order
+    /// `ST_MODE_SPATIOTEMPORAL_BLEND` (equal lengths give the fixed blend bit for bit).
+    Variance = 1,
+}
+
+/// A spatial filter of each eye's shown image: the values of [`StPipelineConfig::filter`].
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StFilter {
+    /// The paper's: none.
+    None = 0,
+    /// The edge-avoiding à-trous filter (SVGF's edge-stopping functions, five passes)
+    /// guided by each eye's G-buffer depth and normals. A display filter:
+    /// `stereotrace_pipeline_output` is filtered, the histories are not.
+    Atrous = 1,
 }
 
 /// Settings of a pipeline (see [`stereotrace_pipeline_config_default`]).
@@ -106,10 +146,16 @@ pub struct StPipelineConfig {
     /// without a job system of its own. Bands of one call cover its rows exactly once; a
     /// band that fails refuses the frame like any failing call. Scene pipelines ignore it.
     pub trace_band_rows: u32,
+    /// A `StHistory` value (the paper's: `ST_HISTORY_PAPER`).
+    pub history: u32,
+    /// A `StBlend` value (the paper's: `ST_BLEND_FIXED`).
+    pub blend: u32,
+    /// A `StFilter` value (the paper's: `ST_FILTER_NONE`).
+    pub filter: u32,
 }
 
-/// Spatiotemporal mode in the paper's order, compact G-buffers, 1 spp, 1280×720, one
-/// thread per CPU, no budget, seed 1.
+/// Spatiotemporal mode in the paper's order and with the paper's history, blend and (no)
+/// filter, compact G-buffers, 1 spp, 1280×720, one thread per CPU, no budget, seed 1.
 #[unsafe(no_mangle)]
 pub extern "C" fn stereotrace_pipeline_config_default() -> StPipelineConfig {
     StPipelineConfig {
@@ -126,6 +172,9 @@ pub extern "C" fn stereotrace_pipeline_config_default() -> StPipelineConfig {
         history_confidence: 0,
         motion_vectors: 0,
         trace_band_rows: 0,
+        history: StHistory::Paper as u32,
+        blend: StBlend::Fixed as u32,
+        filter: StFilter::None as u32,
     }
 }
 
@@ -168,6 +217,21 @@ impl StPipelineConfig {
             0 => false,
             1 => true,
             other => return Err(Failure::invalid(format!("config.motion_vectors must be 0 or 1, got {other}"))),
+        };
+        c.history = match self.history {
+            0 => History::Paper,
+            1 => History::Gradient,
+            other => return Err(Failure::invalid(format!("config.history {other} is not a StHistory (0 or 1)"))),
+        };
+        c.blend = match self.blend {
+            0 => Blend::Fixed,
+            1 => Blend::Variance,
+            other => return Err(Failure::invalid(format!("config.blend {other} is not a StBlend (0 or 1)"))),
+        };
+        c.filter = match self.filter {
+            0 => Filter::None,
+            1 => Filter::Atrous,
+            other => return Err(Failure::invalid(format!("config.filter {other} is not a StFilter (0 or 1)"))),
         };
         // SAFETY: the caller's contract.
         if let Some(r) = unsafe { self.reprojection.as_ref() } {
@@ -257,7 +321,8 @@ pub struct StGBufferMut {
 /// **Threads.** The callbacks run on one of the pipeline's worker threads (not the thread
 /// that called `stereotrace_pipeline_render_frame_at`, which waits), one at a time, only
 /// during that call: first `fill_gbuffers` once, then `trace` once per eye without a budget
-/// or once per tile of rows under one. With `config.trace_band_rows` ≥ 1 each of those
+/// or once per tile of rows under one (and, with `ST_HISTORY_GRADIENT`, once per eye for
+/// the gradient samples). With `config.trace_band_rows` ≥ 1 each of those
 /// `trace` calls becomes one call per band of rows, concurrent on the pipeline's workers (the
 /// engine declares `trace` thread-safe). `user` must be usable from that thread, and anything
 /// the callbacks share with the engine's other threads needs the engine's own
@@ -291,6 +356,11 @@ pub struct StFrameSourceCallbacks {
     /// are those of rows `row_start .. row_end` (end exclusive) where `mask` is non-zero (a
     /// null `mask`: every pixel of those rows). Other pixels of `out` must be left as they
     /// are. Returns 0 on success, anything else to refuse the frame.
+    ///
+    /// With `ST_HISTORY_GRADIENT` there are also calls for the temporal gradients' samples:
+    /// `frame` and `camera` are then the **previous** frame's (its random numbers, its
+    /// view), under the scene as it is now (today's lights and geometry), and `mask` selects
+    /// one pixel per 3×3 stratum.
     #[allow(clippy::type_complexity)]
     pub trace: Option<
         unsafe extern "C" fn(
@@ -617,6 +687,17 @@ pub struct StFrameStats {
     pub traced_pixels: [u64; 2],
     /// 1 when there was no budget or the frame kept it, 0 when it went over.
     pub budget_met: u32,
+    /// Temporal gradients (`ST_HISTORY_GRADIENT`) outside their traced samples: choosing
+    /// them, and turning them into history confidence (their tracing is in `tracing_ms`).
+    pub gradients_ms: f64,
+    /// The spatial filter of both eyes' shown images (`ST_FILTER_ATROUS`).
+    pub filter_ms: f64,
+    /// Gradient samples re-shaded per eye (left, right), not counted in `traced_pixels`.
+    pub gradient_samples: [u64; 2],
+    /// 3×3 strata per eye whose gradient shortened the history (the lighting changed).
+    pub gradient_changed: [u64; 2],
+    /// Colour values each eye's filter clamped to its range (NaN, ±∞, above 10¹⁸).
+    pub filter_out_of_range: [u64; 2],
 }
 
 impl From<&FrameStats> for StFrameStats {
@@ -631,6 +712,11 @@ impl From<&FrameStats> for StFrameStats {
             accumulation_ms: ms(t.accumulation),
             traced_pixels: s.traced_pixels,
             budget_met: u32::from(s.budget_met),
+            gradients_ms: ms(t.gradients),
+            filter_ms: ms(t.filter),
+            gradient_samples: s.gradient_samples,
+            gradient_changed: s.gradient_changed,
+            filter_out_of_range: s.filter_out_of_range,
         }
     }
 }

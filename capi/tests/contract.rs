@@ -5,7 +5,10 @@
 //!   that reads them), history lengths that are not counts; refused calls write nothing;
 //! - a pipeline's output before its first frame is refused;
 //! - cases the header documents as accepted (frame numbers in any order, swapped eyes, eyes
-//!   far apart, both eyes at one camera) do what it says.
+//!   far apart, both eyes at one camera) do what it says;
+//! - the settings beyond the paper reach the pipeline: temporal gradients see an engine's
+//!   light switched off, the variance blend weighs differently once histories differ, and
+//!   the filter's output is the à-trous kernel applied to the unfiltered output.
 
 // These call the C ABI on pointers made a few lines before each call, as a C caller would;
 // what each call requires is its documentation in the header.
@@ -589,4 +592,157 @@ fn a_pipeline_resizes_without_being_rebuilt() {
     }
     expect(unsafe { stereotrace_pipeline_destroy(fresh) }, StStatus::Ok);
     expect(unsafe { stereotrace_pipeline_destroy(p) }, StStatus::Ok);
+}
+
+/// Renders frame `f` with both eyes still at their first place; returns the frame's
+/// statistics.
+fn still_frame(p: *mut StPipeline, f: u32) -> StFrameStats {
+    let cameras = [camera(-0.03, W, H), camera(0.03, W, H)];
+    let mut stats = StFrameStats::default();
+    expect(unsafe { stereotrace_pipeline_render_frame_at(p, f, cameras.as_ptr(), &mut stats) }, StStatus::Ok);
+    stats
+}
+
+/// The paper's settings are the defaults, and a history, blend or filter value that names
+/// nothing is refused at creation.
+#[test]
+fn the_history_blend_and_filter_settings_default_to_the_papers_and_refuse_unknown_values() {
+    let config = stereotrace_pipeline_config_default();
+    assert_eq!(
+        (config.history, config.blend, config.filter),
+        (StHistory::Paper as u32, StBlend::Fixed as u32, StFilter::None as u32)
+    );
+    assert_eq!(stereotrace_version(), 300, "0.3: the config grew these fields");
+    let mut engine = RoomEngine::new();
+    let callbacks = engine.callbacks();
+    let cameras = [camera(-0.03, W, H), camera(0.03, W, H)];
+    type Edit = fn(&mut StPipelineConfig);
+    let edits: [(Edit, &str); 3] = [
+        (|c| c.history = 2, "config.history 2 is not a StHistory (0 or 1)"),
+        (|c| c.blend = 7, "config.blend 7 is not a StBlend (0 or 1)"),
+        (|c| c.filter = u32::MAX, "config.filter 4294967295 is not a StFilter (0 or 1)"),
+    ];
+    for (edit, want) in edits {
+        let mut config = stereotrace_pipeline_config_default();
+        (config.width, config.height, config.threads) = (W, H, 1);
+        edit(&mut config);
+        let mut p = std::ptr::null_mut();
+        let status = unsafe { stereotrace_pipeline_create_callbacks(&callbacks, &config, cameras.as_ptr(), &mut p) };
+        let message = expect(status, StStatus::InvalidArgument);
+        assert!(message.contains(want), "{message}");
+        assert!(p.is_null());
+        let status = unsafe { stereotrace_pipeline_create_scene(c"cornell".as_ptr(), &config, &mut p) };
+        assert!(expect(status, StStatus::InvalidArgument).contains(want));
+    }
+}
+
+/// `ST_HISTORY_GRADIENT` over an engine: the trace callback is asked to re-shade samples of
+/// the last frame (its number, under today's light), and when the engine switches its light
+/// off the next frame shows its own (black) samples where the paper's history still shows
+/// 80 % of the old light. While nothing changes, the images are the paper's bit for bit.
+#[test]
+fn an_engines_light_switched_off_is_seen_by_temporal_gradients() {
+    let pipeline = |history: StHistory, engine: &mut Box<RoomEngine>| {
+        room_pipeline_with(engine, StMode::Temporal, W, H, |c| c.history = history as u32)
+    };
+    let (mut gradient_engine, mut paper_engine) = (RoomEngine::new(), RoomEngine::new());
+    let gradient = pipeline(StHistory::Gradient, &mut gradient_engine);
+    let paper = pipeline(StHistory::Paper, &mut paper_engine);
+    const OFF_AT: u32 = 4;
+    for f in 0..OFF_AT {
+        let stats = still_frame(gradient, f);
+        still_frame(paper, f);
+        assert_eq!(outputs(gradient, W, H), outputs(paper, W, H), "frame {f}: nothing changed yet");
+        if f > 0 {
+            let strata = u64::from((W / 3) * (H / 3));
+            assert!(stats.gradient_samples.iter().all(|&n| n >= strata * 9 / 10), "{:?}", stats.gradient_samples);
+            assert_eq!(stats.gradient_changed, [0, 0]);
+        }
+    }
+    assert!(gradient_engine.reshades.load(std::sync::atomic::Ordering::Relaxed) > 0);
+    assert_eq!(paper_engine.reshades.load(std::sync::atomic::Ordering::Relaxed), 0);
+
+    (gradient_engine.light, paper_engine.light) = (0.0, 0.0);
+    let stats = still_frame(gradient, OFF_AT);
+    still_frame(paper, OFF_AT);
+    assert!(stats.gradient_changed.iter().all(|&n| n > 0), "{:?}", stats.gradient_changed);
+    let (shown, lagging) = (outputs(gradient, W, H), outputs(paper, W, H));
+    for eye in 0..2 {
+        let dark = shown[eye].iter().filter(|&&v| v == 0f32.to_bits()).count();
+        assert_eq!(dark, shown[eye].len(), "eye {eye}: every pixel shows this frame's black sample");
+        assert!(lagging[eye].iter().all(|&v| f32::from_bits(v) > 0.0), "eye {eye}: the paper's history lags");
+    }
+    for p in [gradient, paper] {
+        expect(unsafe { stereotrace_pipeline_destroy(p) }, StStatus::Ok);
+    }
+}
+
+/// `ST_BLEND_VARIANCE` over the living room's camera path: the first frame (no history yet,
+/// both lengths 1) is the fixed blend's bit for bit; once a moving camera's disocclusions
+/// restart one eye's history where the other's is long, the blend weighs differently.
+#[test]
+fn the_variance_blend_is_the_fixed_one_until_the_histories_differ() {
+    let run = |blend: StBlend| {
+        let mut config = stereotrace_pipeline_config_default();
+        (config.mode, config.width, config.height, config.threads) = (StMode::SpatiotemporalBlend as u32, W, H, 1);
+        config.blend = blend as u32;
+        let mut p = std::ptr::null_mut();
+        expect(unsafe { stereotrace_pipeline_create_scene(c"living-room".as_ptr(), &config, &mut p) }, StStatus::Ok);
+        let out: Vec<[Vec<u32>; 2]> = (3..8)
+            .map(|f| {
+                expect(unsafe { stereotrace_pipeline_render_frame(p, f, std::ptr::null_mut()) }, StStatus::Ok);
+                outputs(p, W, H)
+            })
+            .collect();
+        expect(unsafe { stereotrace_pipeline_destroy(p) }, StStatus::Ok);
+        out
+    };
+    let (fixed, variance) = (run(StBlend::Fixed), run(StBlend::Variance));
+    assert_eq!(variance[0], fixed[0], "the first frame: no history, the same blend");
+    assert_ne!(variance, fixed, "histories of different lengths met");
+    assert!(variance.iter().flatten().flatten().all(|&v| f32::from_bits(v).is_finite()));
+}
+
+/// `ST_FILTER_ATROUS`: the output is the unfiltered pipeline's output filtered by the
+/// à-trous kernel with the engine's G-buffer as its guide (five passes, default weights),
+/// and the frame's statistics report the filter.
+#[test]
+fn the_atrous_filter_is_the_kernel_applied_to_the_unfiltered_output() {
+    use stereotrace_kernels::atrous::{AtrousGuide, AtrousParams, AtrousScratch, GuideNormals, atrous};
+    use stereotrace_kernels::{Extent, Plane, RgbBuf, RgbPlanes};
+
+    let run = |filter: StFilter| {
+        let mut engine = RoomEngine::new();
+        let p = room_pipeline_with(&mut engine, StMode::Temporal, W, H, |c| c.filter = filter as u32);
+        let stats: Vec<StFrameStats> = (0..3).map(|f| still_frame(p, f)).collect();
+        let out = outputs(p, W, H);
+        expect(unsafe { stereotrace_pipeline_destroy(p) }, StStatus::Ok);
+        (out, stats.last().copied().unwrap())
+    };
+    let (plain, plain_stats) = run(StFilter::None);
+    let (filtered, stats) = run(StFilter::Atrous);
+    assert_eq!(plain_stats.filter_ms, 0.0);
+    assert!(stats.filter_ms > 0.0 && stats.filter_out_of_range == [0, 0], "{stats:?}");
+
+    let extent = Extent::new(W as usize, H as usize).unwrap();
+    let n = extent.pixels();
+    let room = RoomEngine::new().scene;
+    for (eye, x) in [-0.03, 0.03].into_iter().enumerate() {
+        let values: Vec<f32> = plain[eye].iter().map(|&b| f32::from_bits(b)).collect();
+        let plane = |c: usize| Plane::new(&values[c * n..(c + 1) * n], W as usize, H as usize, W as usize);
+        let input = RgbPlanes::new(plane(0).unwrap(), plane(1).unwrap(), plane(2).unwrap()).unwrap();
+        let view = room.render(&model(&camera(x, W, H)), [0.0; 3]);
+        let guide = AtrousGuide {
+            depth: view.surfaces.depth.view(),
+            normals: GuideNormals::Octahedral(view.surfaces.normal_oct.view()),
+        };
+        let params = AtrousParams { iterations: 5, ..AtrousParams::default() };
+        let mut scratch = AtrousScratch::try_new(extent).unwrap();
+        let mut expected = RgbBuf::new(extent, f32::NAN);
+        atrous(&input, &guide, &params, &mut scratch, expected.view_mut()).unwrap();
+        let expected: Vec<u32> =
+            expected.planes().iter().flat_map(|p| p.as_slice().iter().map(|v| v.to_bits())).collect();
+        assert_eq!(filtered[eye], expected, "eye {eye}");
+        assert_ne!(filtered[eye], plain[eye]);
+    }
 }

@@ -57,6 +57,13 @@ pub struct RoomEngine {
     pub noisy: bool,
     /// The engine's own job system, if it offers one.
     pub run_jobs: Option<RunJobs>,
+    /// The light's strength now (1: as the room's textures; 0: switched off); the scene's
+    /// state, so a re-shaded sample of the last frame sees today's.
+    pub light: f32,
+    /// The frame `fill_gbuffers` was last called for.
+    pub frame: u32,
+    /// Trace calls for another frame than the current one (temporal gradients' re-shading).
+    pub reshades: AtomicU64,
 }
 
 impl RoomEngine {
@@ -71,6 +78,9 @@ impl RoomEngine {
             hidden_jitter: [0.0; 2],
             noisy: true,
             run_jobs: None,
+            light: 1.0,
+            frame: 0,
+            reshades: AtomicU64::new(0),
         })
     }
 
@@ -135,12 +145,13 @@ pub fn model(c: &StCamera) -> CameraModel {
 
 unsafe extern "C" fn fill_gbuffers(
     user: *mut c_void,
-    _frame: u32,
+    frame: u32,
     left: *const StGBufferMut,
     right: *const StGBufferMut,
 ) -> i32 {
     let engine = unsafe { &mut *user.cast::<RoomEngine>() };
     engine.gbuffer_calls += 1;
+    engine.frame = frame;
     for g in [left, right] {
         let g = unsafe { &*g };
         let jitter = [g.jitter[0] + engine.hidden_jitter[0], g.jitter[1] + engine.hidden_jitter[1]];
@@ -190,6 +201,9 @@ unsafe extern "C" fn trace(
     // Shared, not exclusive: with `trace_band_rows` bands run concurrently.
     let engine = unsafe { &*user.cast::<RoomEngine>() };
     engine.trace_calls.fetch_add(1, Ordering::Relaxed);
+    if frame != engine.frame {
+        engine.reshades.fetch_add(1, Ordering::Relaxed);
+    }
     let _ = spp;
     let rendered = engine.scene.render(&model(unsafe { &*camera }), [0.0; 3]);
     let out = unsafe { &*out };
@@ -206,7 +220,7 @@ unsafe extern "C" fn trace(
             let noise = if engine.noisy { 0.8 + 0.4 * ((h >> 40) as f32 / (1u64 << 24) as f32) } else { 1.0 };
             let c = rendered.colour.get(x, y);
             for (p, v) in [out.r, out.g, out.b].iter().zip(c) {
-                unsafe { *p.data.add(y * p.stride as usize + x) = v * noise };
+                unsafe { *p.data.add(y * p.stride as usize + x) = v * noise * engine.light };
             }
             engine.traced[eye as usize].fetch_add(1, Ordering::Relaxed);
         }
