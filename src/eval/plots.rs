@@ -16,6 +16,7 @@ use super::spec::Variant;
 use super::stats::Bound;
 use crate::image_io::tonemap;
 use crate::kernels::RgbBuf;
+use crate::kernels::colour::luminance;
 use crate::kernels::reproject::Reason;
 
 type DrawResult = Result<(), String>;
@@ -272,7 +273,7 @@ fn auto_exposure(img: &RgbBuf) -> f32 {
     let n = img.extent().pixels() as f64;
     let lum: f64 = (0..img.extent().pixels())
         .map(|i| {
-            let v = 0.2126 * img.r().as_slice()[i] + 0.7152 * img.g().as_slice()[i] + 0.0722 * img.b().as_slice()[i];
+            let v = luminance(img.r().as_slice()[i], img.g().as_slice()[i], img.b().as_slice()[i]);
             if v.is_finite() { f64::from(v.max(0.0)) } else { 0.0 }
         })
         .sum::<f64>()

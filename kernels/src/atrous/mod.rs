@@ -135,8 +135,14 @@ impl AtrousScratch {
     /// The luminance variance the last iteration left (after a call; the pre-pass's with 0
     /// iterations).
     pub fn variance(&self, iterations: u32) -> &PlaneBuf {
-        &self.variance[iterations as usize % 2]
+        &self.variance[variance_written_by(iterations)]
     }
+}
+
+/// Which of the two variance buffers holds the variance after `iterations` passes: the
+/// pre-pass writes buffer 0, and pass `i` reads buffer `i % 2` and writes the other.
+fn variance_written_by(iterations: u32) -> usize {
+    iterations as usize % 2
 }
 
 /// What a filter call saw.
@@ -170,12 +176,6 @@ pub fn exp_neg(x: f32) -> f32 {
 
 /// `(−1)^k / k!`, k = 0..=5: the Taylor coefficients of `e^(−u)`.
 pub(crate) const EXP_TAYLOR: [f32; 6] = [1.0, -1.0, 1.0 / 2.0, -1.0 / 6.0, 1.0 / 24.0, -1.0 / 120.0];
-
-/// Rec. 709 luminance, in one operation order for both bodies.
-#[inline(always)]
-pub(crate) fn luminance(r: f32, g: f32, b: f32) -> f32 {
-    0.2126 * r + 0.7152 * g + 0.0722 * b
-}
 
 fn check(
     input: &RgbPlanes<'_>,
@@ -349,8 +349,11 @@ fn run<B: Body>(
     };
     for i in 0..params.iterations {
         let writes_out = (i + 1) % 2 == params.iterations % 2;
-        let (variance_src, variance_dst) =
-            if i % 2 == 0 { (&*variance_a, &mut *variance_b) } else { (&*variance_b, &mut *variance_a) };
+        let (variance_src, variance_dst) = if variance_written_by(i) == 0 {
+            (&*variance_a, &mut *variance_b)
+        } else {
+            (&*variance_b, &mut *variance_a)
+        };
         let (colour_src, colour_dst) = if writes_out {
             (colour.view().channels(), out.reborrow())
         } else {

@@ -4,8 +4,9 @@ use std::ops::Range;
 
 use super::{
     AtrousStats, Body, DEPTH_EPSILON, EXPONENT_MAX, FilterRow, GuideNormals, KERNEL, LUMINANCE_EPSILON, NORMAL_MIN_COS,
-    Prepass, PrepassRow, Source, VALUE_MAX, WEIGHT_MIN, exp_neg, luminance,
+    Prepass, PrepassRow, Source, VALUE_MAX, WEIGHT_MIN, exp_neg,
 };
+use crate::colour::luminance;
 use crate::gbuffer::decode_normal;
 
 pub(super) struct Scalar;

@@ -7,6 +7,7 @@ use super::{
     AtrousStats, Body, DEPTH_EPSILON, EXP_TAYLOR, EXPONENT_MAX, FilterRow, GuideNormals, KERNEL, LUMINANCE_EPSILON,
     NORMAL_MIN_COS, Prepass, PrepassRow, Source, VALUE_MAX, WEIGHT_MIN,
 };
+use crate::colour::REC709_LUMINANCE;
 use crate::gbuffer::decode_normals;
 use crate::simd::{F32s, I32s, LANES, bits, load, store, u32x8};
 
@@ -33,10 +34,11 @@ fn exp_neg(x: F32s) -> F32s {
     p * scale
 }
 
-/// [`super::luminance`] on eight lanes.
+/// [`crate::colour::luminance`] on eight lanes.
 #[inline(always)]
 fn luminance(r: F32s, g: F32s, b: F32s) -> F32s {
-    F32s::splat(0.2126) * r + F32s::splat(0.7152) * g + F32s::splat(0.0722) * b
+    let [wr, wg, wb] = REC709_LUMINANCE.map(F32s::splat);
+    wr * r + wg * g + wb * b
 }
 
 /// [`scalar::clamp_value`] on eight lanes: the clamped values and the mask of those outside.

@@ -68,9 +68,9 @@ fn mark_chosen(mask: &mut PlaneBuf<u8>, chosen: &PlaneBuf<u32>, value: u8) -> u6
     count
 }
 
-/// Rec. 709 luminance, the weights the evaluation's SSIM uses.
+/// Rec. 709 luminance (`kernels::colour::luminance`) of a texel.
 fn luminance([r, g, b]: [f32; 3]) -> f32 {
-    0.2126 * r + 0.7152 * g + 0.0722 * b
+    crate::kernels::colour::luminance(r, g, b)
 }
 
 /// Where a stratum's candidates start (so the sample moves around its stratum from frame to

@@ -8,10 +8,10 @@ use std::f32::consts::PI;
 
 use glam::{Vec2, Vec3};
 
-/// Rec. 709 luminance of linear RGB.
+/// Rec. 709 luminance of linear RGB (`kernels::colour::luminance`).
 #[inline]
 pub fn luminance(c: Vec3) -> f32 {
-    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+    crate::kernels::colour::luminance(c.x, c.y, c.z)
 }
 
 /// A piecewise-constant distribution over `[0, 1)` with `n` equal-width bins.
