@@ -170,9 +170,31 @@ fn throughput_takes_the_traced_gbuffer_and_reports_budget_overruns() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
     assert_eq!(v["gbuffer_pass"], "traced");
+    assert!(v["raster"].is_null(), "a traced pass has no raster steps: {v}");
     assert_eq!(v["budget_ms"].as_f64(), Some(1000.0));
     assert!(v["budget_misses_over_1ms"].as_u64().unwrap() <= v["budget_misses"].as_u64().unwrap());
     assert_refused(&stereotrace(&[&args[..], &["--gbuffer", "painted"]].concat()), "painted");
+}
+
+/// A rasterised pass reports where its time went: its four steps, each within the pass's
+/// own time, and the triangles it was given against those it found visible.
+#[test]
+fn throughput_attributes_the_raster_pass_to_its_steps() {
+    let args = ["throughput", "--scene", "atrium", "--res", "64x36", "--frames", "3", "--no-baseline", "--json"];
+    let out = stereotrace(&args);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    assert_eq!(v["gbuffer_pass"], "raster");
+    let steps = &v["raster"];
+    let gbuffer_max = v["gbuffer"]["max_ms"].as_f64().unwrap();
+    for step in ["setup", "binning", "fragments", "resolve"] {
+        let median = steps[step]["median_ms"].as_f64().unwrap_or_else(|| panic!("{step} missing: {v}"));
+        assert!(median >= 0.0 && median <= gbuffer_max, "{step}: {median} ms of a pass of at most {gbuffer_max} ms");
+    }
+    let (triangles, visible) = (steps["triangles"].as_u64().unwrap(), steps["visible"].as_u64().unwrap());
+    assert!(triangles > 100_000 && 0 < visible && visible < triangles, "{triangles} triangles, {visible} visible");
+    let text = String::from_utf8_lossy(&stereotrace(&args[..args.len() - 1]).stdout).into_owned();
+    assert!(text.contains("raster       setup"), "{text}");
 }
 
 #[test]

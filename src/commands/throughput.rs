@@ -23,6 +23,7 @@ use crate::kernels::Extent;
 use crate::pipeline::{Blend, Filter, FrameStats, History, Layout, Mode, Order, Pipeline, PipelineConfig};
 use crate::render::{Renderer, RendererOptions};
 use crate::session::{CameraWalk, Session, View};
+use crate::source::RasterPassStats;
 
 use super::args::{GBufferArg, SceneArgs, ThreadsArg, default, parse_budget_ms, parse_frames, parse_spp};
 
@@ -102,6 +103,29 @@ impl Spread {
     }
 }
 
+/// Where a rasterised G-buffer pass spends its time (both eyes, medians over frames): the
+/// attribution a faster pass starts from.
+#[derive(Clone, Copy, Debug, Serialize, PartialEq)]
+pub struct RasterSteps {
+    /// Triangle setup: culling, clipping, projection.
+    pub setup: Spread,
+    /// Binning the triangles' records into bands of rows.
+    pub binning: Spread,
+    /// The fragment loop: coverage and depth test per pixel.
+    pub fragments: Spread,
+    /// The resolve: each pixel's visible triangle into G-buffer texels.
+    pub resolve: Spread,
+    /// Triangles the pass was given (the last frame's).
+    pub triangles: u64,
+    /// Of those, the visible ones in at least one eye (the last frame's).
+    pub visible: u64,
+    /// (record, band of rows) pairs the fragment loop walked (the last frame's).
+    pub band_records: u64,
+    /// Fragments decided on the exact path: uncertain coverage, depth near-ties and
+    /// alpha-masked triangles (the last frame's).
+    pub exact_fragments: u64,
+}
+
 /// Everything the driver measured (the `--json` object).
 #[derive(Clone, Debug, Serialize)]
 pub struct ThroughputReport {
@@ -139,6 +163,8 @@ pub struct ThroughputReport {
     pub frame: Spread,
     /// Both eyes' G-buffer pass.
     pub gbuffer: Spread,
+    /// The G-buffer pass's steps when it rasterises (null for the traced pass).
+    pub raster: Option<RasterSteps>,
     /// Stereo and temporal reprojection.
     pub reprojection: Spread,
     /// Path tracing.
@@ -353,6 +379,7 @@ pub fn run(opts: &ThroughputOptions) -> Result<ThroughputReport, String> {
         stereo_fps: stats.len() as f64 / total_time,
         frame,
         gbuffer: series(|s| s.times.gbuffer),
+        raster: raster_steps(&stats),
         reprojection: series(|s| s.times.reprojection),
         tracing: series(|s| s.times.tracing),
         accumulation: series(|s| s.times.accumulation),
@@ -383,6 +410,23 @@ pub fn run(opts: &ThroughputOptions) -> Result<ThroughputReport, String> {
     })
 }
 
+/// The raster pass's steps over `stats`, if every frame rasterised.
+fn raster_steps(stats: &[FrameStats]) -> Option<RasterSteps> {
+    let passes: Vec<_> = stats.iter().map(|s| s.raster).collect::<Option<_>>()?;
+    let last = passes.last()?;
+    let series = |f: fn(&RasterPassStats) -> Duration| Spread::of(passes.iter().map(|p| ms(f(p))).collect());
+    Some(RasterSteps {
+        setup: series(|p| p.raster.setup),
+        binning: series(|p| p.raster.binning),
+        fragments: series(|p| p.raster.fragments),
+        resolve: series(|p| p.resolve),
+        triangles: last.raster.triangles,
+        visible: last.raster.visible,
+        band_records: last.raster.band_records,
+        exact_fragments: last.raster.exact,
+    })
+}
+
 impl ThroughputReport {
     /// The human-readable summary.
     pub fn text(&self) -> String {
@@ -408,6 +452,18 @@ impl ThroughputReport {
         out += &format!("  stereo fps    {:>9.2}\n", self.stereo_fps);
         out += &stage("frame", &self.frame);
         out += &stage("g-buffers", &self.gbuffer);
+        if let Some(r) = &self.raster {
+            out += &format!(
+                "    raster       setup {:.2}, binning {:.2}, fragments {:.2}, resolve {:.2} ms (medians; {} of {} triangles visible, {} fragments on the exact path)\n",
+                r.setup.median_ms,
+                r.binning.median_ms,
+                r.fragments.median_ms,
+                r.resolve.median_ms,
+                r.visible,
+                r.triangles,
+                r.exact_fragments
+            );
+        }
         out += &stage("reprojection", &self.reprojection);
         out += &stage("path tracing", &self.tracing);
         out += &stage("accumulation", &self.accumulation);

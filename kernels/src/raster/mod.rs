@@ -83,7 +83,7 @@ const CHUNK: usize = 4096;
 /// The id stored for pixels that see no triangle.
 pub const NO_PRIM: u32 = u32::MAX;
 /// Unit roundoff of f32.
-const U: f32 = f32::EPSILON * 0.5;
+pub(crate) const U: f32 = f32::EPSILON * 0.5;
 
 /// Which triangles have cut-out masks, and whether a hit on one is opaque. Masked triangles
 /// are tested per fragment with the hit's barycentrics, as the tracer tests its hits.
