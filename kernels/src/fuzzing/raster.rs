@@ -236,18 +236,14 @@ struct RasterCase {
     right: CameraModel,
 }
 
-/// Frames up to this wide for the exact rasteriser: past the 24 columns from which its SIMD
-/// body walks row spans instead of whole boxes.
-const EXACT_MAX_WIDTH: u8 = 64;
+/// Frames up to this wide: past the 24 columns from which the exact rasteriser's SIMD body
+/// walks row spans instead of whole boxes.
+const MAX_WIDTH: u8 = 64;
 
-/// Frames up to this wide for the fixed-point rasteriser (its wider-frame sliver case is an
-/// open finding, RELIABILITY.md).
-const FIXED_MAX_WIDTH: u8 = 24;
-
-/// The case the bytes describe, in a frame at most `max_width` columns wide.
-fn raster_case(data: &[u8], max_width: u8) -> Option<RasterCase> {
+/// The case the bytes describe.
+fn raster_case(data: &[u8]) -> Option<RasterCase> {
     let mut bytes = Bytes(data);
-    let extent = Extent::new(1 + usize::from(bytes.u8() % max_width), 1 + usize::from(bytes.u8() % 16)).expect("small");
+    let extent = Extent::new(1 + usize::from(bytes.u8() % MAX_WIDTH), 1 + usize::from(bytes.u8() % 16)).expect("small");
     let eye = Vec3::new(bytes.unit(-0.5, 0.5), bytes.unit(-0.5, 0.5), bytes.unit(0.5, 2.0));
     let yaw = bytes.unit(-0.6, 0.6);
     let forward = Vec3::new(yaw.sin(), bytes.unit(-0.3, 0.3), -yaw.cos()).normalize();
@@ -280,7 +276,7 @@ fn raster_case(data: &[u8], max_width: u8) -> Option<RasterCase> {
 ///   hits are a near tie, or the raster's triangle passes within the f32 test's `t` error of
 ///   the eye (grazing), and the exact f64 answer is the raster's.
 pub fn raster(data: &[u8]) {
-    let Some(RasterCase { extent, head, separation, tris, left, right }) = raster_case(data, EXACT_MAX_WIDTH) else {
+    let Some(RasterCase { extent, head, separation, tris, left, right }) = raster_case(data) else {
         return;
     };
     let run = |body, mut rasterizer: Rasterizer| {
@@ -344,7 +340,7 @@ const SNAP_PX: f64 = 1.0 / 256.0;
 ///   `q = 1/depth` closer than what moving their vertices by the snap can change
 ///   (`|∇q|₁/256` each, in pixels), plus the tracer's own rounding.
 pub fn raster_fixed(data: &[u8]) {
-    let Some(RasterCase { extent, head, separation, tris, left, right }) = raster_case(data, FIXED_MAX_WIDTH) else {
+    let Some(RasterCase { extent, head, separation, tris, left, right }) = raster_case(data) else {
         return;
     };
     let run = |body, mut rasterizer: FixedRasterizer| {
