@@ -185,20 +185,6 @@ fn check_rig(
     extent: Extent,
     only: Option<(usize, usize)>,
 ) -> Vec<u32> {
-    let ids = check_exact(name, tris, head, separation, extent, only);
-    check_fixed(name, tris, &eye_cameras(head, separation, extent), only);
-    ids
-}
-
-/// [`check_rig`] for the exact rasteriser alone.
-fn check_exact(
-    name: &str,
-    tris: &[TriVerts],
-    head: &CameraPose,
-    separation: f32,
-    extent: Extent,
-    only: Option<(usize, usize)>,
-) -> Vec<u32> {
     let cams = eye_cameras(head, separation, extent);
     let run = |body, mut rasterizer: Rasterizer| {
         let mut out = [VisibilityBuffer::new(extent), VisibilityBuffer::new(extent)];
@@ -226,6 +212,7 @@ fn check_exact(
             }
         }
     }
+    check_fixed(name, tris, &cams, only);
     simd[0].prim.as_slice().to_vec()
 }
 
