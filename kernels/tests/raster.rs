@@ -15,6 +15,7 @@
 use glam::Vec3;
 use stereotrace_kernels::bvh::{PreparedRay, Ray, TriVerts, intersect_triangle};
 use stereotrace_kernels::camera::CameraPose;
+use stereotrace_kernels::fuzzing::{plane_depth, screen_boundary};
 use stereotrace_kernels::raster::fixed::FixedRasterizer;
 use stereotrace_kernels::raster::{Body, NO_PRIM, NoMasks, Rasterizer, Triangles, VisibilityBuffer};
 use stereotrace_kernels::{CameraModel, Extent};
@@ -65,45 +66,6 @@ fn depth_on(camera: &CameraModel, tri: &TriVerts, x: usize, y: usize) -> Option<
     intersect_triangle(&r, tri, f32::INFINITY).map(|h| h.t)
 }
 
-/// The distance in pixels from pixel centre `(x, y)` to triangle `tri`'s exact (f64) image in
-/// `camera` (0 inside), or `None` when a vertex is not in front of the camera.
-fn exact_distance(camera: &CameraModel, tri: &TriVerts, x: usize, y: usize) -> Option<f64> {
-    let m = camera.view_proj().as_dmat4();
-    let (hw, hh) = (camera.extent.width() as f64 / 2.0, camera.extent.height() as f64 / 2.0);
-    let mut v = [[0.0f64; 2]; 3];
-    for (k, v) in v.iter_mut().enumerate() {
-        let c = m * glam::DVec4::new(f64::from(tri[3 * k]), f64::from(tri[3 * k + 1]), f64::from(tri[3 * k + 2]), 1.0);
-        if !(c.w > 0.0) {
-            return None;
-        }
-        *v = [c.x / c.w * hw + hw, -c.y / c.w * hh + hh];
-    }
-    let p = [x as f64 + 0.5, y as f64 + 0.5];
-    let cross = |a: [f64; 2], b: [f64; 2], c: [f64; 2]| (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
-    let sides = [cross(v[0], v[1], p), cross(v[1], v[2], p), cross(v[2], v[0], p)];
-    if sides.iter().all(|&s| s >= 0.0) || sides.iter().all(|&s| s <= 0.0) {
-        return Some(0.0);
-    }
-    let segment = |a: [f64; 2], b: [f64; 2]| {
-        let (ex, ey) = (b[0] - a[0], b[1] - a[1]);
-        let len2 = ex * ex + ey * ey;
-        let t = if len2 > 0.0 { (((p[0] - a[0]) * ex + (p[1] - a[1]) * ey) / len2).clamp(0.0, 1.0) } else { 0.0 };
-        ((p[0] - a[0] - t * ex).powi(2) + (p[1] - a[1] - t * ey).powi(2)).sqrt()
-    };
-    Some(segment(v[0], v[1]).min(segment(v[1], v[2])).min(segment(v[2], v[0])))
-}
-
-/// Where the pixel-centre ray of `(x, y)` meets the plane of `tri` (f64, in the units of the
-/// oracle's `t`), if it does in front of the camera.
-fn plane_t(camera: &CameraModel, tri: &TriVerts, x: usize, y: usize) -> Option<f64> {
-    let v = |k: usize| glam::DVec3::new(f64::from(tri[3 * k]), f64::from(tri[3 * k + 1]), f64::from(tri[3 * k + 2]));
-    let n = (v(1) - v(0)).cross(v(2) - v(0));
-    let d = glam::Vec3::from(camera.ray(x as f32 + 0.5, y as f32 + 0.5)).as_dvec3();
-    let o = glam::Vec3::from(camera.centre).as_dvec3();
-    let t = n.dot(v(0) - o) / n.dot(d);
-    (t > 0.0).then_some(t)
-}
-
 /// The fixed-point rasteriser on the same case: both bodies and every band height give the
 /// same buffers, and every pixel shows the oracle's triangle, or one within the snap (1/256
 /// px) of the centre (the oracle's view from a point that far off the centre, or the
@@ -145,12 +107,14 @@ fn check_fixed(name: &str, tris: &[TriVerts], cams: &[CameraModel; 2], only: Opt
                     && depth_on(cam, &tris[got as usize], x, y).is_some_and(|d| (d - t).abs() <= 1e-3 * t);
                 // A sliver thinner than the samples' spacing on that circle slips between them:
                 // its exact image decides, if its plane is the nearer one at the centre.
+                let (cx, cy) = (x as f64 + 0.5, y as f64 + 0.5);
                 let snap = snap
                     || got != NO_PRIM
-                        && exact_distance(cam, &tris[got as usize], x, y).is_some_and(|d| d <= 1.0 / 256.0)
+                        && screen_boundary(cam, &tris[got as usize], cx, cy)
+                            .is_some_and(|(inside, dist)| inside || dist <= 1.0 / 256.0)
                         && (want == NO_PRIM
-                            || plane_t(cam, &tris[got as usize], x, y)
-                                .is_some_and(|p| p <= f64::from(t) * (1.0 + 1e-3)));
+                            || plane_depth(cam, &tris[got as usize], cx, cy)
+                                .is_some_and(|p| p > 0.0 && p <= f64::from(t) * (1.0 + 1e-3)));
                 if !(snap || tie) {
                     // How far the oracle has to look for the raster's triangle, for the message.
                     let reach = [64.0f32, 32.0, 16.0, 8.0, 4.0, 2.0].into_iter().find(|&r| {

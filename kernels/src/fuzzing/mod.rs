@@ -21,5 +21,5 @@ mod traverse;
 
 pub use images::{accumulate, atrous, bilinear, gradient, reproject, ssim, variance_blend};
 pub use input::{Bytes, replay_dir, run_on_this_thread};
-pub use raster::{RASTER_FUZZ_EXTENT, raster, raster_fixed};
+pub use raster::{RASTER_FUZZ_EXTENT, plane_depth, raster, raster_fixed, screen_boundary};
 pub use traverse::traverse;

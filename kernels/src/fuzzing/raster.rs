@@ -427,12 +427,10 @@ fn snap_explains(camera: &CameraModel, tris: &[TriVerts], got: u32, x: usize, y:
         None => f64::INFINITY,
         Some(t) => match boundary(t) {
             // Covering the centre, or within the snap of doing so: its plane's depth there.
-            Some((inside, dist)) if inside || dist <= SNAP_PX => {
-                let (o, d) = ray_f64(camera, cx, cy);
-                let n = area_vector(t);
-                let depth = n.dot(vertex(t, 0) - o) / n.dot(d);
-                if depth.is_finite() { depth } else { return false }
-            }
+            Some((inside, dist)) if inside || dist <= SNAP_PX => match plane_depth(camera, t, cx, cy) {
+                Some(depth) => depth,
+                None => return false,
+            },
             _ => return false,
         },
     };
@@ -443,6 +441,16 @@ fn snap_explains(camera: &CameraModel, tris: &[TriVerts], got: u32, x: usize, y:
             || boundary(t).is_some_and(|(_, dist)| dist <= SNAP_PX)
             || tris.get(got as usize).is_some_and(|g| keys_tie(camera, g, t, cx, cy))
     })
+}
+
+/// Where the pixel ray through screen point `(cx, cy)` meets `tri`'s plane, in f64 and in the
+/// units of the tracer's `t` (unit view depth; behind the eye when negative); `None` when not
+/// finite (a degenerate triangle, or a ray parallel to the plane).
+pub fn plane_depth(camera: &CameraModel, tri: &TriVerts, cx: f64, cy: f64) -> Option<f64> {
+    let (o, d) = ray_f64(camera, cx, cy);
+    let n = area_vector(tri);
+    let depth = n.dot(vertex(tri, 0) - o) / n.dot(d);
+    depth.is_finite().then_some(depth)
 }
 
 /// Möller–Trumbore in f64 (edges inclusive): the depth of `tri` along `o + t·d` beyond the
@@ -463,7 +471,7 @@ fn exact_hit(t: &TriVerts, o: DVec3, d: DVec3) -> Option<f64> {
 
 /// Whether `(cx, cy)` lies in `tri`'s screen image (its part in front of the near plane), and
 /// its distance to the image's boundary. `None` when nothing of it is in front.
-fn screen_boundary(camera: &CameraModel, tri: &TriVerts, cx: f64, cy: f64) -> Option<(bool, f64)> {
+pub fn screen_boundary(camera: &CameraModel, tri: &TriVerts, cx: f64, cy: f64) -> Option<(bool, f64)> {
     let rows = camera.rows.map(|r| r.map(f64::from));
     let (hw, hh) = (camera.extent.width() as f64 * 0.5, camera.extent.height() as f64 * 0.5);
     let clip: Vec<[f64; 3]> = (0..3)
