@@ -275,6 +275,7 @@ def main():
     random_seeds("gradient", random.Random(2030), 12, [0, 6, 40, 150, 700])
     random_seeds("variance_blend", random.Random(2031), 12, [0, 8, 40, 150, 700])
     random_seeds("atrous", random.Random(2032), 16, [0, 8, 40, 150, 700])
+    random_seeds("clamp", random.Random(2033), 12, [0, 8, 40, 150, 700])
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-//! EMA accumulation, the stereo blend and temporal gradients' history confidence at 1280×720, the scalar references beside the SIMD
+//! EMA accumulation, the stereo blend, the neighbourhood clamp and temporal gradients' history confidence at 1280×720, the scalar references beside the SIMD
 //! bodies, on 1 and 2 threads, throughput in pixels; the memory triad of the same run for the
 //! roofline.
 //!
@@ -11,6 +11,7 @@ use std::hint::black_box;
 use common::{Fixture, pool};
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use stereotrace_kernels::accumulate::{self, BlendParams, EmaInput, EmaParams, EmaState};
+use stereotrace_kernels::clamp::{self, ClampInput, ClampParams};
 use stereotrace_kernels::frame::PlaneBuf;
 use stereotrace_kernels::gradient::{self, GradientInput};
 use stereotrace_kernels::synth::Rng;
@@ -77,6 +78,34 @@ fn ema_and_blend(c: &mut Criterion) {
     group.finish();
 }
 
+/// The neighbourhood clamp of a 1280×720 history (the left eye's previous frame) into the
+/// boxes of this frame's samples, 97 % of the pixels reprojected; the work is the same
+/// whether a history moves or not (every box is computed), so repeating it in place is fair.
+fn neighbourhood_clamp(c: &mut Criterion) {
+    let f = Fixture::new();
+    let e = f.extent();
+    let mut rng = Rng::new(44);
+    let reason = PlaneBuf::from_vec((0..e.pixels()).map(|_| u8::from(rng.next_f32() < 0.03)).collect(), e).unwrap();
+    let mut history = f.left_prev.colour.clone();
+    let mut group = c.benchmark_group("clamp");
+    group.throughput(Throughput::Elements(e.pixels() as u64));
+    for threads in [1, 2] {
+        let pool = pool(threads);
+        for simd in [true, false] {
+            group.bench_function(BenchmarkId::new(if simd { "simd" } else { "scalar" }, threads), |b| {
+                b.iter(|| {
+                    pool.install(|| {
+                        let input = ClampInput { new: f.left.colour.view(), has_new: None, reason: reason.view() };
+                        let run = if simd { clamp::clamp_history } else { clamp::clamp_history_scalar };
+                        black_box(run(&input, history.view_mut(), &ClampParams::default()).expect("valid input"))
+                    })
+                })
+            });
+        }
+    }
+    group.finish();
+}
+
 /// The history confidence of a 1280×720 frame from its 427×240 strata: luminance pairs with
 /// a change on a third of them (a moving light's share), throughput in pixels written.
 fn gradients(c: &mut Criterion) {
@@ -112,6 +141,6 @@ fn gradients(c: &mut Criterion) {
 criterion_group! {
     name = benches;
     config = common::criterion();
-    targets = ema_and_blend, gradients, common::triad
+    targets = ema_and_blend, neighbourhood_clamp, gradients, common::triad
 }
 criterion_main!(benches);

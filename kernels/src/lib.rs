@@ -21,6 +21,7 @@ pub mod bilinear;
 pub mod bvh;
 pub mod camera;
 pub mod check;
+pub mod clamp;
 pub mod colour;
 pub mod frame;
 pub mod fuzzing;

@@ -42,6 +42,11 @@ fn variance_blend_corpus() {
 }
 
 #[test]
+fn clamp_corpus() {
+    replay("clamp", stereotrace_kernels::fuzzing::clamp);
+}
+
+#[test]
 fn ssim_corpus() {
     replay("ssim", stereotrace_kernels::fuzzing::ssim);
 }

@@ -36,6 +36,7 @@ use crate::reproject::check_reason_plane;
 use crate::simd::F32s;
 pub use scalar::{blend_pixel, ema_pixel, ema_pixel_trusting, lerp, mean_variance_factor, variance_blend_toward};
 use scalar::{blend_scalar_at, ema_scalar_at};
+pub(crate) use simd::byte_mask_eq;
 pub use simd::lerp_simd;
 
 /// EMA parameters.

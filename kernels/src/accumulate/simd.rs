@@ -30,7 +30,7 @@ pub(super) fn flush_subnormal(v: F32s) -> F32s {
 
 /// All-ones lanes where the byte equals `value` (the first `LANES` bytes).
 #[inline(always)]
-pub(super) fn byte_mask_eq(bytes: &[u8], value: u8) -> F32s {
+pub(crate) fn byte_mask_eq(bytes: &[u8], value: u8) -> F32s {
     let b: [u8; LANES] = bytes[..LANES].try_into().expect("LANES bytes");
     // Widened in one vector instruction (`vpmovzxbd`); a per-lane loop building the mask
     // from scalar compares was 30 instructions.

@@ -8,6 +8,7 @@ use crate::atrous;
 use crate::bilinear::{self, ResampleInput, ResampleOutput};
 use crate::camera::{CameraModel, look_at_perspective};
 use crate::check::same_bits;
+use crate::clamp::{self, ClampInput, ClampParams};
 use crate::frame::{Extent, FrameError, PlaneBuf, RgbBuf};
 use crate::gbuffer::SurfaceLayout;
 use crate::gradient::{self, GradientInput};
@@ -704,6 +705,108 @@ pub fn variance_blend(data: &[u8]) {
         for (a, b) in [(out.r(), fixed.r()), (out.g(), fixed.g()), (out.b(), fixed.b())] {
             assert_bits("variance blend of equal lengths against 50/50", a, b);
         }
+    }
+}
+
+/// Fuzzes the neighbourhood clamp: a history and this frame's samples, a new-sample mask
+/// and reason codes (~2 % undefined), edited anywhere with any f32 (NaN, ±∞, huge), any γ
+/// and sample minimum. Undefined codes and parameters out of range must be refused by both
+/// bodies alike with nothing written; anything else must give the same bits and counts from
+/// both, move only valid, finite histories of pixels with a sample, and only into the range
+/// of the samples around them (checked here by brute force), and leave nothing to clamp a
+/// second time.
+pub fn clamp(data: &[u8]) {
+    let mut bytes = Bytes(data);
+    let e = extent_from(&mut bytes);
+    let gamma = if bytes.u8() % 8 == 0 { bytes.f32() } else { bytes.unit(0.0, 3.0).max(1e-3) };
+    let min_samples = if bytes.u8() % 8 == 0 { u32::from(bytes.u8()) } else { 1 + u32::from(bytes.u8() % 9) };
+    let params = ClampParams { gamma, min_samples, band_rows: 1 + usize::from(bytes.u8() % 4) };
+    let mut history = RgbBuf::new(e, bytes.unit(0.0, 4.0));
+    let mut new = RgbBuf::new(e, bytes.unit(0.0, 4.0));
+    let mut has_new = (bytes.u8() % 2 == 0).then(|| PlaneBuf::new(e, 1u8));
+    let mut reason = PlaneBuf::new(e, Reason::Reprojected as u8);
+    while !bytes.is_empty() {
+        let which = bytes.u8() % 8;
+        let index = usize::from(u16::from_le_bytes([bytes.u8(), bytes.u8()])) % e.pixels();
+        let value = bytes.f32();
+        match which {
+            0 => history.r_mut()[index] = value,
+            1 => history.g_mut()[index] = value,
+            2 => history.b_mut()[index] = value,
+            3 => new.r_mut()[index] = value,
+            4 => new.g_mut()[index] = value,
+            5 => new.b_mut()[index] = value,
+            6 => {
+                if let Some(m) = &mut has_new {
+                    m.as_mut_slice()[index] = (value.to_bits() % 3) as u8;
+                }
+            }
+            _ => {
+                let code = value.to_bits() as u8;
+                reason.as_mut_slice()[index] = if code < 250 { code % 6 } else { code };
+            }
+        }
+    }
+    let acceptable = reason.as_slice().iter().all(|&c| usize::from(c) < crate::reproject::REASON_COUNT)
+        && gamma.is_finite()
+        && gamma > 0.0
+        && (1..=9).contains(&min_samples);
+    let input = ClampInput { new: new.view(), has_new: has_new.as_ref().map(|m| m.view()), reason: reason.view() };
+    let run = |simd: bool, from: &RgbBuf| {
+        let mut out = from.clone();
+        let f = if simd { clamp::clamp_history } else { clamp::clamp_history_scalar };
+        (f(&input, out.view_mut(), &params), out)
+    };
+    let (stats, out) = run(true, &history);
+    let (stats_ref, out_ref) = run(false, &history);
+    assert_eq!(format!("{stats:?}"), format!("{stats_ref:?}"));
+    for (a, b) in [(out.r(), out_ref.r()), (out.g(), out_ref.g()), (out.b(), out_ref.b())] {
+        assert_bits("clamped history", a, b);
+    }
+    assert_eq!(stats.is_ok(), acceptable, "the clamp refuses exactly the bad inputs: {stats:?}");
+    let Ok(stats) = stats else {
+        for (a, b) in [(out.r(), history.r()), (out.g(), history.g()), (out.b(), history.b())] {
+            assert_bits("a refused clamp wrote", a, b);
+        }
+        return;
+    };
+    assert!(stats.clamped <= stats.checked && stats.checked <= e.pixels() as u64, "{stats:?}");
+    let sample = |x: usize, y: usize| {
+        let present = has_new.as_ref().is_none_or(|m| m.as_slice()[y * e.width() + x] != 0);
+        let v = new.get(x, y);
+        (present && v.iter().all(|c| c.is_finite())).then_some(v)
+    };
+    let mut moved = 0;
+    for y in 0..e.height() {
+        for x in 0..e.width() {
+            let (before, after) = (history.get(x, y), out.get(x, y));
+            if before.iter().zip(&after).all(|(a, b)| same_bits(*a, *b)) {
+                continue;
+            }
+            moved += 1;
+            assert!(reason.as_slice()[y * e.width() + x] == Reason::Reprojected as u8, "moved an invalid history");
+            assert!(sample(x, y).is_some() && before.iter().all(|c| c.is_finite()), "moved at ({x}, {y})");
+            let around: Vec<[f32; 3]> = (y.saturating_sub(1)..(y + 2).min(e.height()))
+                .flat_map(|ny| (x.saturating_sub(1)..(x + 2).min(e.width())).map(move |nx| (nx, ny)))
+                .filter_map(|(nx, ny)| sample(nx, ny))
+                .collect();
+            assert!(around.len() >= min_samples as usize, "moved with {} samples", around.len());
+            for c in 0..3 {
+                let lo = around.iter().map(|v| v[c]).fold(f32::INFINITY, f32::min);
+                let hi = around.iter().map(|v| v[c]).fold(f32::NEG_INFINITY, f32::max);
+                assert!(
+                    after[c] == before[c] || (lo <= after[c] && after[c] <= hi),
+                    "({x}, {y}) channel {c}: {} outside [{lo}, {hi}]",
+                    after[c]
+                );
+            }
+        }
+    }
+    assert_eq!(moved, stats.clamped, "the count of moved pixels");
+    let (again, twice) = run(true, &out);
+    assert_eq!(again.expect("accepted above").clamped, 0, "a clamped history clamped again");
+    for (a, b) in [(twice.r(), out.r()), (twice.g(), out.g()), (twice.b(), out.b())] {
+        assert_bits("a second clamp", a, b);
     }
 }
 

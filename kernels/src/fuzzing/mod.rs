@@ -19,7 +19,7 @@ mod input;
 mod raster;
 mod traverse;
 
-pub use images::{accumulate, atrous, bilinear, gradient, reproject, ssim, variance_blend};
+pub use images::{accumulate, atrous, bilinear, clamp, gradient, reproject, ssim, variance_blend};
 pub use input::{Bytes, replay_dir, run_on_this_thread};
 pub use raster::{RASTER_FUZZ_EXTENT, plane_depth, raster, raster_fixed, screen_boundary};
 pub use traverse::traverse;
