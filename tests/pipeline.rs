@@ -592,6 +592,37 @@ fn temporal_gradients_run_only_where_the_scene_changes() {
     }
 }
 
+/// The neighbourhood clamp with the renderer: a mode without a temporal history runs no
+/// clamp (the paper's images bit for bit, nothing counted); a temporal mode's first frame
+/// has no history to clamp, and later frames move histories toward this frame's noisy
+/// samples somewhere in the fully traced eye, with finite images.
+#[test]
+fn the_neighbourhood_clamp_runs_only_on_temporal_histories() {
+    let r = renderer("cornell");
+    for mode in [Mode::Stereo, Mode::StereoBlend, Mode::Temporal, Mode::Spatiotemporal, Mode::SpatiotemporalBlend] {
+        let paper = config(&r, mode, 1);
+        let clamp = PipelineConfig { history: History::Clamp, ..paper };
+        let mut a = Pipeline::new(&r, paper, StereoRig::default(), extent()).unwrap();
+        let mut b = Pipeline::new(&r, clamp, StereoRig::default(), extent()).unwrap();
+        let mut clamped = 0;
+        for f in 3..7 {
+            let pose = r.scene().camera.pose_at(f as f32);
+            a.render_frame(f, &pose).unwrap();
+            let stats = b.render_frame(f, &pose).unwrap();
+            clamped += stats.history_clamped.iter().sum::<u64>();
+            let same = Eye::BOTH.iter().all(|&eye| a.output(eye) == b.output(eye));
+            if f == 3 || !mode.temporal() {
+                assert_eq!(stats.history_clamped, [0, 0], "{mode} frame {f}");
+                assert!(same, "{mode} frame {f}: nothing to clamp");
+            }
+            for eye in Eye::BOTH {
+                assert!(b.output(eye).r().as_slice().iter().all(|v| v.is_finite()), "{mode} {eye}");
+            }
+        }
+        assert_eq!(clamped > 0, mode.temporal(), "{mode}: {clamped} histories clamped");
+    }
+}
+
 /// Samples a frame traced for its pixels alone (the gradient samples come on top).
 fn a_samples(stats: &stereotrace::pipeline::FrameStats) -> u64 {
     stats.traced_pixels.iter().sum()

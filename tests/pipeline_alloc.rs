@@ -48,6 +48,9 @@ fn frames_after_the_first_allocate_nothing() {
         let pipeline = Pipeline::new(&renderer, cfg, StereoRig::default(), e).unwrap();
         let allocated = warm_then_count(&pool, Session::new(pipeline, CameraWalk::Path));
         assert_eq!(allocated, 0, "{mode} with gradients, the variance blend and the filter");
+        cfg.history = History::Clamp;
+        let pipeline = Pipeline::new(&renderer, cfg, StereoRig::default(), e).unwrap();
+        assert_eq!(warm_then_count(&pool, Session::new(pipeline, CameraWalk::Path)), 0, "{mode} with the clamp");
     }
     // Motion vectors, written where a moving area light is seen (atrium's sphere).
     let atrium = Renderer::new(resolve("atrium-moving-light").unwrap()).unwrap();

@@ -51,8 +51,8 @@ fn the_sweep_measures_the_harness_images_and_marks_a_consistent_front() {
     }
 
     // 1 path-traced + 7 modes + strict, ramp, full layout, traced G-buffer, gradient
-    // history, variance blend, à-trous filter + 2 budgets.
-    assert_eq!(report.rows.len(), 17);
+    // history, clamp history, variance blend, à-trous filter + 2 budgets.
+    assert_eq!(report.rows.len(), 18);
     let unbudgeted = report.rows.iter().find(|r| r.mode == "spatiotemporal" && r.change == "paper").unwrap();
     let budgeted = report.rows.iter().find(|r| r.change == "budget 50%").unwrap();
     assert_eq!(budgeted.budget_ms, Some(0.5 * unbudgeted.frame.median_ms));
@@ -63,6 +63,9 @@ fn the_sweep_measures_the_harness_images_and_marks_a_consistent_front() {
     // gives the paper's images, so the same quality.
     let gradient = report.rows.iter().find(|r| r.change == "gradient history").unwrap();
     assert_eq!(gradient.effective_ssim, unbudgeted.effective_ssim);
+    // The clamp moves histories toward single-path noise: its own images and quality.
+    let clamp = report.rows.iter().find(|r| r.change == "clamp history").unwrap();
+    assert_ne!(clamp.mean_ssim, unbudgeted.mean_ssim);
     // The filter is measured as a point of its own, with its own images.
     let filtered = report.rows.iter().find(|r| r.change == "atrous filter").unwrap();
     assert_ne!(filtered.mean_ssim, unbudgeted.mean_ssim);

@@ -42,11 +42,12 @@
 // and, while the major is 0, their minors too (a 0.x minor may grow a struct).
 #define STEREOTRACE_VERSION_MAJOR 0
 
-// The library's minor version. 0.3: `StPipelineConfig.history`, `.blend` and `.filter`,
+// The library's minor version. 0.4: `ST_HISTORY_CLAMP` and
+// `StFrameStats.history_clamped`. 0.3: `StPipelineConfig.history`, `.blend` and `.filter`,
 // and their counts and times in `StFrameStats`. 0.2: `ST_STATUS_CALLBACK_FAILED`,
 // `_OUT_OF_MEMORY` and `_BUSY`; the destroy functions return a status; the
 // `STEREOTRACE_MAX_*` limits.
-#define STEREOTRACE_VERSION_MINOR 3
+#define STEREOTRACE_VERSION_MINOR 4
 
 // The library's patch version.
 #define STEREOTRACE_VERSION_PATCH 0
@@ -190,6 +191,10 @@ typedef enum StHistory {
   // them with that frame's random numbers under its current lights and geometry. A
   // scene pipeline whose lights and geometry never change traces none.
   ST_HISTORY_GRADIENT = 1,
+  // Clamped before the EMA into the range this frame's samples around the pixel allow
+  // (TAA's variance clipping over the 3×3 neighbourhood of new samples, γ = 1). Asks
+  // nothing more of the engine.
+  ST_HISTORY_CLAMP = 2,
 } StHistory;
 
 // How the stereo blend weighs an eye's own image against the other eye's reprojection:
@@ -627,6 +632,8 @@ typedef struct StFrameStats {
   uint64_t gradient_changed[2];
   // Colour values each eye's filter clamped to its range (NaN, ±∞, above 10¹⁸).
   uint64_t filter_out_of_range[2];
+  // Pixels per eye whose history the neighbourhood clamp moved (`ST_HISTORY_CLAMP`).
+  uint64_t history_clamped[2];
 } StFrameStats;
 
 // One eye's G-buffer lent by the engine for one frame (zero-copy input to
@@ -663,7 +670,7 @@ extern "C" {
 // header's `STEREOTRACE_VERSION_*` constants at run time.
 uint32_t stereotrace_version(void);
 
-// The library's version as text (`"0.3.0"`); a static string, never freed.
+// The library's version as text (`"0.4.0"`); a static string, never freed.
 const char *stereotrace_version_string(void);
 
 // The message of the last failed call on this thread, or an empty string after a call

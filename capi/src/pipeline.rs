@@ -71,6 +71,10 @@ pub enum StHistory {
     /// them with that frame's random numbers under its current lights and geometry. A
     /// scene pipeline whose lights and geometry never change traces none.
     Gradient = 1,
+    /// Clamped before the EMA into the range this frame's samples around the pixel allow
+    /// (TAA's variance clipping over the 3×3 neighbourhood of new samples, γ = 1). Asks
+    /// nothing more of the engine.
+    Clamp = 2,
 }
 
 /// How the stereo blend weighs an eye's own image against the other eye's reprojection:
@@ -221,7 +225,8 @@ impl StPipelineConfig {
         c.history = match self.history {
             0 => History::Paper,
             1 => History::Gradient,
-            other => return Err(Failure::invalid(format!("config.history {other} is not a StHistory (0 or 1)"))),
+            2 => History::Clamp,
+            other => return Err(Failure::invalid(format!("config.history {other} is not a StHistory (0 to 2)"))),
         };
         c.blend = match self.blend {
             0 => Blend::Fixed,
@@ -698,6 +703,8 @@ pub struct StFrameStats {
     pub gradient_changed: [u64; 2],
     /// Colour values each eye's filter clamped to its range (NaN, ±∞, above 10¹⁸).
     pub filter_out_of_range: [u64; 2],
+    /// Pixels per eye whose history the neighbourhood clamp moved (`ST_HISTORY_CLAMP`).
+    pub history_clamped: [u64; 2],
 }
 
 impl From<&FrameStats> for StFrameStats {
@@ -717,6 +724,7 @@ impl From<&FrameStats> for StFrameStats {
             gradient_samples: s.gradient_samples,
             gradient_changed: s.gradient_changed,
             filter_out_of_range: s.filter_out_of_range,
+            history_clamped: s.history_clamped,
         }
     }
 }

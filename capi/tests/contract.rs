@@ -612,13 +612,13 @@ fn the_history_blend_and_filter_settings_default_to_the_papers_and_refuse_unknow
         (config.history, config.blend, config.filter),
         (StHistory::Paper as u32, StBlend::Fixed as u32, StFilter::None as u32)
     );
-    assert_eq!(stereotrace_version(), 300, "0.3: the config grew these fields");
+    assert_eq!(stereotrace_version(), 400, "0.4: ST_HISTORY_CLAMP, and the statistics grew");
     let mut engine = RoomEngine::new();
     let callbacks = engine.callbacks();
     let cameras = [camera(-0.03, W, H), camera(0.03, W, H)];
     type Edit = fn(&mut StPipelineConfig);
     let edits: [(Edit, &str); 3] = [
-        (|c| c.history = 2, "config.history 2 is not a StHistory (0 or 1)"),
+        (|c| c.history = 3, "config.history 3 is not a StHistory (0 to 2)"),
         (|c| c.blend = 7, "config.blend 7 is not a StBlend (0 or 1)"),
         (|c| c.filter = u32::MAX, "config.filter 4294967295 is not a StFilter (0 or 1)"),
     ];
@@ -673,6 +673,41 @@ fn an_engines_light_switched_off_is_seen_by_temporal_gradients() {
         assert!(lagging[eye].iter().all(|&v| f32::from_bits(v) > 0.0), "eye {eye}: the paper's history lags");
     }
     for p in [gradient, paper] {
+        expect(unsafe { stereotrace_pipeline_destroy(p) }, StStatus::Ok);
+    }
+}
+
+/// `ST_HISTORY_CLAMP` over an engine: the first frame has no history and is the paper's bit
+/// for bit; when the engine switches its light off, every box is [0, 0], so the next frame is
+/// black where the paper's history still shows the old light, and the statistics count the
+/// moved pixels.
+#[test]
+fn an_engines_light_switched_off_is_followed_by_the_neighbourhood_clamp() {
+    let pipeline = |history: StHistory, engine: &mut Box<RoomEngine>| {
+        room_pipeline_with(engine, StMode::Temporal, W, H, |c| c.history = history as u32)
+    };
+    let (mut clamp_engine, mut paper_engine) = (RoomEngine::new(), RoomEngine::new());
+    let clamp = pipeline(StHistory::Clamp, &mut clamp_engine);
+    let paper = pipeline(StHistory::Paper, &mut paper_engine);
+    const OFF_AT: u32 = 3;
+    for f in 0..OFF_AT {
+        let stats = still_frame(clamp, f);
+        still_frame(paper, f);
+        if f == 0 {
+            assert!(outputs(clamp, W, H) == outputs(paper, W, H), "no history yet: the paper's image");
+            assert_eq!(stats.history_clamped, [0, 0]);
+        }
+    }
+    (clamp_engine.light, paper_engine.light) = (0.0, 0.0);
+    let stats = still_frame(clamp, OFF_AT);
+    still_frame(paper, OFF_AT);
+    assert!(stats.history_clamped.iter().all(|&n| n > u64::from(W * H) / 2), "{:?}", stats.history_clamped);
+    let (shown, lagging) = (outputs(clamp, W, H), outputs(paper, W, H));
+    for eye in 0..2 {
+        assert!(shown[eye].iter().all(|&v| v == 0f32.to_bits()), "eye {eye}: every pixel shows this frame's black");
+        assert!(lagging[eye].iter().all(|&v| f32::from_bits(v) > 0.0), "eye {eye}: the paper's history lags");
+    }
+    for p in [clamp, paper] {
         expect(unsafe { stereotrace_pipeline_destroy(p) }, StStatus::Ok);
     }
 }

@@ -235,6 +235,9 @@ pub fn settings(opts: &TradeoffOptions) -> Vec<Setting> {
         // Temporal gradients: the same points as the paper's on a scene where nothing moves
         // (it traces no gradient samples there).
         out.push(Setting { history: History::Gradient, ..base });
+        // TAA's neighbourhood clamp of the history: it follows changes from this frame's
+        // samples alone, and pays for that in noise where nothing changed.
+        out.push(Setting { history: History::Clamp, ..base });
         // The variance-guided blend changes the blend of histories only.
         let blend = paper(Mode::SpatiotemporalBlend, Order::Paper);
         out.push(Setting { blend: Blend::Variance, ..blend });

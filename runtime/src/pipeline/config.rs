@@ -142,6 +142,12 @@ pub enum History {
     /// ([`crate::source::FrameSource::scene_changes`]) traces none, and the images are the
     /// paper's bit for bit.
     Gradient,
+    /// Clamped before the EMA into the box this frame's samples around the pixel allow (TAA's
+    /// variance clipping, as FSR2 clamps: `kernels::clamp`, γ = 1): a history that disagrees
+    /// with its 3×3 neighbourhood of new samples is pulled into their range. Traces nothing
+    /// more; at 1 spp the neighbourhood is single paths' noise, so a converged history is
+    /// pulled toward it (the evaluation measures the price).
+    Clamp,
 }
 
 impl History {
@@ -150,6 +156,7 @@ impl History {
         match self {
             History::Paper => "paper",
             History::Gradient => "gradient",
+            History::Clamp => "clamp",
         }
     }
 }

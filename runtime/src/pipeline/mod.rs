@@ -54,6 +54,7 @@ use std::time::Instant;
 use crate::camera::{CameraPose, Eye, StereoRig};
 use crate::kernels::accumulate::{self, BlendParams, EmaInput, EmaParams, EmaState};
 use crate::kernels::atrous::{self, AtrousGuide, AtrousParams, AtrousScratch, GuideNormals};
+use crate::kernels::clamp::{self, ClampInput, ClampParams};
 use crate::kernels::frame::{Plane, RgbPlanes};
 use crate::kernels::gbuffer::{CompactGBuffer, GBuffer, SurfaceLayout};
 use crate::kernels::gradient::{self, GradientInput, STRATUM};
@@ -172,7 +173,7 @@ impl EyeState {
         let e = camera.extent;
         let gradient = match config.history {
             History::Gradient => Some(GradientBuffers::try_new(e)?),
-            History::Paper => None,
+            History::Paper | History::Clamp => None,
         };
         Ok(Self {
             camera,
@@ -1028,6 +1029,11 @@ impl<S: FrameSource> Pipeline<S> {
             (true, Some(g)) => Some(g.confidence.view()),
             _ => Self::engine_confidence(&s.cur.gbuffer, eye, lent),
         };
+        if self.config.history == History::Clamp {
+            let input = ClampInput { new, has_new: Some(s.has_new.view()), reason };
+            let clamp = clamp::clamp_history(&input, s.cur.history.view_mut(), &ClampParams::default())?;
+            stats.history_clamped[eye as usize] += clamp.clamped;
+        }
         let input = EmaInput { new, reason, has_new: Some(s.has_new.view()), confidence };
         let state = EmaState { accum: s.cur.history.view_mut(), history_len: track_len.then(|| s.cur.len.view_mut()) };
         let acc = accumulate::ema(&input, state, &params)?;

@@ -19,7 +19,7 @@ pub struct StageTimes {
     /// first because they have no valid history (all of a mode's fully traced eye); zero
     /// without a budget.
     pub urgent_tracing: Duration,
-    /// EMA and blends.
+    /// EMA and blends (and the neighbourhood clamp, `History::Clamp`).
     pub accumulation: Duration,
     /// Temporal gradients (`History::Gradient`) outside their traced samples: choosing the
     /// samples, and turning their luminance pairs into history confidence.
@@ -57,6 +57,9 @@ pub struct FrameStats {
     pub temporal_reasons: [ReasonCounts; 2],
     /// What each eye's EMA saw (left, right).
     pub accumulation: [AccumulateStats; 2],
+    /// Pixels per eye whose history the neighbourhood clamp moved before the EMA
+    /// (`History::Clamp`; zero otherwise).
+    pub history_clamped: [u64; 2],
     /// Colour values each eye's filter clamped (`Filter::Atrous`; `kernels::atrous`).
     pub filter_out_of_range: [u64; 2],
     /// The frame's budget, if any.
