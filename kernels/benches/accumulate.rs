@@ -8,7 +8,7 @@ mod common;
 
 use std::hint::black_box;
 
-use common::{Fixture, pool};
+use common::{Fixture, pool, simd_and_scalar};
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use stereotrace_kernels::accumulate::{self, BlendParams, EmaInput, EmaParams, EmaState};
 use stereotrace_kernels::clamp::{self, ClampInput, ClampParams};
@@ -59,22 +59,10 @@ fn ema_and_blend(c: &mut Criterion) {
     let mut group = c.benchmark_group("blend");
     group.throughput(Throughput::Elements(e.pixels() as u64));
     let mut out = f.right.colour.clone();
-    for threads in [1, 2] {
-        let pool = pool(threads);
-        for simd in [true, false] {
-            group.bench_function(BenchmarkId::new(if simd { "simd" } else { "scalar" }, threads), |b| {
-                b.iter(|| {
-                    pool.install(|| {
-                        let f_blend = if simd { accumulate::blend } else { accumulate::blend_scalar };
-                        black_box(
-                            f_blend(&f.left.colour.view(), out.view_mut(), &reason.view(), &BlendParams::default())
-                                .expect("valid input"),
-                        )
-                    })
-                })
-            });
-        }
-    }
+    simd_and_scalar(&mut group, |simd| {
+        let blend = if simd { accumulate::blend } else { accumulate::blend_scalar };
+        blend(&f.left.colour.view(), out.view_mut(), &reason.view(), &BlendParams::default()).expect("valid input")
+    });
     group.finish();
 }
 
@@ -89,20 +77,11 @@ fn neighbourhood_clamp(c: &mut Criterion) {
     let mut history = f.left_prev.colour.clone();
     let mut group = c.benchmark_group("clamp");
     group.throughput(Throughput::Elements(e.pixels() as u64));
-    for threads in [1, 2] {
-        let pool = pool(threads);
-        for simd in [true, false] {
-            group.bench_function(BenchmarkId::new(if simd { "simd" } else { "scalar" }, threads), |b| {
-                b.iter(|| {
-                    pool.install(|| {
-                        let input = ClampInput { new: f.left.colour.view(), has_new: None, reason: reason.view() };
-                        let run = if simd { clamp::clamp_history } else { clamp::clamp_history_scalar };
-                        black_box(run(&input, history.view_mut(), &ClampParams::default()).expect("valid input"))
-                    })
-                })
-            });
-        }
-    }
+    simd_and_scalar(&mut group, |simd| {
+        let input = ClampInput { new: f.left.colour.view(), has_new: None, reason: reason.view() };
+        let run = if simd { clamp::clamp_history } else { clamp::clamp_history_scalar };
+        run(&input, history.view_mut(), &ClampParams::default()).expect("valid input")
+    });
     group.finish();
 }
 
@@ -121,20 +100,11 @@ fn gradients(c: &mut Criterion) {
     let mut out = PlaneBuf::new(e, 0.0f32);
     let mut group = c.benchmark_group("gradient_confidence");
     group.throughput(Throughput::Elements(e.pixels() as u64));
-    for threads in [1, 2] {
-        let pool = pool(threads);
-        for simd in [true, false] {
-            group.bench_function(BenchmarkId::new(if simd { "simd" } else { "scalar" }, threads), |b| {
-                b.iter(|| {
-                    pool.install(|| {
-                        let input = GradientInput { old: old.view(), new: new.view(), prior: None, gain: 1.0 };
-                        let f = if simd { gradient::history_confidence } else { gradient::history_confidence_scalar };
-                        black_box(f(&input, out.view_mut()).expect("valid input"))
-                    })
-                })
-            });
-        }
-    }
+    simd_and_scalar(&mut group, |simd| {
+        let input = GradientInput { old: old.view(), new: new.view(), prior: None, gain: 1.0 };
+        let run = if simd { gradient::history_confidence } else { gradient::history_confidence_scalar };
+        run(&input, out.view_mut()).expect("valid input")
+    });
     group.finish();
 }
 

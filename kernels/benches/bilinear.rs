@@ -5,8 +5,8 @@
 
 mod common;
 
-use common::{Fixture, WIDTH, pool};
-use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use common::{Fixture, WIDTH, simd_and_scalar};
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use stereotrace_kernels::bilinear::{self, ResampleInput, ResampleOutput};
 use stereotrace_kernels::frame::{PlaneBuf, RgbBuf};
 
@@ -26,21 +26,11 @@ fn bilinear_resample(c: &mut Criterion) {
     let mut weight = PlaneBuf::new(e, 0.0f32);
     let mut group = c.benchmark_group("bilinear");
     group.throughput(Throughput::Elements(e.pixels() as u64));
-    for threads in [1, 2] {
-        let pool = pool(threads);
-        for simd in [true, false] {
-            group.bench_function(BenchmarkId::new(if simd { "simd" } else { "scalar" }, threads), |b| {
-                b.iter(|| {
-                    pool.install(|| {
-                        let out = ResampleOutput { colour: colour.view_mut(), weight: weight.view_mut() };
-                        let r =
-                            if simd { bilinear::resample(&input, out) } else { bilinear::resample_scalar(&input, out) };
-                        r.expect("valid input")
-                    })
-                })
-            });
-        }
-    }
+    simd_and_scalar(&mut group, |simd| {
+        let out = ResampleOutput { colour: colour.view_mut(), weight: weight.view_mut() };
+        if simd { bilinear::resample(&input, out) } else { bilinear::resample_scalar(&input, out) }
+            .expect("valid input")
+    });
     group.finish();
 }
 

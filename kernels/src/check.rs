@@ -1,7 +1,20 @@
 //! Support for the `check-scalar` feature and the agreement tests: bitwise comparison of a
 //! SIMD result against its scalar reference.
 
-use crate::frame::Plane;
+use crate::frame::{Plane, RgbBuf, RgbPlanes};
+
+/// An owned copy of `planes`: the input a `check-scalar` run hands the scalar reference of a
+/// kernel that works in place.
+pub fn rgb_copy(planes: &RgbPlanes<'_>) -> RgbBuf {
+    let e = planes.extent();
+    let mut copy = RgbBuf::new(e, 0.0);
+    for y in 0..e.height() {
+        for x in 0..e.width() {
+            copy.set(x, y, planes.get(x, y));
+        }
+    }
+    copy
+}
 
 /// Bitwise equality, treating every NaN as equal to every other NaN.
 #[inline]

@@ -6,7 +6,8 @@
 
 use std::hint::black_box;
 
-use criterion::{BenchmarkId, Criterion, Throughput};
+use criterion::measurement::WallTime;
+use criterion::{BenchmarkGroup, BenchmarkId, Criterion, Throughput};
 use glam::Vec3;
 use rayon::ThreadPool;
 use stereotrace_kernels::frame::{Extent, PlaneBuf, RgbBuf};
@@ -19,6 +20,19 @@ pub const HEIGHT: usize = 720;
 
 pub fn pool(threads: usize) -> ThreadPool {
     rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("thread pool")
+}
+
+/// Times `run(simd)` as `simd/T` and `scalar/T` in `group` on T = 1 and 2 threads: a
+/// kernel's SIMD body beside its scalar reference, in one run.
+pub fn simd_and_scalar<R: Send>(group: &mut BenchmarkGroup<'_, WallTime>, mut run: impl FnMut(bool) -> R + Send) {
+    for threads in [1, 2] {
+        let pool = pool(threads);
+        for simd in [true, false] {
+            group.bench_function(BenchmarkId::new(if simd { "simd" } else { "scalar" }, threads), |b| {
+                b.iter(|| pool.install(|| black_box(run(simd))))
+            });
+        }
+    }
 }
 
 /// Left and right eye of the analytic room, plus the left eye one frame earlier (the

@@ -229,15 +229,9 @@ pub fn ema(input: &EmaInput<'_>, mut state: EmaState<'_>, params: &EmaParams) ->
 
 #[cfg(feature = "check-scalar")]
 fn snapshot(state: &EmaState<'_>) -> (crate::frame::RgbBuf, Option<crate::frame::PlaneBuf>) {
-    use crate::frame::{PlaneBuf, RgbBuf};
+    use crate::frame::PlaneBuf;
     let e = state.accum.extent();
-    let mut colour = RgbBuf::new(e, 0.0);
-    let src = state.accum.as_planes();
-    for y in 0..e.height() {
-        for x in 0..e.width() {
-            colour.set(x, y, src.get(x, y));
-        }
-    }
+    let colour = crate::check::rgb_copy(&state.accum.as_planes());
     let len = state.history_len.as_ref().map(|l| {
         let mut buf = PlaneBuf::new(e, 0.0f32);
         for y in 0..e.height() {

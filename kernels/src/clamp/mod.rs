@@ -130,17 +130,7 @@ pub fn clamp_history(
 ) -> Result<ClampStats, FrameError> {
     check(input, &history, params)?;
     #[cfg(feature = "check-scalar")]
-    let before = {
-        let e = history.extent();
-        let mut copy = crate::frame::RgbBuf::new(e, 0.0);
-        let src = history.as_planes();
-        for y in 0..e.height() {
-            for x in 0..e.width() {
-                copy.set(x, y, src.get(x, y));
-            }
-        }
-        copy
-    };
+    let before = crate::check::rgb_copy(&history.as_planes());
     let stats = run(input, history.reborrow(), params, simd::clamp_row);
     #[cfg(feature = "check-scalar")]
     {
