@@ -442,6 +442,23 @@ static void sliding_wall(void) {
 }
 
 /* 4. Every setting beyond the paper at once on a scene whose light moves. */
+/* Every value both eyes show is finite and not negative. */
+static void check_shown_finite(StPipeline *p, const char *what) {
+    for (uint32_t eye = 0; eye < 2; eye++) {
+        StRgb shown;
+        expect(stereotrace_pipeline_output_view(p, eye, &shown), ST_STATUS_OK, "output view");
+        const StPlaneF32 *planes[3] = {&shown.r, &shown.g, &shown.b};
+        int bad = 0;
+        for (int c = 0; c < 3; c++)
+            for (uint32_t y = 0; y < shown.r.height; y++)
+                for (uint32_t x = 0; x < shown.r.width; x++) {
+                    float v = planes[c]->data[y * planes[c]->stride + x];
+                    bad += !(v >= 0 && isfinite(v));
+                }
+        CHECK(bad == 0, "eye %u: %d non-finite or negative %s values", eye, bad, what);
+    }
+}
+
 static void beyond_the_paper(void) {
     StPipelineConfig config = stereotrace_pipeline_config_default();
     config.mode = ST_MODE_SPATIOTEMPORAL_BLEND, config.width = 64, config.height = 36, config.threads = 2;
@@ -459,19 +476,23 @@ static void beyond_the_paper(void) {
            (unsigned long long)stats.gradient_samples[0], (unsigned long long)stats.gradient_samples[1],
            (unsigned long long)stats.gradient_changed[0], (unsigned long long)stats.gradient_changed[1],
            stats.filter_ms);
-    for (uint32_t eye = 0; eye < 2; eye++) {
-        StRgb shown;
-        expect(stereotrace_pipeline_output_view(p, eye, &shown), ST_STATUS_OK, "output view");
-        const StPlaneF32 *planes[3] = {&shown.r, &shown.g, &shown.b};
-        int bad = 0;
-        for (int c = 0; c < 3; c++)
-            for (uint32_t y = 0; y < shown.r.height; y++)
-                for (uint32_t x = 0; x < shown.r.width; x++) {
-                    float v = planes[c]->data[y * planes[c]->stride + x];
-                    bad += !(v >= 0 && isfinite(v));
-                }
-        CHECK(bad == 0, "eye %u: %d non-finite or negative filtered values", eye, bad);
-    }
+    check_shown_finite(p, "filtered");
+    expect(stereotrace_pipeline_destroy(p), ST_STATUS_OK, "destroy");
+
+    // TAA's neighbourhood clamp instead of the gradients: it moves histories from the second
+    // frame on, in the fully traced right eye at least.
+    config.mode = ST_MODE_SPATIOTEMPORAL, config.history = ST_HISTORY_CLAMP;
+    config.blend = ST_BLEND_FIXED, config.filter = ST_FILTER_NONE;
+    p = NULL;
+    expect(stereotrace_pipeline_create_scene("atrium", &config, &p), ST_STATUS_OK, "clamp pipeline");
+    if (p == NULL) return;
+    for (uint32_t frame = 0; frame < 3; frame++)
+        expect(stereotrace_pipeline_render_frame(p, frame, &stats), ST_STATUS_OK, "render frame");
+    CHECK(stats.history_clamped[1] > 0, "right eye: %llu histories clamped",
+          (unsigned long long)stats.history_clamped[1]);
+    printf("atrium frame 2: %llu + %llu histories clamped\n", (unsigned long long)stats.history_clamped[0],
+           (unsigned long long)stats.history_clamped[1]);
+    check_shown_finite(p, "clamped");
     expect(stereotrace_pipeline_destroy(p), ST_STATUS_OK, "destroy");
 }
 
