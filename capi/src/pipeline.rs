@@ -72,7 +72,7 @@ pub enum StHistory {
     /// scene pipeline whose lights and geometry never change traces none.
     Gradient = 1,
     /// Clamped before the EMA into the range this frame's samples around the pixel allow
-    /// (TAA's variance clipping over the 3×3 neighbourhood of new samples, γ = 1). Asks
+    /// (TAA's variance clipping over the 3×3 neighbourhood of new samples, γ = 2). Asks
     /// nothing more of the engine.
     Clamp = 2,
 }

@@ -412,6 +412,11 @@ impl Runner<'_> {
                     ("curves", format!("{curves_hash:016x}")),
                     ("artifacts", format!("{keep_output}/{keep_reasons}/{figure_frame}")),
                 ]);
+                // A constant of the pipeline, not a field of its configuration: named here so
+                // that a change of it is a new entry (the paper's configurations' keys stay).
+                if cfg.history == crate::pipeline::History::Clamp {
+                    fields.push(("clamp-gamma", crate::pipeline::CLAMP_GAMMA.to_string()));
+                }
                 let key = CacheKey::new("config", name, &fields);
                 configs.push(ConfigPlan { variant, spp, key, keep_output, keep_reasons });
             }

@@ -71,8 +71,8 @@ mod stats;
 
 use budget::BudgetPlanner;
 pub use config::{
-    ATROUS_ITERATIONS, Blend, Filter, History, MAX_BUDGET_MS, MAX_SPP, Mode, Order, PipelineConfig, budget_duration,
-    check_spp, readable,
+    ATROUS_ITERATIONS, Blend, CLAMP_GAMMA, Filter, History, MAX_BUDGET_MS, MAX_SPP, Mode, Order, PipelineConfig,
+    budget_duration, check_spp, readable,
 };
 use gradients::GradientBuffers;
 // The seam's types a pipeline user names, where the pipeline's own are.
@@ -1031,7 +1031,8 @@ impl<S: FrameSource> Pipeline<S> {
         };
         if self.config.history == History::Clamp {
             let input = ClampInput { new, has_new: Some(s.has_new.view()), reason };
-            let clamp = clamp::clamp_history(&input, s.cur.history.view_mut(), &ClampParams::default())?;
+            let params = ClampParams { gamma: CLAMP_GAMMA, ..ClampParams::default() };
+            let clamp = clamp::clamp_history(&input, s.cur.history.view_mut(), &params)?;
             stats.history_clamped[eye as usize] += clamp.clamped;
         }
         let input = EmaInput { new, reason, has_new: Some(s.has_new.view()), confidence };
