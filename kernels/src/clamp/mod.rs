@@ -16,9 +16,10 @@
 //!   `Reprojected`), finite, the pixel itself has a new sample, and `n ≥ min_samples`.
 //!   Elsewhere the history is left as it is.
 //!
-//! At 1 spp the neighbourhood is the noise of single paths, so its box is wide where the
-//! image is noisy and the clamp then pulls a converged history toward the noise: the price
-//! of following changes, which the evaluation measures (`--history clamp`).
+//! At 1 spp the neighbourhood is nine single paths. Where the light transport is
+//! heavy-tailed (most paths darker than their mean, a few much brighter) their box usually
+//! sits below the true mean, and the clamp pulls a converged history down: the image is
+//! biased dark. RESULTS.md measures both what it buys and that bias (`--history clamp`).
 //!
 //! The SIMD body works on eight pixels of a row at a time with the same sums in the same
 //! order as the scalar reference (bit-identical); the first column, the last and the tail go

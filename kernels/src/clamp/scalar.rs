@@ -7,11 +7,11 @@ use crate::reproject::Reason;
 
 /// The neighbourhood moments of one channel: sum, sum of squares, minimum, maximum.
 #[derive(Clone, Copy)]
-pub(super) struct Moments {
-    pub sum: f32,
-    pub squares: f32,
-    pub min: f32,
-    pub max: f32,
+struct Moments {
+    sum: f32,
+    squares: f32,
+    min: f32,
+    max: f32,
 }
 
 impl Moments {
@@ -37,24 +37,20 @@ fn sample(input: &ClampInput<'_>, x: usize, y: usize) -> Option<[f32; 3]> {
 
 /// The box `(lo, hi)` of one channel from `n` samples' moments (module notes).
 #[inline(always)]
-pub(super) fn bounds(m: Moments, n: f32, gamma: f32) -> (f32, f32) {
+fn bounds(m: Moments, n: f32, gamma: f32) -> (f32, f32) {
     let mean = m.sum / n;
     let variance = m.squares / n - mean * mean;
-    if variance.abs() >= f32::INFINITY || variance.is_nan() {
+    if !variance.is_finite() {
         return (m.min, m.max);
     }
     let sigma = if variance > 0.0 { variance.sqrt() } else { 0.0 };
     let d = gamma * sigma;
-    let into = |v: f32| {
-        let v = if v < m.min { m.min } else { v };
-        if v > m.max { m.max } else { v }
-    };
-    (into(mean - d), into(mean + d))
+    (clamp_into(mean - d, m.min, m.max), clamp_into(mean + d, m.min, m.max))
 }
 
 /// `h` clamped into `[lo, hi]` (compare and select).
 #[inline(always)]
-pub(super) fn clamp_into(h: f32, lo: f32, hi: f32) -> f32 {
+fn clamp_into(h: f32, lo: f32, hi: f32) -> f32 {
     let h = if h < lo { lo } else { h };
     if h > hi { hi } else { h }
 }

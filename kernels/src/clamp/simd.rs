@@ -33,11 +33,15 @@ fn bounds(m: &Moments, n: F32s, gamma: F32s) -> (F32s, F32s) {
     let finite = variance.is_finite();
     let sigma = variance.simd_gt(F32s::ZERO).select(variance.sqrt(), F32s::ZERO);
     let d = gamma * sigma;
-    let into = |v: F32s| {
-        let v = v.simd_lt(m.min).select(m.min, v);
-        v.simd_gt(m.max).select(m.max, v)
-    };
-    (finite.select(into(mean - d), m.min), finite.select(into(mean + d), m.max))
+    let (lo, hi) = (clamp_into(mean - d, m.min, m.max), clamp_into(mean + d, m.min, m.max));
+    (finite.select(lo, m.min), finite.select(hi, m.max))
+}
+
+/// [`scalar::clamp_into`] on eight lanes.
+#[inline(always)]
+fn clamp_into(h: F32s, lo: F32s, hi: F32s) -> F32s {
+    let h = h.simd_lt(lo).select(lo, h);
+    h.simd_gt(hi).select(hi, h)
 }
 
 /// Row `y`: the first pixel and those whose neighbourhood reaches past the row's end through
@@ -94,9 +98,7 @@ pub(super) fn clamp_row(
         let mut moved = F32s::ZERO;
         for c in 0..3 {
             let (lo, hi) = bounds(&moments[c], n, gamma);
-            let v = old[c].simd_lt(lo).select(lo, old[c]);
-            let v = v.simd_gt(hi).select(hi, v);
-            let out = apply.select(v, old[c]);
+            let out = apply.select(clamp_into(old[c], lo, hi), old[c]);
             // Only applied lanes can move (a NaN elsewhere compares unequal to itself).
             moved |= apply & out.simd_ne(old[c]);
             store(history[c], x, out);

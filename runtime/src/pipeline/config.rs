@@ -145,8 +145,8 @@ pub enum History {
     /// Clamped before the EMA into the box this frame's samples around the pixel allow (TAA's
     /// variance clipping, as FSR2 clamps: `kernels::clamp`, γ = [`CLAMP_GAMMA`]): a history that disagrees
     /// with its 3×3 neighbourhood of new samples is pulled into their range. Traces nothing
-    /// more; at 1 spp the neighbourhood is single paths' noise, so a converged history is
-    /// pulled toward it (the evaluation measures the price).
+    /// more; at 1 spp, where most single paths are darker than their mean, the box sits
+    /// below it and the image converges too dark (RESULTS.md measures the gain and the bias).
     Clamp,
 }
 
