@@ -19,8 +19,8 @@
 //! Run: `cargo bench -p stereotrace-kernels --bench traverse -- --warm-up-time 1
 //! --measurement-time 3`, with `--features peer-embree` for the Embree rows (add a filter
 //! such as `sponza/primary` to pick groups; `threshold` sweeps the packet single-ray fallback
-//! threshold). To attribute a gap: `STEREOTRACE_BENCH_BVH` = `fast`, `medium`, `high` or
-//! `sah` sets our tree's build quality (default: the renderer's, `BuildQuality::default()`),
+//! threshold). To attribute a gap: `STEREOTRACE_BENCH_BVH` = `fast`, `medium`, `high`, `sah`
+//! or `splits` (SAH with spatial splits) sets our tree's build quality (default: the renderer's, `BuildQuality::default()`),
 //! and `EMBREE_ROBUST=1` puts Embree in its robust mode (watertight triangle tests, like ours).
 //!
 //! Tree quality: `STEREOTRACE_BENCH_TREES=1 cargo bench -p stereotrace-kernels --bench
@@ -184,7 +184,7 @@ fn consecutive_packets(rays: &[Ray]) -> Vec<Packet> {
 }
 
 /// Our tree's build quality from `STEREOTRACE_BENCH_BVH` (default: the renderer's,
-/// `BuildQuality::default()`; or fast, medium, high, sah).
+/// `BuildQuality::default()`; or fast, medium, high, sah, splits).
 fn build_quality() -> BuildQuality {
     match std::env::var("STEREOTRACE_BENCH_BVH").as_deref() {
         Err(_) => BuildQuality::default(),
@@ -192,7 +192,8 @@ fn build_quality() -> BuildQuality {
         Ok("fast") => BuildQuality::Fast,
         Ok("high") => BuildQuality::High,
         Ok("sah") => BuildQuality::Sah,
-        Ok(other) => panic!("STEREOTRACE_BENCH_BVH: expected fast, medium, high or sah, got '{other}'"),
+        Ok("splits") => BuildQuality::SahSplits,
+        Ok(other) => panic!("STEREOTRACE_BENCH_BVH: expected fast, medium, high, sah or splits, got '{other}'"),
     }
 }
 
@@ -703,8 +704,10 @@ fn attribution(_: &mut Criterion) {
         }
     }
     println!();
-    println!("| scene | triangles | build ms, medium (PLOC) | build ms, sah (binned SAH) | sah ÷ medium |");
-    println!("|---|--:|--:|--:|--:|");
+    println!(
+        "| scene | triangles | build ms, medium (PLOC) | build ms, sah (binned SAH) | sah ÷ medium | build ms, splits (SAH + spatial splits) | splits ÷ sah |"
+    );
+    println!("|---|--:|--:|--:|--:|--:|--:|");
     for (name, f) in &scenes {
         let median_ms = |q: BuildQuality| {
             let mut t: Vec<f64> = (0..3)
@@ -713,14 +716,20 @@ fn attribution(_: &mut Criterion) {
             t.sort_by(f64::total_cmp);
             t[1]
         };
-        let (medium, sah) = (median_ms(BuildQuality::Medium), median_ms(BuildQuality::Sah));
-        println!("| {name} | {} | {medium:.1} | {sah:.1} | {:.2} |", f.tris.len(), sah / medium);
+        let (medium, sah, splits) =
+            (median_ms(BuildQuality::Medium), median_ms(BuildQuality::Sah), median_ms(BuildQuality::SahSplits));
+        println!(
+            "| {name} | {} | {medium:.1} | {sah:.1} | {:.2} | {splits:.1} | {:.2} |",
+            f.tris.len(),
+            sah / medium,
+            splits / sah
+        );
     }
     println!();
     println!(
-        "| scene | triangles | SAH ours (bench tree) | obvhs fast | obvhs high | our binned SAH | Embree binned SAH (build) | Embree spatial splits (refs, build) |"
+        "| scene | triangles | SAH ours (bench tree) | obvhs fast | obvhs high | our binned SAH | our SAH + spatial splits (refs) | Embree binned SAH (build) | Embree spatial splits (refs, build) |"
     );
-    println!("|---|--:|--:|--:|--:|--:|--:|--:|");
+    println!("|---|--:|--:|--:|--:|--:|--:|--:|--:|");
     for (name, f) in &scenes {
         let sah = |q: BuildQuality| TriangleBvh::build(&f.tris, q).expect("valid scene").0.sah_cost(1.0, 1.0);
         #[cfg(feature = "peer-embree")]
@@ -735,13 +744,16 @@ fn attribution(_: &mut Criterion) {
         };
         #[cfg(not(feature = "peer-embree"))]
         let (binned, split) = ("-".to_string(), "-".to_string());
+        let (ours_split, ours_split_stats) = TriangleBvh::build(&f.tris, BuildQuality::SahSplits).expect("valid scene");
         println!(
-            "| {name} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {binned} | {split} |",
+            "| {name} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} ({} refs) | {binned} | {split} |",
             f.tris.len(),
             f.bvh.sah_cost(1.0, 1.0),
             sah(BuildQuality::Fast),
             sah(BuildQuality::High),
-            sah(BuildQuality::Sah)
+            sah(BuildQuality::Sah),
+            ours_split.sah_cost(1.0, 1.0),
+            ours_split_stats.references
         );
     }
 }

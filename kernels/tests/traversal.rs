@@ -6,8 +6,8 @@ use std::path::PathBuf;
 
 use glam::Vec3;
 use stereotrace_kernels::bvh::{
-    BuildQuality, BvhBuildParams, BvhError, Hit, MAX_DEPTH, PreparedRay, Ray, Tri, TriangleBvh, node_hits,
-    node_hits_scalar,
+    BuildQuality, BvhBuildParams, BvhError, Hit, MAX_DEPTH, PreparedRay, Ray, SPLIT_BUDGET, Tri, TriangleBvh,
+    build_bvh2_binned_sah, build_bvh2_spatial_splits, node_hits, node_hits_scalar,
 };
 use stereotrace_kernels::traverse::{ALL_LANES, PacketHits, RayPacket, intersect_brute_force};
 
@@ -175,12 +175,128 @@ fn every_build_quality_agrees() {
     // Long thin triangles trigger the spatial pre-splits of the High preset.
     let mut tris = soup(&mut rng, 800, 10.0, 0.8);
     tris.extend(soup(&mut rng, 40, 10.0, 12.0));
-    for q in [BuildQuality::Fast, BuildQuality::Medium, BuildQuality::High, BuildQuality::Sah] {
+    for q in [BuildQuality::Fast, BuildQuality::Medium, BuildQuality::High, BuildQuality::Sah, BuildQuality::SahSplits]
+    {
         let (bvh, stats) = TriangleBvh::build(&tris, q).unwrap();
         assert_eq!(stats.quality, Some(q));
         assert!(stats.references >= tris.len());
         let rays = random_rays(&mut rng, &tris, 600, 10.0);
         check_scene(&bvh, &tris, &rays, None);
+    }
+}
+
+/// The spatial-split build cuts long triangles that cross open space into several leaves,
+/// each bounding its own slab: hits still equal brute force (single rays and packets, rays
+/// aimed at points of the long triangles, so at their cut parts), and the tree costs less by
+/// SAH than the build without splits.
+#[test]
+fn spatial_splits_keep_every_hit_and_lower_the_sah_cost() {
+    let mut rng = Rng::new(21);
+    // A room of small triangles, and long slivers crossing it diagonally.
+    let mut tris = soup(&mut rng, 1500, 10.0, 0.5);
+    for _ in 0..60 {
+        let (a, b) = (rng.vec(-10.0, 10.0), rng.vec(-10.0, 10.0));
+        tris.push([a, b, b + rng.vec(-0.2, 0.2)]);
+    }
+    let (splits, stats) = TriangleBvh::build(&tris, BuildQuality::SahSplits).unwrap();
+    let (plain, plain_stats) = TriangleBvh::build(&tris, BuildQuality::Sah).unwrap();
+    assert_eq!(plain_stats.references, tris.len());
+    assert!(stats.references > tris.len(), "no triangle was split: {stats:?}");
+    assert!(stats.references as f32 <= tris.len() as f32 * (1.0 + SPLIT_BUDGET) + 64.0, "{stats:?}");
+    assert!(!stats.median_fallback && stats.depth <= MAX_DEPTH);
+    let (with, without) = (splits.sah_cost(1.0, 1.0), plain.sah_cost(1.0, 1.0));
+    assert!(with < without, "spatial splits cost {with}, the plain SAH tree {without}");
+    // Rays at the slivers (every cut part gets rays), then random ones.
+    let mut rays: Vec<Ray> = (0..1500)
+        .map(|i| {
+            let t = &tris[1500 + i % 60];
+            let target = point_in(&mut rng, t);
+            let origin = rng.vec(-14.0, 14.0);
+            Ray::new(origin, target - origin)
+        })
+        .collect();
+    rays.extend(random_rays(&mut rng, &tris, 600, 10.0));
+    check_scene(&splits, &tris, &rays, None);
+    // The same hits as the tree without splits (the same `t`; the triangle too unless tied).
+    for r in &rays {
+        assert_same(&tris, r, splits.intersect(r), plain.intersect(r), "split vs unsplit tree");
+    }
+}
+
+/// Scenes large enough that the top of the SAH build runs in parallel (subtrees merged into
+/// one node array): both builds, with and without spatial splits, agree with brute force,
+/// and the same input gives the same tree whatever the schedule.
+#[test]
+fn parallel_sah_builds_agree_and_are_deterministic() {
+    let mut rng = Rng::new(31);
+    let mut tris = soup(&mut rng, 40_000, 30.0, 0.6);
+    for _ in 0..300 {
+        let (a, b) = (rng.vec(-30.0, 30.0), rng.vec(-30.0, 30.0));
+        tris.push([a, b, b + rng.vec(-0.3, 0.3)]);
+    }
+    let rays = random_rays(&mut rng, &tris, 1500, 30.0);
+    for q in [BuildQuality::Sah, BuildQuality::SahSplits] {
+        let (bvh, stats) = TriangleBvh::build(&tris, q).unwrap();
+        assert!(!stats.median_fallback && stats.depth <= MAX_DEPTH, "{q:?}: {stats:?}");
+        let hits = check_scene(&bvh, &tris, &rays, Some(400));
+        assert!(hits > rays.len() / 4, "{q:?}: only {hits} hits");
+        let (again, _) = TriangleBvh::build(&tris, q).unwrap();
+        assert_eq!(again.sah_cost(1.0, 1.0).to_bits(), bvh.sah_cost(1.0, 1.0).to_bits(), "{q:?}");
+        assert_eq!(again.stats().references, stats.references);
+    }
+}
+
+/// The binary trees of both SAH builds, serial and parallel parts alike, have the layout
+/// obvhs's reinsertion and collapse rely on: children adjacent, the first at an odd index
+/// (obvhs finds a sibling by parity), every node reached once from the root, every reference
+/// in exactly one leaf, and each box holding its children's. (A merge that broke the parity
+/// once made the reinsertion search run for minutes.)
+#[test]
+fn sah_binary_trees_have_obvhs_layout() {
+    let mut rng = Rng::new(32);
+    let mut tris = soup(&mut rng, 20_000, 30.0, 0.6);
+    for _ in 0..200 {
+        let (a, b) = (rng.vec(-30.0, 30.0), rng.vec(-30.0, 30.0));
+        tris.push([a, b, b + rng.vec(-0.3, 0.3)]);
+    }
+    for (name, bvh) in [("sah", build_bvh2_binned_sah(&tris)), ("splits", build_bvh2_spatial_splits(&tris))] {
+        let nodes = &bvh.nodes;
+        let refs = bvh.primitive_indices.len();
+        assert_eq!(nodes.len(), 2 * refs - 1, "{name}");
+        let mut reached = vec![0u32; nodes.len()];
+        let mut covered = vec![0u32; refs];
+        reached[0] = 1;
+        for (i, node) in nodes.iter().enumerate() {
+            let first = node.first_index as usize;
+            if node.is_leaf() {
+                for slot in first..first + node.prim_count as usize {
+                    covered[slot] += 1;
+                }
+                continue;
+            }
+            assert!(first % 2 == 1 && first > i && first + 1 < nodes.len(), "{name}: node {i} children at {first}");
+            for child in [first, first + 1] {
+                reached[child] += 1;
+                let (outer, inner) = (nodes[i].aabb(), nodes[child].aabb());
+                assert!(outer.min.cmple(inner.min).all() && inner.max.cmple(outer.max).all(), "{name}: node {i}");
+            }
+        }
+        assert!(reached.iter().all(|&r| r == 1), "{name}: a node reached twice or never");
+        assert!(covered.iter().all(|&c| c == 1), "{name}: a reference in no leaf or in two");
+    }
+}
+
+/// Coincident triangles and a single one: the spatial-split build ends (every split shrinks
+/// both sides) and stays within the depth limit.
+#[test]
+fn spatial_splits_end_on_degenerate_input() {
+    let t = [Vec3::new(-5.0, 0.0, 0.0), Vec3::new(5.0, 0.1, 0.0), Vec3::new(0.0, 5.0, 0.0)];
+    for n in [1usize, 2, 3, 500] {
+        let tris = vec![t; n];
+        let (bvh, stats) = TriangleBvh::build(&tris, BuildQuality::SahSplits).unwrap();
+        assert!(stats.depth <= MAX_DEPTH, "{n}: {stats:?}");
+        let ray = Ray::new(Vec3::new(0.5, 1.0, -3.0), Vec3::Z);
+        assert!(bvh.intersect(&ray).is_some_and(|h| (h.t - 3.0).abs() < 1e-5));
     }
 }
 

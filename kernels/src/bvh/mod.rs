@@ -3,7 +3,9 @@
 //!
 //! # What obvhs does and what this module does
 //! The binary tree is ours by default (a binned SAH build, [`build_bvh2_binned_sah`]; its
-//! SAH cost is 6–30 % below obvhs's PLOC tree on the built-in scenes, `BENCHMARKS.md`) or
+//! SAH cost is 6–30 % below obvhs's PLOC tree on the built-in scenes, `BENCHMARKS.md`), ours
+//! with spatial splits ([`BuildQuality::SahSplits`], [`build_bvh2_spatial_splits`]: a
+//! triangle may then be in several leaves, each leaf's box bounding only its part) or
 //! obvhs's PLOC ([`BuildQuality::Fast`], `Medium`, `High`); obvhs then reinserts, collapses
 //! it to its compressed 8-wide BVH (80-byte [`CwBvhNode`]s) and owns that layout; this module copies the triangles into BVH order
 //! (one 36-byte record per `primitive_indices` slot, so a node's up-to-24 leaf triangles are
@@ -85,7 +87,9 @@ use obvhs::cwbvh::CwBvh;
 use obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh;
 use obvhs::cwbvh::node::CwBvhNode;
 
-pub use build::{MAX_DEPTH, SAH_BINS, build_bvh2_binned_sah, cwbvh_depth};
+pub use build::{
+    MAX_DEPTH, SAH_BINS, SPLIT_BUDGET, SPLIT_OVERLAP, build_bvh2_binned_sah, build_bvh2_spatial_splits, cwbvh_depth,
+};
 use build::{build_bvh2_median, build_cwbvh_ploc, build_cwbvh_sah};
 pub use node::{
     NodeSlabs, bytes_to_f32s, child_planes, inner_child_index, leaf_meta, leaf_range, node_extent, node_hits,
@@ -118,6 +122,10 @@ pub enum BuildQuality {
     /// on the scenes measured (`BENCHMARKS.md`, the attribution table).
     #[default]
     Sah,
+    /// [`Sah`](Self::Sah) with spatial splits ([`build_bvh2_spatial_splits`], an SBVH): a
+    /// triangle crossing open space may be cut into several leaves, each bounding its own
+    /// part, at most [`SPLIT_BUDGET`] extra references per triangle.
+    SahSplits,
 }
 
 impl BuildQuality {
@@ -128,7 +136,7 @@ impl BuildQuality {
             BuildQuality::Fast => BvhBuildParams::fast_build(),
             BuildQuality::Medium => BvhBuildParams::medium_build(),
             BuildQuality::High => BvhBuildParams::slow_build(),
-            BuildQuality::Sah => BvhBuildParams::medium_build(),
+            BuildQuality::Sah | BuildQuality::SahSplits => BvhBuildParams::medium_build(),
         }
     }
 }
@@ -263,7 +271,8 @@ impl TriangleBvh {
         } else {
             let t0 = Instant::now();
             let bvh = match quality {
-                Some(BuildQuality::Sah) => build_cwbvh_sah(tris, params),
+                Some(BuildQuality::Sah) => build_cwbvh_sah(tris, params, false),
+                Some(BuildQuality::SahSplits) => build_cwbvh_sah(tris, params, true),
                 _ => build_cwbvh_ploc(tris, params),
             };
             obvhs_time = t0.elapsed();

@@ -12,7 +12,10 @@
 //! # Exact boxes, and the two margins
 //! The planes are not decoded from the quantised bytes: they are the exact bounds of what
 //! each child holds (the min and max vertex coordinates of a leaf's triangles; the union
-//! of an inner child's own children, bottom up). Empty slots are masked out
+//! of an inner child's own children, bottom up). A leaf of a tree with spatial splits holds
+//! only a part of a cut triangle, so its box is the triangles' bounds cut down to the
+//! (slightly widened) CWBVH child box, which bounds that part (`within_child_box`; for a
+//! tree without splits the cut changes nothing). Empty slots are masked out
 //! ([`WideNode::occupied`]).
 //!
 //! Exact boxes are not enough, because the tracer's triangle test is not exact geometry: it
@@ -44,7 +47,7 @@
 
 use obvhs::cwbvh::node::CwBvhNode;
 
-use super::node::{leaf_meta, leaf_range, max1, min1, occupied_slots};
+use super::node::{leaf_meta, leaf_range, max1, min1, node_extent, occupied_slots};
 use super::ray::PreparedRay;
 use super::triangle::TriVerts;
 use crate::simd::{F32s, LANES};
@@ -173,7 +176,7 @@ fn node_box(
                     }
                 }
             }
-            [lo, hi]
+            within_child_box(node, slot, [lo, hi])
         };
         for k in 0..3 {
             planes[k][slot] = child[0][k];
@@ -195,6 +198,32 @@ fn node_box(
     };
     whole.unwrap_or([[f32::INFINITY; 3], [f32::NEG_INFINITY; 3]])
 }
+
+/// A leaf's exact triangle bounds cut down to its CWBVH child box, widened by far more than
+/// obvhs's float quantisation can land inside the binary tree's box (2⁻²⁰ of the coordinates'
+/// magnitude). Where a triangle was split in space (an SBVH reference bounds only its own
+/// slab of the triangle), this keeps the leaf's box that slab's; elsewhere the child box
+/// contains the triangles and the bounds stay as they were, bit for bit.
+fn within_child_box(node: &CwBvhNode, slot: usize, [lo, hi]: [[f32; 3]; 2]) -> [[f32; 3]; 2] {
+    let e = node_extent(node);
+    let q_lo = [node.child_min_x[slot], node.child_min_y[slot], node.child_min_z[slot]];
+    let q_hi = [node.child_max_x[slot], node.child_max_y[slot], node.child_max_z[slot]];
+    let mut out = [lo, hi];
+    for k in 0..3 {
+        let (b_lo, b_hi) = (node.p[k] + f32::from(q_lo[k]) * e[k], node.p[k] + f32::from(q_hi[k]) * e[k]);
+        let pad = (node.p[k].abs() + 255.0 * e[k]) * CHILD_BOX_PAD;
+        out[0][k] = lo[k].max(b_lo - pad);
+        out[1][k] = hi[k].min(b_hi + pad);
+        if out[0][k] > out[1][k] {
+            // Cannot happen for a box obvhs quantised outwards; keep the triangles' bounds.
+            return [lo, hi];
+        }
+    }
+    out
+}
+
+/// The relative widening of a decoded CWBVH child box in [`within_child_box`].
+const CHILD_BOX_PAD: f32 = 1.0 / (1 << 20) as f32;
 
 /// Whether a child entered at `tnear` can still hold a hit below the far bound `tfar`: the
 /// node test's own comparison (far end scaled by [`FAR_SCALE`]), for the traversal's checks

@@ -27,11 +27,12 @@ pub fn traverse(data: &[u8]) {
     use crate::traverse::{PacketHits, RayPacket, intersect_brute_force};
 
     let mut bytes = Bytes(data);
-    let quality = match bytes.u8() % 4 {
+    let quality = match bytes.u8() % 5 {
         0 => BuildQuality::Fast,
         1 => BuildQuality::Medium,
         2 => BuildQuality::High,
-        _ => BuildQuality::Sah,
+        3 => BuildQuality::Sah,
+        _ => BuildQuality::SahSplits,
     };
     let n_tris = usize::from(bytes.u8() % 49);
     let n_rays = 1 + usize::from(bytes.u8() % 16);
