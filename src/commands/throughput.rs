@@ -20,6 +20,7 @@ use serde::Serialize;
 
 use crate::camera::{Eye, StereoRig};
 use crate::kernels::Extent;
+use crate::kernels::bvh::BuildQuality;
 use crate::pipeline::{Blend, Filter, FrameStats, History, Layout, Mode, Order, Pipeline, PipelineConfig};
 use crate::render::{Renderer, RendererOptions};
 use crate::session::{CameraWalk, Session, View};
@@ -70,6 +71,10 @@ pub struct ThroughputOptions {
     /// Per-frame time budget in milliseconds (tracing stops when it is spent).
     #[arg(long, value_parser = parse_budget_ms)]
     pub budget_ms: Option<f64>,
+    /// The tracer's tree: the renderer's default, or another build to compare on whole
+    /// frames (the images differ only in which triangle wins an exact tie).
+    #[arg(long, value_enum, default_value_t = BvhBuild::Default)]
+    pub bvh: BvhBuild,
     /// Skip the baseline runs: full stereo path tracing (for the speed-up) and mono frames
     /// (for the cost of stereo), with the same settings and budget as the measured run. They
     /// about double the run time. (The field is true when they run.)
@@ -303,12 +308,39 @@ pub fn run_command(opts: &ThroughputOptions) -> Result<String, String> {
     if opts.json { serde_json::to_string_pretty(&report).map_err(|e| e.to_string()) } else { Ok(report.text()) }
 }
 
+/// The tree `throughput --bvh` builds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum BvhBuild {
+    /// The renderer's default.
+    Default,
+    /// obvhs's PLOC, fast preset.
+    Fast,
+    /// obvhs's PLOC, medium preset.
+    Medium,
+    /// The binned SAH build without spatial splits.
+    Sah,
+    /// The binned SAH build with spatial splits.
+    Splits,
+}
+
+impl BvhBuild {
+    fn quality(self) -> BuildQuality {
+        match self {
+            BvhBuild::Default => BuildQuality::default(),
+            BvhBuild::Fast => BuildQuality::Fast,
+            BvhBuild::Medium => BuildQuality::Medium,
+            BvhBuild::Sah => BuildQuality::Sah,
+            BvhBuild::Splits => BuildQuality::SahSplits,
+        }
+    }
+}
+
 /// Runs the driver.
 pub fn run(opts: &ThroughputOptions) -> Result<ThroughputReport, String> {
     let pool = opts.threads.pool()?;
     let scene = crate::scene::resolve(&opts.input.scene).map_err(|e| e.to_string())?;
     let name = scene.name.clone();
-    let renderer = Renderer::new(scene).map_err(|e| e.to_string())?;
+    let renderer = Renderer::with_bvh_quality(scene, opts.bvh.quality()).map_err(|e| e.to_string())?;
     let tolerances = renderer.scene().tolerances.at_height(opts.input.res.height());
     let mut config = PipelineConfig::paper(opts.mode, opts.spp, tolerances);
     config.order = opts.order;

@@ -48,6 +48,17 @@ impl Renderer {
         Ok(Self::with_bvh(scene, built))
     }
 
+    /// [`Renderer::new`] with the tree built at `quality` (for example the fast PLOC build for
+    /// a scene loaded for a few frames, or to compare trees on whole frames).
+    ///
+    /// # Errors
+    /// Those of [`Renderer::new`].
+    pub fn with_bvh_quality(scene: Scene, quality: BuildQuality) -> Result<Self, RenderError> {
+        scene.validate().map_err(|e| RenderError::Invalid(e.to_string()))?;
+        let built = TriangleBvh::build(&scene.mesh.positions, quality)?;
+        Ok(Self::with_bvh(scene, built))
+    }
+
     /// [`Renderer::new`] with the tree built from obvhs's parameters `params`: an engine that
     /// loads a scene once and traces it for many frames can pay a longer build for faster
     /// traversal (BENCHMARKS.md, "the tree's build parameters", measures the trade). Images
