@@ -88,7 +88,8 @@ use obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh;
 use obvhs::cwbvh::node::CwBvhNode;
 
 pub use build::{
-    MAX_DEPTH, SAH_BINS, SPLIT_BUDGET, SPLIT_OVERLAP, build_bvh2_binned_sah, build_bvh2_spatial_splits, cwbvh_depth,
+    MAX_DEPTH, SAH_BINS, SPATIAL_BINS, SPLIT_BUDGET, SPLIT_OVERLAP, build_bvh2_binned_sah, build_bvh2_spatial_splits,
+    cwbvh_depth,
 };
 use build::{build_bvh2_median, build_cwbvh_ploc, build_cwbvh_sah};
 pub use node::{
