@@ -59,6 +59,17 @@ fn soup(rng: &mut Rng, n: usize, extent: f32, size: f32) -> Vec<Tri> {
         .collect()
 }
 
+/// A soup of `n` small triangles within `±extent`, and `slivers` long thin triangles crossing
+/// it between random points (what spatial splits cut).
+fn soup_with_slivers(rng: &mut Rng, n: usize, extent: f32, size: f32, slivers: usize, width: f32) -> Vec<Tri> {
+    let mut tris = soup(rng, n, extent, size);
+    for _ in 0..slivers {
+        let (a, b) = (rng.vec(-extent, extent), rng.vec(-extent, extent));
+        tris.push([a, b, b + rng.vec(-width, width)]);
+    }
+    tris
+}
+
 /// A random point inside triangle `t`.
 fn point_in(rng: &mut Rng, t: &Tri) -> Vec3 {
     let (mut a, mut b) = (rng.f(), rng.f());
@@ -192,12 +203,7 @@ fn every_build_quality_agrees() {
 #[test]
 fn spatial_splits_keep_every_hit_and_lower_the_sah_cost() {
     let mut rng = Rng::new(21);
-    // A room of small triangles, and long slivers crossing it diagonally.
-    let mut tris = soup(&mut rng, 1500, 10.0, 0.5);
-    for _ in 0..60 {
-        let (a, b) = (rng.vec(-10.0, 10.0), rng.vec(-10.0, 10.0));
-        tris.push([a, b, b + rng.vec(-0.2, 0.2)]);
-    }
+    let tris = soup_with_slivers(&mut rng, 1500, 10.0, 0.5, 60, 0.2);
     let (splits, stats) = TriangleBvh::build(&tris, BuildQuality::SahSplits).unwrap();
     let (plain, plain_stats) = TriangleBvh::build(&tris, BuildQuality::Sah).unwrap();
     assert_eq!(plain_stats.references, tris.len());
@@ -229,11 +235,7 @@ fn spatial_splits_keep_every_hit_and_lower_the_sah_cost() {
 #[test]
 fn parallel_sah_builds_agree_and_are_deterministic() {
     let mut rng = Rng::new(31);
-    let mut tris = soup(&mut rng, 40_000, 30.0, 0.6);
-    for _ in 0..300 {
-        let (a, b) = (rng.vec(-30.0, 30.0), rng.vec(-30.0, 30.0));
-        tris.push([a, b, b + rng.vec(-0.3, 0.3)]);
-    }
+    let tris = soup_with_slivers(&mut rng, 40_000, 30.0, 0.6, 300, 0.3);
     let rays = random_rays(&mut rng, &tris, 1500, 30.0);
     for q in [BuildQuality::Sah, BuildQuality::SahSplits] {
         let (bvh, stats) = TriangleBvh::build(&tris, q).unwrap();
@@ -254,11 +256,7 @@ fn parallel_sah_builds_agree_and_are_deterministic() {
 #[test]
 fn sah_binary_trees_have_obvhs_layout() {
     let mut rng = Rng::new(32);
-    let mut tris = soup(&mut rng, 20_000, 30.0, 0.6);
-    for _ in 0..200 {
-        let (a, b) = (rng.vec(-30.0, 30.0), rng.vec(-30.0, 30.0));
-        tris.push([a, b, b + rng.vec(-0.3, 0.3)]);
-    }
+    let tris = soup_with_slivers(&mut rng, 20_000, 30.0, 0.6, 200, 0.3);
     for (name, bvh) in [("sah", build_bvh2_binned_sah(&tris)), ("splits", build_bvh2_spatial_splits(&tris))] {
         let nodes = &bvh.nodes;
         let refs = bvh.primitive_indices.len();
