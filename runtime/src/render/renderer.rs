@@ -43,9 +43,7 @@ pub struct Renderer {
 impl Renderer {
     /// Builds the BVH for `scene` (validated first) with the default [`BuildQuality`].
     pub fn new(scene: Scene) -> Result<Self, RenderError> {
-        scene.validate().map_err(|e| RenderError::Invalid(e.to_string()))?;
-        let built = TriangleBvh::build(&scene.mesh.positions, BuildQuality::default())?;
-        Ok(Self::with_bvh(scene, built))
+        Self::with_bvh_quality(scene, BuildQuality::default())
     }
 
     /// [`Renderer::new`] with the tree built at `quality` (for example the fast PLOC build for
