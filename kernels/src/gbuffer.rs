@@ -428,6 +428,7 @@ pub fn encode_normal(n: [f32; 3]) -> u32 {
 /// rasterised G-buffer's resolve encodes eight pixels at once. `f32::round` (half away from
 /// zero) lowers to a long sequence; here it is `trunc` plus one more unit where the exact
 /// remainder `|v − trunc(v)|` is at least ½, which is the same function.
+#[inline]
 pub fn encode_normals(n: [F32s; 3]) -> [u32; LANES] {
     let l1 = n[0].abs() + n[1].abs() + n[2].abs();
     let valid = l1.simd_lt(F32s::splat(f32::INFINITY)) & l1.simd_ne(F32s::ZERO);

@@ -154,23 +154,29 @@ impl Renderer {
         }
         .map_err(|e: FrameError| RenderError::Frame(e))?;
         let start = std::time::Instant::now();
-        let all_planes = raster.planes == Layout::Full;
-        self.resolve(lights, &raster.visibility[0], left, &tris, all_planes);
-        self.resolve(lights, &raster.visibility[1], right, &tris, all_planes);
+        let [vis_left, vis_right] = &raster.visibility;
+        if raster.planes == Layout::Full {
+            self.resolve::<true>(lights, vis_left, left, &tris);
+            self.resolve::<true>(lights, vis_right, right, &tris);
+        } else {
+            self.resolve::<false>(lights, vis_left, left, &tris);
+            self.resolve::<false>(lights, vis_right, right, &tris);
+        }
         Ok(RasterPassStats { raster: stats, resolve: start.elapsed() })
     }
 
     /// Writes `out` from one eye's visibility (see the module notes): eight pixels at a time
     /// where the eight see mesh triangles or nothing ([`Renderer::resolve_lanes`]), one at a
     /// time for moving lights and the lanes the SIMD test leaves undecided
-    /// ([`Renderer::resolve_pixel`]); both compute what the traced pass does.
-    fn resolve(
+    /// ([`Renderer::resolve_pixel`]); both compute what the traced pass does. `ALL_PLANES`
+    /// is [`Layout::Full`]: a constant, so the compact layout's resolve does not compute the
+    /// planes it does not write.
+    fn resolve<const ALL_PLANES: bool>(
         &self,
         lights: &FrameLights,
         vis: &VisibilityBuffer,
         out: &mut GBufferBuf,
         tris: &Triangles<'_>,
-        all_planes: bool,
     ) {
         let camera = out.camera;
         let width = camera.extent.width();
@@ -199,8 +205,8 @@ impl Renderer {
                             *p = stand_in;
                         }
                     }
-                    let (texels, undecided) = self.resolve_lanes(&camera, x0, y, &lanes);
-                    if all_planes {
+                    let (texels, undecided) = self.resolve_lanes::<ALL_PLANES>(&camera, x0, y, &lanes);
+                    if ALL_PLANES {
                         row.set_lanes(x0, &texels);
                     } else {
                         row.set_compact_lanes(x0, &texels);
@@ -264,8 +270,14 @@ impl Renderer {
     /// order, so every texel equals the traced pass's bit for bit. Returns the texels and the
     /// lanes the scalar path must redo: an edge function of exactly 0 (the f64
     /// recomputation), a miss, a zero determinant.
-    fn resolve_lanes(&self, camera: &CameraModel, x0: usize, y: usize, prims: &[u32; LANES]) -> (GLanes, u32) {
-        let mesh = &self.scene.mesh;
+    #[inline(always)]
+    fn resolve_lanes<const ALL_PLANES: bool>(
+        &self,
+        camera: &CameraModel,
+        x0: usize,
+        y: usize,
+        prims: &[u32; LANES],
+    ) -> (GLanes, u32) {
         let (o, rdx, rdy) = (camera.ray_origin_corner, camera.ray_dx, camera.ray_dy);
         let px = F32s::splat(x0 as f32) + lane_offsets() + F32s::splat(0.5);
         let py = y as f32 + 0.5;
@@ -275,26 +287,53 @@ impl Renderer {
         let k0 = a[0].simd_ge(a[1]) & a[0].simd_ge(a[2]);
         let k1 = !k0 & a[1].simd_ge(a[2]);
         let k2 = !(k0 | k1);
-        let pick = |v: &[F32s; 3], i0: F32s, i1: F32s| i0.select(v[0], i1.select(v[1], v[2]));
-        let d_z = pick(&dir, k0, k1);
+        let d_z = k0.select(dir[0], k1.select(dir[1], dir[2]));
         let neg = d_z.simd_lt(F32s::ZERO);
-        // kx = kz + 1, ky = kz + 2 (mod 3), swapped when d[kz] < 0.
-        let (kx0, kx1) = (neg.select(k1, k2), neg.select(k2, k0));
-        let (ky0, ky1) = (neg.select(k2, k1), neg.select(k0, k2));
-        let (d_x, d_y) = (pick(&dir, kx0, kx1), pick(&dir, ky0, ky1));
+        // One permutation for the whole group where every lane has it (nearly every group
+        // of a frame: only rays near a diagonal differ), which takes the 16 per-lane selects
+        // out of the arithmetic. Both are exact, so the texels do not depend on the choice.
+        let kz = [k0, k1, k2].iter().position(|k| k.all());
+        match kz {
+            Some(kz) if neg.all() || neg.none() => {
+                // kx = kz + 1, ky = kz + 2 (mod 3), swapped when d[kz] < 0.
+                let (kx, ky) = ((kz + 1) % 3, (kz + 2) % 3);
+                let k = if neg.all() { [ky, kx, kz] } else { [kx, ky, kz] };
+                self.resolve_lanes_permuted::<ALL_PLANES, _>(camera, dir, GroupAxes(k), prims)
+            }
+            _ => {
+                let x = (neg.select(k1, k2), neg.select(k2, k0));
+                let y = (neg.select(k2, k1), neg.select(k0, k2));
+                self.resolve_lanes_permuted::<ALL_PLANES, _>(camera, dir, LaneAxes { x, y, z: (k0, k1) }, prims)
+            }
+        }
+    }
+
+    /// The body of [`Renderer::resolve_lanes`] once each lane's axis permutation is known.
+    #[inline(always)]
+    fn resolve_lanes_permuted<const ALL_PLANES: bool, A: AxisPick>(
+        &self,
+        camera: &CameraModel,
+        dir: [F32s; 3],
+        axes: A,
+        prims: &[u32; LANES],
+    ) -> (GLanes, u32) {
+        let mesh = &self.scene.mesh;
+        let (d_x, d_y, d_z) = axes.pick(&dir);
         let (sx, sy, sz) = (d_x / d_z, d_y / d_z, F32s::ONE / d_z);
         let c = map3(camera.centre, F32s::splat);
-        let (ox, oy, oz) = (pick(&c, kx0, kx1), pick(&c, ky0, ky1), pick(&c, k0, k1));
+        let (ox, oy, oz) = axes.pick(&c);
         // The eight triangles, vertex by vertex (one triangle's, splat, when all eight lanes
         // see the same one: the common case inside a triangle), permuted per lane.
         let uniform = prims.iter().all(|&p| p == prims[0]);
         let verts = lane_triangles(&mesh.positions, prims, uniform);
-        let z = map3(verts, |v| pick(&v, k0, k1) - oz);
-        let sheared =
-            |v: &[F32s; 3], vz: F32s| ((pick(v, kx0, kx1) - ox) - sx * vz, (pick(v, ky0, ky1) - oy) - sy * vz);
-        let (ax, ay) = sheared(&verts[0], z[0]);
-        let (bx, by) = sheared(&verts[1], z[1]);
-        let (cx, cy) = sheared(&verts[2], z[2]);
+        let sheared = |v: &[F32s; 3]| {
+            let (vx, vy, vz) = axes.pick(v);
+            let vz = vz - oz;
+            ((vx - ox) - sx * vz, (vy - oy) - sy * vz, vz)
+        };
+        let (ax, ay, az) = sheared(&verts[0]);
+        let (bx, by, bz) = sheared(&verts[1]);
+        let (cx, cy, cz) = sheared(&verts[2]);
         let u = cx * by - cy * bx;
         let v = ax * cy - ay * cx;
         let w = bx * ay - by * ax;
@@ -304,7 +343,7 @@ impl Renderer {
         let det = u + v + w;
         let scalar =
             (u.simd_eq(zero) | v.simd_eq(zero) | w.simd_eq(zero) | (neg_e & pos_e) | det.simd_eq(zero)).to_bitmask();
-        let t = (u * (sz * z[0]) + v * (sz * z[1]) + w * (sz * z[2])) / det;
+        let t = (u * (sz * az) + v * (sz * bz) + w * (sz * cz)) / det;
         let (b1, b2) = (v / det, w / det);
         // Normals, as Mesh::geometric_normal / shading_normal and Renderer::normals.
         let e1 = from3(|i| verts[1][i] - verts[0][i]);
@@ -327,12 +366,49 @@ impl Renderer {
         let ns = map3(ns, |n| against.select(-n, n));
         let lanes = GLanes {
             depth: t,
-            position: from3(|i| c[i] + t * dir[i]),
+            // Dead in the compact layout's resolve, which does not write positions.
+            position: if ALL_PLANES { from3(|i| c[i] + t * dir[i]) } else { [F32s::ZERO; 3] },
             normal: ns,
             oct: encode_normals(ns),
             material: lane_materials(&mesh.material, prims, uniform),
         };
         (lanes, scalar)
+    }
+}
+
+/// Which component of a vector each lane takes as its ray's x, y and z axis (the
+/// watertight test's permutation: z the ray's dominant axis).
+trait AxisPick: Copy {
+    /// `v`'s components in the permuted order `(x, y, z)`.
+    fn pick(&self, v: &[F32s; 3]) -> (F32s, F32s, F32s);
+}
+
+/// One permutation for all eight lanes, `[kx, ky, kz]`.
+#[derive(Clone, Copy)]
+struct GroupAxes([usize; 3]);
+
+impl AxisPick for GroupAxes {
+    #[inline(always)]
+    fn pick(&self, v: &[F32s; 3]) -> (F32s, F32s, F32s) {
+        let [kx, ky, kz] = self.0;
+        (v[kx], v[ky], v[kz])
+    }
+}
+
+/// A permutation per lane: for each of x, y and z, the masks of the lanes taking component
+/// 0 and component 1 (the others take component 2).
+#[derive(Clone, Copy)]
+struct LaneAxes {
+    x: (F32s, F32s),
+    y: (F32s, F32s),
+    z: (F32s, F32s),
+}
+
+impl AxisPick for LaneAxes {
+    #[inline(always)]
+    fn pick(&self, v: &[F32s; 3]) -> (F32s, F32s, F32s) {
+        let one = |(is0, is1): (F32s, F32s)| is0.select(v[0], is1.select(v[1], v[2]));
+        (one(self.x), one(self.y), one(self.z))
     }
 }
 
