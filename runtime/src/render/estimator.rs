@@ -162,13 +162,11 @@ impl Renderer {
     /// part of [`Renderer::shade`] the G-buffer needs: no material or texture lookups).
     #[inline]
     pub(super) fn normals(&self, h: &Hit, dir: Vec3) -> (Vec3, Vec3) {
-        let mesh = &self.scene.mesh;
         let tri = h.prim as usize;
-        let mut ng = mesh.geometric_normal(tri);
-        if ng.dot(dir) > 0.0 {
-            ng = -ng;
-        }
-        let mut ns = mesh.shading_normal(tri, h.u, h.v);
+        let geometric = self.geometric_normals[tri];
+        let ng = if geometric.dot(dir) > 0.0 { -geometric } else { geometric };
+        // Mesh::shading_normal, with the stored geometric normal.
+        let mut ns = self.scene.mesh.interpolated_normal(tri, h.u, h.v).unwrap_or(geometric);
         if ns.dot(ng) < 0.0 {
             ns = -ns;
         }

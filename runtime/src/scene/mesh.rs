@@ -120,13 +120,16 @@ impl Mesh {
     /// and 2); the geometric normal for flat-shaded meshes.
     #[inline]
     pub fn shading_normal(&self, tri: usize, b1: f32, b2: f32) -> Vec3 {
-        match &self.normals {
-            Some(n) => {
-                let [n0, n1, n2] = n[tri];
-                (n0 * (1.0 - b1 - b2) + n1 * b1 + n2 * b2).try_normalize().unwrap_or_else(|| self.geometric_normal(tri))
-            }
-            None => self.geometric_normal(tri),
-        }
+        self.interpolated_normal(tri, b1, b2).unwrap_or_else(|| self.geometric_normal(tri))
+    }
+
+    /// The interpolated unit normal at barycentrics `(b1, b2)`, or `None` for a flat-shaded
+    /// mesh or normals that do not normalise (where [`Mesh::shading_normal`] takes the
+    /// geometric normal).
+    #[inline]
+    pub fn interpolated_normal(&self, tri: usize, b1: f32, b2: f32) -> Option<Vec3> {
+        let [n0, n1, n2] = self.normals.as_ref()?[tri];
+        (n0 * (1.0 - b1 - b2) + n1 * b1 + n2 * b2).try_normalize()
     }
 
     /// Interpolated UV at barycentrics `(b1, b2)`; zero when the mesh has none.
