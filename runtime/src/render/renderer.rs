@@ -80,11 +80,10 @@ impl Renderer {
         let bits = effects::bits_for(scene.effects);
         let raster_near = (scene.bounds().extent().length() * 1e-6).max(1e-9);
         let mesh = &scene.mesh;
-        let mut geometric_normals = Vec::new();
-        geometric_normals
-            .try_reserve_exact(mesh.len())
-            .map_err(|_| FrameError::OutOfMemory { bytes: mesh.len().saturating_mul(size_of::<Vec3>()) })?;
-        geometric_normals.extend((0..mesh.len()).map(|tri| mesh.geometric_normal(tri)));
+        let mut geometric_normals = crate::kernels::frame::try_filled_vec(mesh.len(), Vec3::ZERO)?;
+        for (tri, n) in geometric_normals.iter_mut().enumerate() {
+            *n = mesh.geometric_normal(tri);
+        }
         Ok(Self { scene, bvh, bvh_stats, bits, bounces: 1, raster_near, geometric_normals })
     }
 
