@@ -10,7 +10,7 @@ use clap::{Arg, Args};
 use crate::eval::EvalSpec;
 use crate::kernels::Extent;
 use crate::pipeline::{MAX_SPP, budget_duration, check_spp};
-use crate::render::GBufferPass;
+use crate::render::{FirstSample, GBufferPass, RendererOptions};
 
 /// The scene a command renders and its size per eye.
 #[derive(Args, Clone, Debug)]
@@ -75,6 +75,17 @@ pub struct GBufferArg {
     /// How the G-buffers are made: rasterised (default) or traced (the reference).
     #[arg(long, value_enum, default_value_t = GBufferPass::Raster)]
     pub gbuffer: GBufferPass,
+    /// Where each pixel's first sample of a frame starts: jittered in the pixel (default, the
+    /// paper's) or at its centre, whose hit a rasterised G-buffer pass has already found.
+    #[arg(long, value_enum, default_value_t = FirstSample::Jittered)]
+    pub first_sample: FirstSample,
+}
+
+impl GBufferArg {
+    /// The renderer's options these flags name.
+    pub fn options(&self) -> RendererOptions {
+        RendererOptions { first_sample: self.first_sample, ..RendererOptions::with_gbuffer(self.gbuffer) }
+    }
 }
 
 /// A command's own default for a flag of a shared group: `value`, and the flag no longer

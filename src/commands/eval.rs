@@ -73,6 +73,9 @@ pub struct EvalOptions {
     /// How the pipelines make their G-buffers (default: raster).
     #[arg(long, value_enum)]
     pub gbuffer: Option<crate::render::GBufferPass>,
+    /// Where each pixel's first sample starts (default: jittered, the paper's).
+    #[arg(long, value_enum)]
+    pub first_sample: Option<crate::render::FirstSample>,
     /// Give the pipelines the surfaces' motion (moving area lights' own), which temporal
     /// reprojection follows; without it every surface is taken as still.
     #[arg(long)]
@@ -172,6 +175,9 @@ pub fn build_spec(opts: &EvalOptions) -> Result<EvalSpec, String> {
     }
     if let Some(s) = opts.ssim {
         spec.ssim = s;
+    }
+    if let Some(f) = opts.first_sample {
+        spec.first_sample = f;
     }
     if let Some(g) = opts.gbuffer {
         spec.gbuffer = g;

@@ -156,6 +156,9 @@ pub struct ThroughputReport {
     pub layout: String,
     /// How the G-buffers were made (`raster` or `traced`).
     pub gbuffer_pass: String,
+    /// Where each pixel's first sample started (`jittered` or `centre`).
+    #[serde(default)]
+    pub first_sample: String,
     /// Samples per traced pixel.
     pub spp: u32,
     /// Frames measured (the warm-up frame left out).
@@ -348,7 +351,7 @@ pub fn run(opts: &ThroughputOptions) -> Result<ThroughputReport, String> {
     config.history = opts.history;
     config.blend = opts.blend;
     config.filter = opts.filter;
-    let options = RendererOptions::with_gbuffer(opts.gbuffer.gbuffer);
+    let options = opts.gbuffer.options();
     config.budget = opts.budget_ms.map(crate::pipeline::budget_duration).transpose()?;
     let stats = pool.install(|| run_frames(&renderer, options, config, opts.input.res, opts.frames, false))?;
     // Every run below shares `config`, the budget included: only the schedule differs.
@@ -405,6 +408,7 @@ pub fn run(opts: &ThroughputOptions) -> Result<ThroughputReport, String> {
         filter: opts.filter.name().into(),
         layout: format!("{:?}", opts.layout).to_lowercase(),
         gbuffer_pass: opts.gbuffer.gbuffer.name().into(),
+        first_sample: opts.gbuffer.first_sample.name().into(),
         spp: opts.spp,
         frames_measured: stats.len(),
         simd_level: crate::cpu::simd_level(),
@@ -465,7 +469,7 @@ impl ThroughputReport {
         let stage =
             |name: &str, s: &Spread| format!("  {name:<13} {:>9.2} ms median {:>9.2} ms p95\n", s.median_ms, s.p95_ms);
         let mut out = format!(
-            "{} {}x{} {} threads, mode {} (order {}, {} history, {} blend, filter {}, {} {} G-buffer), {} spp, {}: {} frames measured\n",
+            "{} {}x{} {} threads, mode {} (order {}, {} history, {} blend, filter {}, {} {} G-buffer, {} first sample), {} spp, {}: {} frames measured\n",
             self.scene,
             self.width,
             self.height,
@@ -477,6 +481,7 @@ impl ThroughputReport {
             self.filter,
             self.layout,
             self.gbuffer_pass,
+            self.first_sample,
             self.spp,
             self.simd_level,
             self.frames_measured

@@ -28,7 +28,7 @@ use crate::eval::{EvalSpec, Metric, Preset, Reporter, Variant};
 use crate::kernels::Extent;
 use crate::kernels::reproject::TapPolicy;
 use crate::pipeline::{Blend, Filter, History, Layout, Mode, Order, Pipeline};
-use crate::render::{GBufferPass, RendererOptions};
+use crate::render::{FirstSample, GBufferPass, RendererOptions};
 use crate::session::{CameraWalk, Session};
 
 use super::args::{
@@ -102,6 +102,7 @@ impl TradeoffOptions {
         spec.input_spp = self.spp.clone();
         self.references.apply(&mut spec);
         spec.gbuffer = self.gbuffer.gbuffer;
+        spec.first_sample = self.gbuffer.first_sample;
         spec
     }
 
@@ -133,6 +134,8 @@ pub struct Setting {
     pub layout: Layout,
     /// How the G-buffers are made.
     pub gbuffer: GBufferPass,
+    /// Where each pixel's first sample starts.
+    pub first_sample: FirstSample,
     /// How far the EMA trusts a reprojected history.
     pub history: History,
     /// How the stereo blend weighs the eyes.
@@ -146,7 +149,7 @@ pub struct Setting {
 }
 
 impl Setting {
-    fn paper(mode: Mode, order: Order, spp: u32, gbuffer: GBufferPass) -> Self {
+    fn paper(mode: Mode, order: Order, spp: u32, gbuffer: GBufferPass, first_sample: FirstSample) -> Self {
         let order = if mode.has_order() { order } else { Order::Paper };
         Self {
             mode,
@@ -156,6 +159,7 @@ impl Setting {
             ramp: false,
             layout: Layout::Compact,
             gbuffer,
+            first_sample,
             history: History::Paper,
             blend: Blend::Fixed,
             filter: Filter::None,
@@ -178,6 +182,9 @@ impl Setting {
         }
         if self.gbuffer != GBufferPass::default() {
             parts.push(format!("{} G-buffer", self.gbuffer.name()));
+        }
+        if self.first_sample != FirstSample::default() {
+            parts.push(format!("{} first sample", self.first_sample.name()));
         }
         if self.history != History::Paper {
             parts.push(format!("{} history", self.history.name()));
@@ -222,7 +229,8 @@ pub fn settings(opts: &TradeoffOptions) -> Vec<Setting> {
         GBufferPass::Traced => GBufferPass::Raster,
     };
     for &spp in &opts.spp {
-        let paper = |mode, order| Setting::paper(mode, order, spp, opts.gbuffer.gbuffer);
+        let first = opts.gbuffer.first_sample;
+        let paper = |mode, order| Setting::paper(mode, order, spp, opts.gbuffer.gbuffer, first);
         out.push(paper(Mode::PathTraced, Order::Paper));
         for v in Variant::ALL {
             out.push(paper(v.mode, v.order));
@@ -232,6 +240,13 @@ pub fn settings(opts: &TradeoffOptions) -> Vec<Setting> {
         out.push(Setting { ramp: true, ..base });
         out.push(Setting { layout: Layout::Full, ..base });
         out.push(Setting { gbuffer: other_pass, ..base });
+        // The first sample at the pixel centre, its hit from the G-buffer pass: less tracing,
+        // no antialiasing within a frame.
+        let other_first = match first {
+            FirstSample::Jittered => FirstSample::Centre,
+            FirstSample::Centre => FirstSample::Jittered,
+        };
+        out.push(Setting { first_sample: other_first, ..base });
         // Temporal gradients: the same points as the paper's on a scene where nothing moves
         // (it traces no gradient samples there).
         out.push(Setting { history: History::Gradient, ..base });
@@ -336,7 +351,8 @@ fn measure_setting(
     config.blend = setting.blend;
     config.budget = budget_ms.map(crate::pipeline::budget_duration).transpose()?;
     let rig = StereoRig::new(spec.eye_separation)?;
-    let options = RendererOptions::with_gbuffer(setting.gbuffer);
+    let options =
+        RendererOptions { first_sample: setting.first_sample, ..RendererOptions::with_gbuffer(setting.gbuffer) };
     let pipeline = Pipeline::with_options(renderer, options, config, rig, extent).map_err(|e| e.to_string())?;
     let mut session = Session::new(pipeline, CameraWalk::Path);
     let variant = spec.ssim.kernel();

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use clap::Args;
 
 use crate::pipeline::{Mode, PipelineConfig};
-use crate::render::{Renderer, RendererOptions};
+use crate::render::Renderer;
 use crate::viewer::window::{self, RunOptions, RunSummary};
 use crate::viewer::{Action, StereoLayout, Viewer};
 
@@ -68,7 +68,7 @@ pub fn run(opts: &ViewOptions) -> Result<String, String> {
     let extent = opts.input.res;
     let mut config = PipelineConfig::paper(opts.mode, opts.spp, renderer.scene().tolerances.at_height(extent.height()));
     config.budget = Some(crate::pipeline::budget_duration(opts.budget_ms)?);
-    let options = RendererOptions::with_gbuffer(opts.gbuffer.gbuffer);
+    let options = opts.gbuffer.options();
     let mut viewer = Viewer::new(&renderer, options, config, extent, opts.stereo)?;
     if opts.path {
         viewer.act(Action::TogglePath)?;

@@ -414,6 +414,11 @@ impl Runner<'_> {
                 ]);
                 // A constant of the pipeline, not a field of its configuration: named here so
                 // that a change of it is a new entry (the paper's configurations' keys stay).
+                // The renderer's option too; named only when it is not the paper's, so that
+                // the paper's entries keep their keys.
+                if spec.first_sample != crate::render::FirstSample::Jittered {
+                    fields.push(("first-sample", spec.first_sample.name().into()));
+                }
                 if cfg.history == crate::pipeline::History::Clamp {
                     fields.push(("clamp-gamma", crate::pipeline::CLAMP_GAMMA.to_string()));
                 }
@@ -638,7 +643,8 @@ impl Runner<'_> {
         let spec = self.spec;
         let tol = plan.renderer.scene().tolerances.at_height(self.extent.height());
         let cfg = pipeline_config(spec, c.variant, c.spp, tol);
-        let options = RendererOptions::with_gbuffer(spec.gbuffer);
+        let options =
+            RendererOptions { first_sample: spec.first_sample, ..RendererOptions::with_gbuffer(spec.gbuffer) };
         let pipeline =
             Pipeline::with_options(&plan.renderer, options, cfg, self.rig, self.extent).map_err(|e| e.to_string())?;
         let mut session = Session::new(pipeline, CameraWalk::Path);

@@ -180,6 +180,9 @@ pub struct EvalSpec {
     pub eye_separation: f32,
     /// How the pipelines make their G-buffers.
     pub gbuffer: crate::render::GBufferPass,
+    /// Where each pixel's first sample starts (older specs: jittered, the paper's).
+    #[serde(default)]
+    pub first_sample: crate::render::FirstSample,
     /// Whether the pipelines get the surfaces' motion vectors (older specs: off).
     #[serde(default)]
     pub motion_vectors: bool,
@@ -265,6 +268,7 @@ impl Preset {
             checkpoint_spp: 256,
             eye_separation: crate::camera::DEFAULT_EYE_SEPARATION,
             gbuffer: crate::render::GBufferPass::Raster,
+            first_sample: crate::render::FirstSample::Jittered,
             motion_vectors: false,
             history: crate::pipeline::History::Paper,
             blend: crate::pipeline::Blend::Fixed,

@@ -49,5 +49,6 @@ mod view;
 pub use crate::kernels::gbuffer::GBufferBuf;
 pub use lights::MOVING_LIGHT_MATERIAL;
 pub use renderer::{RenderError, Renderer, pixel_centre_ray};
-pub use source::{GBufferPass, RendererOptions, RendererSource};
+pub use source::{FirstSample, GBufferPass, RendererOptions, RendererSource};
+pub use trace::PrimaryRays;
 pub use view::FrameView;

@@ -5,7 +5,9 @@
 //! The selected pixels of a row are taken eight at a time (a sparse mask packs the selected
 //! pixels of the row together, so packets stay full). For each sample index:
 //!
-//! 1. the eight jittered primary rays: one closest-hit packet;
+//! 1. the eight jittered primary rays: one closest-hit packet (or, for a frame's first sample
+//!    with [`PrimaryRays::CentreVisible`], the eight centre rays' hits read from the
+//!    visibility buffer, and only the lanes it leaves undecided traced);
 //! 2. per lane: emission seen, shading, the light sample of next-event estimation (shadow
 //!    ray 1) and the BSDF sample (the secondary ray);
 //! 3. shadow rays 1: one occlusion packet;
@@ -28,15 +30,17 @@
 //! (NaN, zero direction) drop out of the packet's active mask and report a miss, as single
 //! rays do.
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 use super::bsdf::{self, BsdfSample};
 use super::effects::{self, ALPHA_MASKS, MIRROR, MOVING_GEOMETRY, has};
 use super::estimator::Surface;
 use super::lights::FrameLights;
+use super::raster::Visible;
 use super::renderer::Renderer;
 use super::rng::{Dim, SampleStream};
 use super::spawn;
+use super::trace::PrimaryRays;
 use crate::kernels::CameraModel;
 use crate::kernels::bvh::{Hit, Ray};
 use crate::kernels::simd::{F32s, LANES};
@@ -49,6 +53,7 @@ pub(super) struct Pass<'a> {
     pub lights: &'a FrameLights,
     pub camera: &'a CameraModel,
     pub request: &'a TraceRequest,
+    pub primary: PrimaryRays<'a>,
 }
 
 /// The single-ray threshold of each stage's packets: a class of lanes (same direction
@@ -210,7 +215,7 @@ impl Renderer {
         sample: u32,
         rays: &mut u64,
     ) -> [Vec3; LANES] {
-        let Pass { lights, camera, request } = *pass;
+        let Pass { lights, camera, request, primary: first_sample } = *pass;
         let width = camera.extent.width();
         let count = |m: u32| u64::from(m.count_ones());
         let mut radiance = [Vec3::ZERO; LANES];
@@ -221,12 +226,37 @@ impl Renderer {
             SampleStream::new(request.seed, request.eye as u32, request.frame, pixel, request.first_sample + sample)
         });
         let origin = Vec3::from(camera.centre);
+        let centred = first_sample.centred(request.first_sample + sample);
         let primary: [Ray; LANES] = core::array::from_fn(|i| {
-            let j = rng[i].get2(Dim::PixelJitter);
+            let j = if centred { Vec2::splat(0.5) } else { rng[i].get2(Dim::PixelJitter) };
             Ray::new(origin, Vec3::from(camera.ray(xs[i] as f32 + j.x, y as f32 + j.y)))
         });
-        *rays += count(active);
-        let first = self.closest_packet::<E>(lights, &primary, active, PRIMARY);
+        let first = match first_sample {
+            PrimaryRays::CentreVisible(vis) if centred => {
+                let prims = vis.prim.view();
+                let mut first = [None; LANES];
+                let mut undecided = 0u32;
+                for i in lanes(active) {
+                    match self.visible_surface(lights, prims.get(xs[i], y), &primary[i]) {
+                        Visible::Surface(s) => first[i] = Some(s),
+                        Visible::Nothing => {}
+                        Visible::Undecided => undecided |= 1 << i,
+                    }
+                }
+                if undecided != 0 {
+                    *rays += count(undecided);
+                    let traced = self.closest_packet::<E>(lights, &primary, undecided, PRIMARY);
+                    for i in lanes(undecided) {
+                        first[i] = traced[i];
+                    }
+                }
+                first
+            }
+            _ => {
+                *rays += count(active);
+                self.closest_packet::<E>(lights, &primary, active, PRIMARY)
+            }
+        };
 
         // 2. Shading at the primary hits: shadow rays 1 and the secondary rays.
         let mut shadow = [NO_RAY; LANES];

@@ -51,6 +51,16 @@ pub struct RasterGBuffers {
     pub planes: Layout,
 }
 
+/// What a pixel's visibility says its centre ray hits ([`Renderer::visible_surface`]).
+pub(super) enum Visible {
+    /// No triangle covers the pixel centre.
+    Nothing,
+    /// This surface.
+    Surface(Surface),
+    /// The raster's triangle fails the tracer's test at the centre (or is no triangle).
+    Undecided,
+}
+
 /// Which rasteriser finds each pixel's triangle; the resolve is the same for both.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Visibility {
@@ -156,11 +166,11 @@ impl Renderer {
         let start = std::time::Instant::now();
         let [vis_left, vis_right] = &raster.visibility;
         if raster.planes == Layout::Full {
-            self.resolve::<true>(lights, vis_left, left, &tris);
-            self.resolve::<true>(lights, vis_right, right, &tris);
+            self.resolve::<true>(lights, vis_left, left);
+            self.resolve::<true>(lights, vis_right, right);
         } else {
-            self.resolve::<false>(lights, vis_left, left, &tris);
-            self.resolve::<false>(lights, vis_right, right, &tris);
+            self.resolve::<false>(lights, vis_left, left);
+            self.resolve::<false>(lights, vis_right, right);
         }
         Ok(RasterPassStats { raster: stats, resolve: start.elapsed() })
     }
@@ -171,13 +181,7 @@ impl Renderer {
     /// ([`Renderer::resolve_pixel`]); both compute what the traced pass does. `ALL_PLANES`
     /// is [`Layout::Full`]: a constant, so the compact layout's resolve does not compute the
     /// planes it does not write.
-    fn resolve<const ALL_PLANES: bool>(
-        &self,
-        lights: &FrameLights,
-        vis: &VisibilityBuffer,
-        out: &mut GBufferBuf,
-        tris: &Triangles<'_>,
-    ) {
+    fn resolve<const ALL_PLANES: bool>(&self, lights: &FrameLights, vis: &VisibilityBuffer, out: &mut GBufferBuf) {
         let camera = out.camera;
         let width = camera.extent.width();
         let mesh_len = self.scene.mesh.len() as u32;
@@ -223,12 +227,12 @@ impl Renderer {
                 while m != 0 {
                     let i = m.trailing_zeros() as usize;
                     m &= m - 1;
-                    row.set(x0 + i, &self.resolve_pixel(lights, &camera, x0 + i, y, group[i], tris));
+                    row.set(x0 + i, &self.resolve_pixel(lights, &camera, x0 + i, y, group[i]));
                 }
                 x0 += LANES;
             }
             for x in x0..width {
-                row.set(x, &self.resolve_pixel(lights, &camera, x, y, prims[x], tris));
+                row.set(x, &self.resolve_pixel(lights, &camera, x, y, prims[x]));
             }
         });
     }
@@ -236,31 +240,45 @@ impl Renderer {
     /// One pixel: the watertight test of its centre ray on the triangle the raster found
     /// (the scalar reference of [`Renderer::resolve_lanes`], and the path for moving lights
     /// and background).
-    fn resolve_pixel(
-        &self,
-        lights: &FrameLights,
-        camera: &CameraModel,
-        x: usize,
-        y: usize,
-        prim: u32,
-        tris: &Triangles<'_>,
-    ) -> GTexel {
+    fn resolve_pixel(&self, lights: &FrameLights, camera: &CameraModel, x: usize, y: usize, prim: u32) -> GTexel {
         let dir = Vec3::from(camera.ray(x as f32 + 0.5, y as f32 + 0.5));
-        if prim == NO_PRIM {
-            return GTexel::BACKGROUND;
-        }
-        let mesh_len = self.scene.mesh.len() as u32;
-        let surface = PreparedRay::new(&Ray::new(Vec3::from(camera.centre), dir))
-            .and_then(|r| intersect_triangle_line(&r, tris.get(prim)))
-            .map(|hit| {
-                let (u, v) = hit.uv();
-                if prim < mesh_len {
-                    Surface::Mesh(Hit { t: hit.t, prim, u, v })
-                } else {
-                    Surface::moving(lights.moving_triangles(), prim - mesh_len, hit.t, (u, v))
-                }
-            });
+        let surface = match self.visible_surface(lights, prim, &Ray::new(Vec3::from(camera.centre), dir)) {
+            Visible::Surface(s) => Some(s),
+            // The centre ray misses the raster's triangle (rare): written as no hit.
+            Visible::Nothing | Visible::Undecided => None,
+        };
         self.gbuffer_texel(surface, dir, camera)
+    }
+
+    /// What the centre ray `ray` of a pixel whose visibility is `prim` hits: the triangle
+    /// `prim` (the mesh's, then this frame's moving triangles, as rasterised) under the tracer's
+    /// watertight test, so the same hit as tracing `ray` wherever the raster saw the traced
+    /// triangle. [`Visible::Undecided`] where the test misses that triangle or `prim` names
+    /// none: the caller traces, or treats the pixel as the traced pass would.
+    #[inline]
+    pub(super) fn visible_surface(&self, lights: &FrameLights, prim: u32, ray: &Ray) -> Visible {
+        if prim == NO_PRIM {
+            return Visible::Nothing;
+        }
+        let mesh = &self.scene.mesh;
+        let mesh_len = mesh.len() as u32;
+        let [a, b, c] = match mesh.positions.get(prim as usize) {
+            Some(tri) => *tri,
+            None => match lights.moving_triangles().get((prim - mesh_len) as usize) {
+                Some(tri) => tri.v,
+                None => return Visible::Undecided,
+            },
+        };
+        let verts: TriVerts = [a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z];
+        let Some(hit) = PreparedRay::new(ray).and_then(|r| intersect_triangle_line(&r, &verts)) else {
+            return Visible::Undecided;
+        };
+        let (u, v) = hit.uv();
+        Visible::Surface(if prim < mesh_len {
+            Surface::Mesh(Hit { t: hit.t, prim, u, v })
+        } else {
+            Surface::moving(lights.moving_triangles(), prim - mesh_len, hit.t, (u, v))
+        })
     }
 
     /// Eight neighbouring pixels of row `y` from `x0` that all see mesh triangles, as eight

@@ -8,6 +8,7 @@ use std::ops::Range;
 use super::lights::FrameLights;
 use super::raster::{RasterGBuffers, Visibility};
 use super::renderer::{RenderError, Renderer};
+use super::trace::PrimaryRays;
 use crate::kernels::{CameraModel, Extent, GBufferBuf, RgbBuf};
 use crate::scene::Effect;
 use crate::source::{FrameSource, Layout, PipelineError, PixelSelection, RasterPassStats, TraceRequest, TraceStats};
@@ -42,6 +43,31 @@ impl GBufferPass {
     }
 }
 
+/// Where each pixel's first sample of a frame starts (the others are always jittered).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum FirstSample {
+    /// At a uniformly jittered point of the pixel (the paper's estimator).
+    #[default]
+    Jittered,
+    /// At the pixel centre, where the G-buffer pass already found the primary hit: with a
+    /// rasterised pass the hit is read from its visibility buffer instead of traced (the
+    /// same hit as tracing the centre ray except at depth ties); with the traced pass the
+    /// centre ray is traced. At 1 spp no pixel is then antialiased within a frame.
+    Centre,
+}
+
+impl FirstSample {
+    /// The CLI's and the tables' name.
+    pub fn name(self) -> &'static str {
+        match self {
+            FirstSample::Jittered => "jittered",
+            FirstSample::Centre => "centre",
+        }
+    }
+}
+
 /// How [`RendererSource`] makes a frame: the choices that belong to the renderer, not to
 /// the pipeline (whose images they do not change beyond the G-buffer pass's tolerance).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -51,6 +77,8 @@ pub struct RendererOptions {
     /// Use the general integrator instead of the one specialised for the scene's effects
     /// (the same images; a test of the specialisation).
     pub general_integrator: bool,
+    /// Where each pixel's first sample of a frame starts.
+    pub first_sample: FirstSample,
 }
 
 impl RendererOptions {
@@ -82,6 +110,9 @@ pub struct RendererSource<R: Borrow<Renderer>> {
     lights: FrameLights,
     /// The rasterised G-buffer pass's buffers (with [`GBufferPass::Raster`] or `Fixed`).
     raster: Option<RasterGBuffers>,
+    /// The cameras of the rasterised pass's visibility buffers, while they show this frame
+    /// (cleared when a frame begins): a trace with one of them reads its centre hits there.
+    visible_cameras: Option<[CameraModel; 2]>,
     options: RendererOptions,
 }
 
@@ -99,7 +130,7 @@ impl<R: Borrow<Renderer>> RendererSource<R> {
             }
             GBufferPass::Traced => None,
         };
-        Ok(Self { lights: renderer.borrow().frame_lights(0), renderer, raster, options })
+        Ok(Self { lights: renderer.borrow().frame_lights(0), renderer, raster, visible_cameras: None, options })
     }
 
     /// How this source makes G-buffers and samples.
@@ -115,6 +146,7 @@ impl<R: Borrow<Renderer>> RendererSource<R> {
 
 impl<R: Borrow<Renderer>> FrameSource for RendererSource<R> {
     fn begin_frame(&mut self, frame: u32) {
+        self.visible_cameras = None;
         self.lights.update(self.renderer.borrow().scene(), frame);
     }
 
@@ -124,6 +156,7 @@ impl<R: Borrow<Renderer>> FrameSource for RendererSource<R> {
     }
 
     fn resize(&mut self, extent: Extent) -> Result<(), PipelineError> {
+        self.visible_cameras = None;
         if let Some(raster) = &mut self.raster {
             let mut resized = RasterGBuffers::try_new(extent)?;
             (resized.planes, resized.visibility_by, resized.body) = (raster.planes, raster.visibility_by, raster.body);
@@ -144,7 +177,10 @@ impl<R: Borrow<Renderer>> FrameSource for RendererSource<R> {
                 // The compact layout reads depth, normal and material: the resolve writes
                 // those alone (the traced pass writes every plane whatever the layout).
                 raster.planes = layout;
-                Some(renderer.render_gbuffers_raster(&self.lights, [&mut *left, &mut *right], raster)?)
+                self.visible_cameras = None;
+                let stats = renderer.render_gbuffers_raster(&self.lights, [&mut *left, &mut *right], raster)?;
+                self.visible_cameras = Some([left.camera, right.camera]);
+                Some(stats)
             }
             None => {
                 renderer.render_gbuffer(&self.lights, left);
@@ -166,6 +202,25 @@ impl<R: Borrow<Renderer>> FrameSource for RendererSource<R> {
         out: &mut RgbBuf,
     ) -> Result<TraceStats, PipelineError> {
         let general = self.options.general_integrator;
-        Ok(self.renderer.borrow().trace_rows(&self.lights, camera, request, selection, rows, out, general)?)
+        let primary = match (self.options.first_sample, &self.raster, &self.visible_cameras) {
+            (FirstSample::Jittered, ..) => PrimaryRays::Jittered,
+            // The visibility of this frame seen by this very camera: its hits are the centre
+            // rays'. Anything else (a mono frame, the last frame's camera) traces them.
+            (FirstSample::Centre, Some(raster), Some(cameras)) => match cameras.iter().position(|c| c == camera) {
+                Some(eye) => PrimaryRays::CentreVisible(&raster.visibility()[eye]),
+                None => PrimaryRays::Centre,
+            },
+            (FirstSample::Centre, ..) => PrimaryRays::Centre,
+        };
+        Ok(self.renderer.borrow().trace_rows_from(
+            &self.lights,
+            camera,
+            request,
+            selection,
+            rows,
+            out,
+            general,
+            primary,
+        )?)
     }
 }

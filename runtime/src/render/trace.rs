@@ -6,6 +6,7 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::kernels::bvh::Ray;
+use crate::kernels::raster::VisibilityBuffer;
 use crate::kernels::simd::LANES;
 use crate::kernels::{CameraModel, RgbBuf};
 use crate::source::{PixelSelection, TraceRequest, TraceStats};
@@ -15,6 +16,32 @@ use super::lights::FrameLights;
 use super::packets;
 use super::renderer::{RenderError, Renderer};
 use super::rng::{Dim, SampleStream};
+
+/// Where each pixel's first sample (sample index 0 of a frame) starts, and how its primary
+/// hit is found. Every other sample is jittered.
+#[derive(Clone, Copy, Debug, Default)]
+pub enum PrimaryRays<'a> {
+    /// Through a uniformly jittered point of the pixel, traced (the paper's estimator).
+    #[default]
+    Jittered,
+    /// Through the pixel centre, traced.
+    Centre,
+    /// Through the pixel centre, its hit read from this visibility buffer of the same camera
+    /// and frame (the rasterised G-buffer pass's): the triangle the buffer names, intersected
+    /// by the centre ray with the tracer's own watertight test, so the hit equals
+    /// [`PrimaryRays::Centre`]'s wherever the raster saw the traced triangle (everywhere but
+    /// depth ties). A pixel whose test misses its triangle (an edge function of exactly 0) is
+    /// traced. Nothing else changes: the rest of the sample uses its own random numbers.
+    CentreVisible(&'a VisibilityBuffer),
+}
+
+impl PrimaryRays<'_> {
+    /// Whether sample `index` (counted from the frame's first) goes through the pixel centre.
+    #[inline]
+    pub(super) fn centred(&self, index: u32) -> bool {
+        index == 0 && !matches!(self, PrimaryRays::Jittered)
+    }
+}
 
 /// How a tracing call traces its rays.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -54,7 +81,27 @@ impl Renderer {
         out: &mut RgbBuf,
         general: bool,
     ) -> Result<TraceStats, RenderError> {
-        self.trace_with(lights, camera, request, selection, rows, out, general, Kernel::Packets)
+        self.trace_rows_from(lights, camera, request, selection, rows, out, general, PrimaryRays::Jittered)
+    }
+
+    /// [`Renderer::trace_rows`] with each pixel's first sample started as `primary` says.
+    /// Fails if a visibility buffer's extent is not the camera's.
+    #[allow(clippy::too_many_arguments)]
+    pub fn trace_rows_from(
+        &self,
+        lights: &FrameLights,
+        camera: &CameraModel,
+        request: &TraceRequest,
+        selection: PixelSelection<'_>,
+        rows: std::ops::Range<usize>,
+        out: &mut RgbBuf,
+        general: bool,
+        primary: PrimaryRays<'_>,
+    ) -> Result<TraceStats, RenderError> {
+        if let PrimaryRays::CentreVisible(vis) = primary {
+            crate::kernels::frame::same_extent("visibility buffer", camera.extent, vis.extent())?;
+        }
+        self.trace_with(lights, camera, request, selection, rows, out, general, Kernel::Packets, primary)
     }
 
     /// [`Renderer::trace`] by the single-ray reference loop: every ray traced alone, one
@@ -72,7 +119,32 @@ impl Renderer {
         general: bool,
     ) -> Result<TraceStats, RenderError> {
         let rows = 0..camera.extent.height();
-        self.trace_with(lights, camera, request, selection, rows, out, general, Kernel::SingleRays)
+        self.trace_with(
+            lights,
+            camera,
+            request,
+            selection,
+            rows,
+            out,
+            general,
+            Kernel::SingleRays,
+            PrimaryRays::Jittered,
+        )
+    }
+
+    /// [`Renderer::trace_single_rays`] with each pixel's first sample through its centre
+    /// ([`PrimaryRays::Centre`]): every primary ray traced, the oracle of
+    /// [`PrimaryRays::CentreVisible`].
+    pub fn trace_single_rays_centred(
+        &self,
+        lights: &FrameLights,
+        camera: &CameraModel,
+        request: &TraceRequest,
+        selection: PixelSelection<'_>,
+        out: &mut RgbBuf,
+    ) -> Result<TraceStats, RenderError> {
+        let rows = 0..camera.extent.height();
+        self.trace_with(lights, camera, request, selection, rows, out, false, Kernel::SingleRays, PrimaryRays::Centre)
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -86,6 +158,7 @@ impl Renderer {
         out: &mut RgbBuf,
         general: bool,
         kernel: Kernel,
+        primary: PrimaryRays<'_>,
     ) -> Result<TraceStats, RenderError> {
         crate::kernels::frame::same_extent("output image", camera.extent, out.extent())?;
         if rows.start > rows.end || rows.end > camera.extent.height() {
@@ -106,8 +179,10 @@ impl Renderer {
         macro_rules! call {
             ($e:literal) => {
                 match kernel {
-                    Kernel::Packets => self.trace_pass::<$e>(lights, camera, request, selection, rows, out),
-                    Kernel::SingleRays => self.trace_pass_single::<$e>(lights, camera, request, selection, rows, out),
+                    Kernel::Packets => self.trace_pass::<$e>(lights, camera, request, selection, rows, out, primary),
+                    Kernel::SingleRays => {
+                        self.trace_pass_single::<$e>(lights, camera, request, selection, rows, out, primary)
+                    }
                 }
             };
         }
@@ -116,6 +191,7 @@ impl Renderer {
 
     /// The packet loop: each row's selected pixels in groups of eight, each stage of a
     /// sample traced as one packet ([`packets`]). Rows run in parallel.
+    #[allow(clippy::too_many_arguments)]
     fn trace_pass<const E: u16>(
         &self,
         lights: &FrameLights,
@@ -124,9 +200,10 @@ impl Renderer {
         selection: PixelSelection<'_>,
         rows: std::ops::Range<usize>,
         out: &mut RgbBuf,
+        primary: PrimaryRays<'_>,
     ) -> TraceStats {
         let width = camera.extent.width();
-        let pass = packets::Pass { lights, camera, request };
+        let pass = packets::Pass { lights, camera, request, primary };
         for_each_row(selection, rows, out, |y, mask_row, [rr, gr, br]| {
             let mut stats = TraceStats::default();
             let mut next = 0;
@@ -167,6 +244,7 @@ impl Renderer {
 
     /// The single-ray reference loop: one pixel and sample at a time through
     /// [`Renderer::radiance`].
+    #[allow(clippy::too_many_arguments)]
     fn trace_pass_single<const E: u16>(
         &self,
         lights: &FrameLights,
@@ -175,6 +253,7 @@ impl Renderer {
         selection: PixelSelection<'_>,
         rows: std::ops::Range<usize>,
         out: &mut RgbBuf,
+        primary: PrimaryRays<'_>,
     ) -> TraceStats {
         let width = camera.extent.width();
         let origin = Vec3::from(camera.centre);
@@ -194,7 +273,12 @@ impl Renderer {
                         pixel,
                         request.first_sample + s,
                     );
-                    let j = rng.get2(Dim::PixelJitter);
+                    // The reference traces every primary ray, centred or not.
+                    let j = if primary.centred(request.first_sample + s) {
+                        glam::Vec2::splat(0.5)
+                    } else {
+                        rng.get2(Dim::PixelJitter)
+                    };
                     let dir = Vec3::from(camera.ray(x as f32 + j.x, y as f32 + j.y));
                     let l = self.radiance::<E>(lights, Ray::new(origin, dir), &rng, &mut stats.rays);
                     sum.add(l, &mut stats);
