@@ -46,7 +46,7 @@ fn load(path: &Path) -> Result<EvalResults, String> {
     Ok(stored.results)
 }
 
-/// The settings a run changed from the paper's, as a label (`filter atrous`, `paper`).
+/// The settings a run changed from the paper's, as a label (`atrous filter`, `paper`).
 pub fn settings_label(spec: &EvalSpec) -> String {
     let mut parts = Vec::new();
     if spec.history != crate::pipeline::History::default() {
@@ -60,6 +60,9 @@ pub fn settings_label(spec: &EvalSpec) -> String {
     }
     if spec.motion_vectors {
         parts.push("motion vectors".to_owned());
+    }
+    if spec.first_sample != crate::render::FirstSample::default() {
+        parts.push(format!("{} first sample", spec.first_sample.name()));
     }
     if parts.is_empty() { "paper".to_owned() } else { parts.join(", ") }
 }
