@@ -9,14 +9,16 @@
 
 use stereotrace::camera::{Eye, StereoRig};
 use stereotrace::kernels::raster::NO_PRIM;
-use stereotrace::kernels::{Extent, PlaneBuf, RgbBuf};
+use stereotrace::kernels::{CameraModel, Extent, PlaneBuf, RgbBuf};
 use stereotrace::pipeline::Layout;
+use stereotrace::render::lights::FrameLights;
 use stereotrace::render::raster::RasterGBuffers;
 use stereotrace::render::{
-    FirstSample, FrameView, GBufferBuf, GBufferPass, PrimaryRays, Renderer, RendererOptions, RendererSource,
+    FirstSample, FrameView, GBufferBuf, GBufferPass, PrimaryRays, RenderError, Renderer, RendererOptions,
+    RendererSource,
 };
 use stereotrace::scene::{builtin_names, resolve};
-use stereotrace::source::{FrameSource, PixelSelection, TraceStats};
+use stereotrace::source::{FrameSource, PixelSelection, TraceRequest, TraceStats};
 
 /// Pixels whose values differ between `a` and `b`, and how many of them lie where the
 /// raster's triangle is not the traced one (`differs` true there).
@@ -35,6 +37,19 @@ fn compare(a: &RgbBuf, b: &RgbBuf, differs: &[bool]) -> (usize, usize) {
         }
     }
     (outside, inside)
+}
+
+/// The packet loop over every pixel of `out` with the first sample as `primary` says.
+fn trace_packets(
+    renderer: &Renderer,
+    lights: &FrameLights,
+    camera: &CameraModel,
+    request: &TraceRequest,
+    out: &mut RgbBuf,
+    primary: PrimaryRays<'_>,
+) -> Result<TraceStats, RenderError> {
+    let rows = 0..camera.extent.height();
+    renderer.trace_rows_from(lights, camera, request, PixelSelection::All, rows, out, false, primary)
 }
 
 /// Where the raster's triangle (`raster`) is not the one the traced pass finds for `camera`.
@@ -56,32 +71,11 @@ fn check_scene(name: &str, extent: Extent, frame: u32) {
         let (camera, request) = (view.camera(eye), view.request(eye, 2, 5, 0));
         let vis = &raster.visibility()[eye as usize];
         let mut from_vis = RgbBuf::new(extent, -1.0);
-        let rows = 0..extent.height();
-        let a = renderer
-            .trace_rows_from(
-                &view.lights,
-                camera,
-                &request,
-                PixelSelection::All,
-                rows,
-                &mut from_vis,
-                false,
-                PrimaryRays::CentreVisible(vis),
-            )
-            .unwrap();
+        let a =
+            trace_packets(&renderer, &view.lights, camera, &request, &mut from_vis, PrimaryRays::CentreVisible(vis))
+                .unwrap();
         let mut traced = RgbBuf::new(extent, -1.0);
-        let b = renderer
-            .trace_rows_from(
-                &view.lights,
-                camera,
-                &request,
-                PixelSelection::All,
-                0..extent.height(),
-                &mut traced,
-                false,
-                PrimaryRays::Centre,
-            )
-            .unwrap();
+        let b = trace_packets(&renderer, &view.lights, camera, &request, &mut traced, PrimaryRays::Centre).unwrap();
         let differs = disagreements(&renderer, &view, eye, &vis.prim);
         let (outside, inside) = compare(&from_vis, &traced, &differs);
         let disagreeing = differs.iter().filter(|&&d| d).count();
@@ -122,18 +116,7 @@ fn the_packet_loop_centres_the_first_sample_as_the_single_ray_reference_does() {
         let view = FrameView::new(&renderer, &StereoRig::default(), extent, 7).unwrap();
         let (camera, request) = (view.camera(Eye::Right), view.request(Eye::Right, 2, 21, 0));
         let mut packets = RgbBuf::new(extent, -1.0);
-        let a = renderer
-            .trace_rows_from(
-                &view.lights,
-                camera,
-                &request,
-                PixelSelection::All,
-                0..extent.height(),
-                &mut packets,
-                false,
-                PrimaryRays::Centre,
-            )
-            .unwrap();
+        let a = trace_packets(&renderer, &view.lights, camera, &request, &mut packets, PrimaryRays::Centre).unwrap();
         let mut single = RgbBuf::new(extent, -1.0);
         let b = renderer
             .trace_single_rays_centred(&view.lights, camera, &request, PixelSelection::All, &mut single)
@@ -153,18 +136,7 @@ fn the_jittered_default_is_the_papers_estimator() {
     let mut plain = RgbBuf::new(extent, 0.0);
     renderer.trace(&view.lights, camera, &request, PixelSelection::All, &mut plain, false).unwrap();
     let mut explicit = RgbBuf::new(extent, 0.0);
-    renderer
-        .trace_rows_from(
-            &view.lights,
-            camera,
-            &request,
-            PixelSelection::All,
-            0..extent.height(),
-            &mut explicit,
-            false,
-            PrimaryRays::Jittered,
-        )
-        .unwrap();
+    trace_packets(&renderer, &view.lights, camera, &request, &mut explicit, PrimaryRays::Jittered).unwrap();
     assert_eq!(plain, explicit);
     // Centring changes the image (the first sample moves), and only sample 0 is centred: a
     // request that starts at sample 1 is the jittered one.
@@ -206,18 +178,9 @@ fn the_renderer_source_reads_each_eyes_own_visibility_and_never_a_stale_one() {
         let (image, stats) = trace(&source, eye);
         let mut reference = RgbBuf::new(extent, -1.0);
         let request = view.request(eye, 1, 11, 0);
-        let traced = renderer
-            .trace_rows_from(
-                &view.lights,
-                view.camera(eye),
-                &request,
-                PixelSelection::All,
-                0..extent.height(),
-                &mut reference,
-                false,
-                PrimaryRays::Centre,
-            )
-            .unwrap();
+        let traced =
+            trace_packets(&renderer, &view.lights, view.camera(eye), &request, &mut reference, PrimaryRays::Centre)
+                .unwrap();
         let differs = disagreements(&renderer, &view, eye, &raster.visibility()[eye as usize].prim);
         assert_eq!(compare(&image, &reference, &differs).0, 0, "{eye:?}");
         assert!(stats.rays < traced.rays, "{eye:?}: the visibility was not read");
@@ -231,18 +194,9 @@ fn the_renderer_source_reads_each_eyes_own_visibility_and_never_a_stale_one() {
     let stats =
         source.trace(next.camera(Eye::Right), &request, PixelSelection::All, 0..extent.height(), &mut image).unwrap();
     let mut reference = RgbBuf::new(extent, -1.0);
-    let traced = renderer
-        .trace_rows_from(
-            &next.lights,
-            next.camera(Eye::Right),
-            &request,
-            PixelSelection::All,
-            0..extent.height(),
-            &mut reference,
-            false,
-            PrimaryRays::Centre,
-        )
-        .unwrap();
+    let traced =
+        trace_packets(&renderer, &next.lights, next.camera(Eye::Right), &request, &mut reference, PrimaryRays::Centre)
+            .unwrap();
     assert_eq!(image, reference);
     assert_eq!(stats, traced);
 }
@@ -254,17 +208,8 @@ fn a_visibility_buffer_of_another_extent_is_refused() {
     let view = FrameView::new(&renderer, &StereoRig::default(), extent, 0).unwrap();
     let raster = RasterGBuffers::new(Extent::new(16, 16).unwrap());
     let mut out = RgbBuf::new(extent, 0.0);
-    let err = renderer
-        .trace_rows_from(
-            &view.lights,
-            view.camera(Eye::Left),
-            &view.request(Eye::Left, 1, 1, 0),
-            PixelSelection::All,
-            0..extent.height(),
-            &mut out,
-            false,
-            PrimaryRays::CentreVisible(&raster.visibility()[0]),
-        )
-        .unwrap_err();
+    let (camera, request) = (view.camera(Eye::Left), view.request(Eye::Left, 1, 1, 0));
+    let visibility = PrimaryRays::CentreVisible(&raster.visibility()[0]);
+    let err = trace_packets(&renderer, &view.lights, camera, &request, &mut out, visibility).unwrap_err();
     assert!(err.to_string().contains("visibility buffer"), "{err}");
 }
