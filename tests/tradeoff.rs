@@ -50,9 +50,9 @@ fn the_sweep_measures_the_harness_images_and_marks_a_consistent_front() {
         assert_eq!(row.effective_rmse, config.rmse, "{v}");
     }
 
-    // 1 path-traced + 7 modes + strict, ramp, full layout, traced G-buffer, gradient
-    // history, clamp history, variance blend, à-trous filter + 2 budgets.
-    assert_eq!(report.rows.len(), 18);
+    // 1 path-traced + 7 modes + strict, ramp, full layout, traced G-buffer, centre first
+    // sample, gradient history, clamp history, variance blend, à-trous filter + 2 budgets.
+    assert_eq!(report.rows.len(), 19);
     let unbudgeted = report.rows.iter().find(|r| r.mode == "spatiotemporal" && r.change == "paper").unwrap();
     let budgeted = report.rows.iter().find(|r| r.change == "budget 50%").unwrap();
     assert_eq!(budgeted.budget_ms, Some(0.5 * unbudgeted.frame.median_ms));
@@ -69,6 +69,9 @@ fn the_sweep_measures_the_harness_images_and_marks_a_consistent_front() {
     // The filter is measured as a point of its own, with its own images.
     let filtered = report.rows.iter().find(|r| r.change == "atrous filter").unwrap();
     assert_ne!(filtered.mean_ssim, unbudgeted.mean_ssim);
+    // The first sample at the pixel centre is another estimator: its own images.
+    let centred = report.rows.iter().find(|r| r.change == "centre first sample").unwrap();
+    assert_ne!(centred.mean_ssim, unbudgeted.mean_ssim);
     let traced = report.rows.iter().find(|r| r.change == "traced G-buffer").unwrap();
     let (a, b) = (traced.effective_ssim.mean.unwrap(), unbudgeted.effective_ssim.mean.unwrap());
     assert!((a - b).abs() <= 0.01 * b, "effective spp with a traced G-buffer {a}, rasterised {b}");
