@@ -102,13 +102,17 @@ impl<T> Exclusive<T> {
 
     /// The state, for the duration of `call` (the exported function's name), or why not.
     pub fn enter(&self, call: &'static str) -> Result<MutexGuard<'_, T>, Failure> {
+        // The name's lock is held while the state is taken and named, so a call refused in
+        // between reads the running call's name, not the one before it (or none: CI's
+        // ThreadSanitizer run once saw "busy in " from a refusal that landed there).
+        let mut current = self.call.lock().unwrap_or_else(PoisonError::into_inner);
         match self.state.try_lock() {
             Ok(state) => {
-                *self.call.lock().unwrap_or_else(PoisonError::into_inner) = call;
+                *current = call;
                 Ok(state)
             }
             Err(TryLockError::WouldBlock) => {
-                let current = *self.call.lock().unwrap_or_else(PoisonError::into_inner);
+                let current = *current;
                 Err(Failure::new(
                     StStatus::Busy,
                     format!(
