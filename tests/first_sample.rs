@@ -156,8 +156,7 @@ fn the_jittered_default_is_the_papers_estimator() {
 fn the_renderer_source_reads_each_eyes_own_visibility_and_never_a_stale_one() {
     let extent = Extent::new(64, 40).unwrap();
     let renderer = Renderer::new(resolve("atrium-moving-light").unwrap()).unwrap();
-    let options =
-        RendererOptions { first_sample: FirstSample::Centre, ..RendererOptions::with_gbuffer(GBufferPass::Raster) };
+    let options = RendererOptions::with_first_sample(GBufferPass::Raster, FirstSample::Centre);
     let mut source = RendererSource::new(&renderer, options, extent).unwrap();
     let frame = 4;
     let view = FrameView::new(&renderer, &StereoRig::default(), extent, frame).unwrap();

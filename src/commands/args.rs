@@ -84,7 +84,7 @@ pub struct GBufferArg {
 impl GBufferArg {
     /// The renderer's options these flags name.
     pub fn options(&self) -> RendererOptions {
-        RendererOptions { first_sample: self.first_sample, ..RendererOptions::with_gbuffer(self.gbuffer) }
+        RendererOptions::with_first_sample(self.gbuffer, self.first_sample)
     }
 }
 

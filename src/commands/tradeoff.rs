@@ -351,8 +351,7 @@ fn measure_setting(
     config.blend = setting.blend;
     config.budget = budget_ms.map(crate::pipeline::budget_duration).transpose()?;
     let rig = StereoRig::new(spec.eye_separation)?;
-    let options =
-        RendererOptions { first_sample: setting.first_sample, ..RendererOptions::with_gbuffer(setting.gbuffer) };
+    let options = RendererOptions::with_first_sample(setting.gbuffer, setting.first_sample);
     let pipeline = Pipeline::with_options(renderer, options, config, rig, extent).map_err(|e| e.to_string())?;
     let mut session = Session::new(pipeline, CameraWalk::Path);
     let variant = spec.ssim.kernel();

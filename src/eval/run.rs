@@ -643,8 +643,7 @@ impl Runner<'_> {
         let spec = self.spec;
         let tol = plan.renderer.scene().tolerances.at_height(self.extent.height());
         let cfg = pipeline_config(spec, c.variant, c.spp, tol);
-        let options =
-            RendererOptions { first_sample: spec.first_sample, ..RendererOptions::with_gbuffer(spec.gbuffer) };
+        let options = RendererOptions::with_first_sample(spec.gbuffer, spec.first_sample);
         let pipeline =
             Pipeline::with_options(&plan.renderer, options, cfg, self.rig, self.extent).map_err(|e| e.to_string())?;
         let mut session = Session::new(pipeline, CameraWalk::Path);

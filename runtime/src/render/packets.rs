@@ -30,7 +30,7 @@
 //! (NaN, zero direction) drop out of the packet's active mask and report a miss, as single
 //! rays do.
 
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 
 use super::bsdf::{self, BsdfSample};
 use super::effects::{self, ALPHA_MASKS, MIRROR, MOVING_GEOMETRY, has};
@@ -228,7 +228,7 @@ impl Renderer {
         let origin = Vec3::from(camera.centre);
         let centred = first_sample.centred(request.first_sample + sample);
         let primary: [Ray; LANES] = core::array::from_fn(|i| {
-            let j = if centred { Vec2::splat(0.5) } else { rng[i].get2(Dim::PixelJitter) };
+            let j = first_sample.pixel_offset(request.first_sample + sample, &rng[i]);
             Ray::new(origin, Vec3::from(camera.ray(xs[i] as f32 + j.x, y as f32 + j.y)))
         });
         let first = match first_sample {

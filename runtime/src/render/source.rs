@@ -86,6 +86,12 @@ impl RendererOptions {
     pub fn with_gbuffer(gbuffer: GBufferPass) -> Self {
         Self { gbuffer, ..Self::default() }
     }
+
+    /// The default integrator with G-buffers made by `gbuffer` and first samples started as
+    /// `first_sample` says.
+    pub fn with_first_sample(gbuffer: GBufferPass, first_sample: FirstSample) -> Self {
+        Self { first_sample, ..Self::with_gbuffer(gbuffer) }
+    }
 }
 
 /// The renderer's failures as the pipeline reports them: a refused buffer stays a

@@ -41,6 +41,13 @@ impl PrimaryRays<'_> {
     pub(super) fn centred(&self, index: u32) -> bool {
         index == 0 && !matches!(self, PrimaryRays::Jittered)
     }
+
+    /// Where in its pixel sample `index` goes, in [0, 1)²: the centre or the sample's own
+    /// jitter (the one definition both row loops use).
+    #[inline]
+    pub(super) fn pixel_offset(&self, index: u32, rng: &SampleStream) -> glam::Vec2 {
+        if self.centred(index) { glam::Vec2::splat(0.5) } else { rng.get2(Dim::PixelJitter) }
+    }
 }
 
 /// How a tracing call traces its rays.
@@ -274,11 +281,7 @@ impl Renderer {
                         request.first_sample + s,
                     );
                     // The reference traces every primary ray, centred or not.
-                    let j = if primary.centred(request.first_sample + s) {
-                        glam::Vec2::splat(0.5)
-                    } else {
-                        rng.get2(Dim::PixelJitter)
-                    };
+                    let j = primary.pixel_offset(request.first_sample + s, &rng);
                     let dir = Vec3::from(camera.ray(x as f32 + j.x, y as f32 + j.y));
                     let l = self.radiance::<E>(lights, Ray::new(origin, dir), &rng, &mut stats.rays);
                     sum.add(l, &mut stats);
