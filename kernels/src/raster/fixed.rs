@@ -15,11 +15,15 @@
 //!    gets records of its own); the polygon left is fanned into triangles. Each vertex is projected for both eyes (the parallel rig's eyes differ by a
 //!    constant clip-space offset, so the right eye costs one more division per vertex) and
 //!    snapped to [`SUBPIXEL_BITS`] fractional bits. A triangle whose snapped area is zero, or
-//!    whose bounding box holds no pixel centre, in both eyes, keeps no record.
+//!    whose bounding box holds no pixel centre, in both eyes, keeps no record. [`Body::Simd`]
+//!    takes four triangles at a time in `f64x4` lanes through the culls, the projection and
+//!    the snap (the same operations, so the same vertices); a triangle that needs clipping
+//!    goes through the scalar setup, which is [`Body::Scalar`]'s for every triangle.
 //! 2. **Binning** to bands of rows per eye, in triangle order (as [`super::Rasterizer`]).
 //! 3. **Fragments** (parallel over bands): each record's bounding box is walked eight pixel
-//!    columns at a time ([`Body::Simd`]: two `i64x4` per edge; [`Body::Scalar`]: the
-//!    reference, a pixel at a time). Edge functions are exact integers, so coverage is
+//!    columns at a time ([`Body::Simd`]: eight `i32` lanes per edge where the steps allow,
+//!    one block per row and no span for a record at most eight columns wide, two `i64x4`
+//!    otherwise; [`Body::Scalar`]: the reference, a pixel at a time). Edge functions are exact integers, so coverage is
 //!    decided without rounding: a pixel centre is covered when every edge function is
 //!    positive, or zero on a top or left edge (shared edges cover each pixel exactly once).
 //!    The depth key `q = qc + qb·y' + qa·x'` (f32, relative to the record's first pixel,
@@ -39,7 +43,7 @@
 use std::time::Instant;
 
 use rayon::prelude::*;
-use wide::{i32x8, i64x4, u32x8};
+use wide::{f64x4, i32x8, i64x4, u32x8};
 
 use super::{AlphaTest, Body, EyeView, NO_PRIM, Projection, RasterStats, Triangles, VisibilityBuffer, band_range};
 use crate::camera::CameraModel;
@@ -172,7 +176,7 @@ impl FixedRasterizer {
         }
         let proj = Projection::new(cameras[0], cameras[1])?;
         let start = Instant::now();
-        let mut stats = self.setup(tris, &proj, mask, near);
+        let mut stats = self.setup(tris, &proj, mask, near, body);
         let setup_done = Instant::now();
         self.bin(extent);
         let binned = Instant::now();
@@ -186,10 +190,18 @@ impl FixedRasterizer {
         extent.height().div_ceil(self.band_rows)
     }
 
-    fn setup<M: AlphaTest>(&mut self, tris: Triangles<'_>, proj: &Projection, mask: &M, near: f32) -> RasterStats {
+    fn setup<M: AlphaTest>(
+        &mut self,
+        tris: Triangles<'_>,
+        proj: &Projection,
+        mask: &M,
+        near: f32,
+        body: Body,
+    ) -> RasterStats {
         let n = tris.len();
         let chunks = n.div_ceil(CHUNK);
         let (band_rows, bands) = (self.band_rows, (proj.height as usize).div_ceil(self.band_rows));
+        let near_f32 = near;
         self.records.resize_with(chunks, Vec::new);
         self.counts.clear();
         self.counts.resize(chunks * 2 * bands, 0);
@@ -200,13 +212,10 @@ impl FixedRasterizer {
             .map(|(chunk, (records, counts))| {
                 records.clear();
                 let mut stats = RasterStats::default();
-                let first = chunk * CHUNK;
-                for prim in first..(first + CHUNK).min(n) {
-                    let prim = prim as u32;
-                    let before = records.len();
-                    stats.clipped += u64::from(setup_triangle(tris.get(prim), prim, proj, near, records));
+                // Counts the records triangle `prim` pushed from `before` on.
+                let mut finish = |prim: u32, before: usize, records: &mut Vec<FixedRecord>, stats: &mut RasterStats| {
                     if records.len() == before {
-                        continue;
+                        return;
                     }
                     stats.visible += 1;
                     let masked = mask.has_mask(prim);
@@ -220,6 +229,34 @@ impl FixedRasterizer {
                             }
                         }
                     }
+                };
+                let (first, end) = (chunk * CHUNK, ((chunk + 1) * CHUNK).min(n));
+                let mut prim = first;
+                if body == Body::Simd {
+                    let near = both_eyes_near(proj, near);
+                    let mut snapped = [[Snapped::default(); 3]; 4];
+                    while prim + 4 <= end {
+                        let ids: [u32; 4] = core::array::from_fn(|i| (prim + i) as u32);
+                        let (culled, simple) = setup_four(ids.map(|id| tris.get(id)), proj, near, &mut snapped);
+                        for (lane, id) in ids.into_iter().enumerate() {
+                            let before = records.len();
+                            if simple >> lane & 1 != 0 {
+                                if let Some(rec) = record(snapped[lane], id, proj, [true; 2]) {
+                                    records.push(rec);
+                                }
+                            } else if culled >> lane & 1 == 0 {
+                                stats.clipped += u64::from(setup_triangle(tris.get(id), id, proj, near_f32, records));
+                            }
+                            finish(id, before, records, &mut stats);
+                        }
+                        prim += 4;
+                    }
+                }
+                for prim in prim..end {
+                    let prim = prim as u32;
+                    let before = records.len();
+                    stats.clipped += u64::from(setup_triangle(tris.get(prim), prim, proj, near_f32, records));
+                    finish(prim, before, records, &mut stats);
                 }
                 stats
             })
@@ -349,9 +386,7 @@ fn setup_triangle(t: &[f32; 9], prim: u32, p: &Projection, near: f32, out: &mut 
     if outside(&offsets[0]) && outside(&offsets[1]) {
         return false;
     }
-    // The near plane, in the left eye's clip space: both eyes' w must exceed `near` (the
-    // right eye's w differs by the rig's rounding noise).
-    let near = f64::from(near).max(f64::from(near) - p.right_offset[2]);
+    let near = both_eyes_near(p, near);
     let (hw, hh) = (f64::from(p.hw), f64::from(p.hh));
     let (gx, gy) = (GUARD_HALF_PX / hw, GUARD_HALF_PX / hh);
     let beyond = |c: &[f64; 3], o: &[f64; 3]| {
@@ -404,6 +439,77 @@ fn setup_triangle(t: &[f32; 9], prim: u32, p: &Projection, near: f32, out: &mut 
     }
     fan(&poly[..n], prim, p, [true; 2], out);
     clipped
+}
+
+/// The near plane in the left eye's clip space: both eyes' `w` must exceed `near` (the right
+/// eye's `w` differs by the rig's rounding noise).
+fn both_eyes_near(p: &Projection, near: f32) -> f64 {
+    f64::from(near).max(f64::from(near) - p.right_offset[2])
+}
+
+/// [`setup_triangle`]'s common case for four triangles at once, one per `f64x4` lane: the
+/// same f64 operations in the same order (so the same snapped vertices, bit for bit), without
+/// its branches. `near` is [`both_eyes_near`]'s. Returns two lane masks: the triangles
+/// culled (outside both eyes' frusta, collinear or not finite: no record), and those that
+/// need no clipping and land within the coordinate limit, whose snapped vertices are in
+/// `out` (their record is [`record`]'s). Lanes in neither are [`setup_triangle`]'s to do.
+fn setup_four(ts: [&[f32; 9]; 4], p: &Projection, near: f64, out: &mut [[Snapped; 3]; 4]) -> (u32, u32) {
+    type F = f64x4;
+    let all = F::splat(f64::from_bits(u64::MAX));
+    let comp = |k: usize, c: usize| F::from(ts.map(|t| f64::from(t[3 * k + c]))) - F::splat(f64::from(p.centre[c]));
+    let d: [[F; 3]; 3] = core::array::from_fn(|k| core::array::from_fn(|c| comp(k, c)));
+    let finite = d.iter().flatten().fold(all, |acc, v| acc & v.is_finite());
+    let (e1, e2) = ([0, 1, 2].map(|c| d[1][c] - d[0][c]), [0, 1, 2].map(|c| d[2][c] - d[0][c]));
+    let area = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
+    let collinear = area.iter().fold(all, |acc, a| acc & a.simd_eq(F::splat(0.0)));
+    let row = |r: &[f32; 3]| r.map(|x| F::splat(f64::from(x)));
+    let (rx, ry, rw) = (row(&p.rx), row(&p.ry), row(&p.rw));
+    let dot = |r: &[F; 3], v: &[F; 3]| r[0] * v[0] + r[1] * v[1] + r[2] * v[2];
+    let clip = d.map(|v| [dot(&rx, &v), dot(&ry, &v), dot(&rw, &v)]);
+    let offsets = [[0.0; 3], p.right_offset].map(|o| o.map(F::splat));
+    // Per eye, the clip coordinates `(x, y, w)` of the three vertices.
+    let eye_clip = offsets.map(|o| clip.map(|c| [c[0] + o[0], c[1] + o[1], c[2] + o[2]]));
+    // All three vertices beyond one side plane of an eye's frustum.
+    let outside = |v: &[[F; 3]; 3]| {
+        let (mut right, mut left, mut up, mut down) = (all, all, all, all);
+        for [x, y, w] in v {
+            right &= x.simd_gt(*w);
+            left &= (-*x).simd_gt(*w);
+            up &= y.simd_gt(*w);
+            down &= (-*y).simd_gt(*w);
+        }
+        right | left | up | down
+    };
+    let culled = !finite | collinear | (outside(&eye_clip[0]) & outside(&eye_clip[1]));
+    let (hw, hh) = (F::splat(f64::from(p.hw)), F::splat(f64::from(p.hh)));
+    let (gx, gy) = (F::splat(GUARD_HALF_PX / f64::from(p.hw)), F::splat(GUARD_HALF_PX / f64::from(p.hh)));
+    let (limit, one) = (F::splat(HARD_LIMIT_PX), F::splat(ONE as f64));
+    let mut simple = clip.iter().fold(all, |acc, c| acc & c[2].simd_gt(F::splat(near)));
+    // Per eye and vertex: the snapped position (rounded, in f64) and q.
+    let mut snapped = [[[F::splat(0.0); 3]; 3]; 2];
+    for (eye, v) in eye_clip.iter().enumerate() {
+        for (k, [x, y, w]) in v.iter().enumerate() {
+            simple &= x.abs().simd_le(gx * *w) & y.abs().simd_le(gy * *w);
+            let q = F::splat(1.0) / *w;
+            let (sx, sy) = (*x * q * hw + hw, -*y * q * hh + hh);
+            simple &= sx.abs().simd_le(limit) & sy.abs().simd_le(limit);
+            // `round` is f64::round's (half away from zero), lane for lane.
+            snapped[eye][k] = [(sx * one).round(), (sy * one).round(), q];
+        }
+    }
+    let (culled, simple) = (culled.to_bitmask(), simple.to_bitmask() & !culled.to_bitmask());
+    for (eye, v) in snapped.iter().enumerate() {
+        for (k, [x, y, q]) in v.iter().enumerate() {
+            let (x, y, q) = (x.to_array(), y.to_array(), q.to_array());
+            for (lane, tri) in out.iter_mut().enumerate() {
+                // In range for simple lanes (|x| ≤ 2²⁹); the others are not read.
+                tri[k].x[eye] = x[lane] as i64;
+                tri[k].y[eye] = y[lane] as i64;
+                tri[k].q[eye] = q[lane];
+            }
+        }
+    }
+    (culled, simple)
 }
 
 /// Snaps the convex polygon `poly` (clip space) for `eyes`, and pushes the records of its fan
@@ -632,7 +738,11 @@ fn row_span(e: &FixedEyeEdges, dy: i64, width: usize) -> Option<(usize, usize)> 
 fn walk_simd<M: AlphaTest>(rec: &FixedRecord, eye: usize, view: &EyeView<'_, M>, band: &mut Band<'_>) -> u64 {
     let e = &rec.eyes[eye];
     if !rec.masked && e.dx.iter().all(|d| d.abs() < NARROW_STEP) {
-        walk_narrow(rec, eye, band);
+        if e.cols.1 - e.cols.0 < LANES as i32 && e.cols.0 as usize + LANES <= band.width {
+            walk_small(rec, eye, band);
+        } else {
+            walk_narrow(rec, eye, band);
+        }
         return 0;
     }
     walk_wide(rec, eye, view, band)
@@ -711,6 +821,46 @@ fn walk_narrow(rec: &FixedRecord, eye: usize, band: &mut Band<'_>) {
             }
             bx += LANES;
         }
+    }
+}
+
+/// [`walk_narrow`] for a record at most eight columns wide that ends at least eight columns
+/// before the image's right border (most of a detailed scene's triangles): one block per row
+/// at the record's first column, so a row costs no span, and the edge values step by row in
+/// exact integers. A row that covers nothing loads and stores nothing.
+fn walk_small(rec: &FixedRecord, eye: usize, band: &mut Band<'_>) {
+    let e = &rec.eyes[eye];
+    let Some(((c0, c1), (y0, y1))) = span(rec, eye, band) else { return };
+    let lane = i32x8::from([0, 1, 2, 3, 4, 5, 6, 7]);
+    let lane_dx = e.dx.map(|d| lane * i32x8::splat(d as i32));
+    const LIMIT: i64 = 1 << 30;
+    let (prim, qa) = (u32x8::splat(rec.prim), F32s::splat(e.qa));
+    // Lanes past the record's last column are never covered.
+    let valid = lane.simd_le(i32x8::splat(c1 - c0));
+    // The depth key's lanes relative to the row's: the reference's `qa · (x − c0)`.
+    let q_lanes = lane_offsets() * qa;
+    let first = i64::from(y0 - rec.rows.0);
+    let mut edge: [i64; 3] = core::array::from_fn(|k| e.e0[k] + e.dy[k] * first);
+    let mut row = (y0 as usize - band.rows.start) * band.width + c0 as usize;
+    for y in y0..=y1 {
+        let outside = (0..3)
+            .fold(i32x8::splat(0), |acc, k| acc | (i32x8::splat(edge[k].clamp(-LIMIT, LIMIT) as i32) + lane_dx[k]));
+        let covered = valid & outside.simd_ge(i32x8::splat(0));
+        for k in 0..3 {
+            edge[k] += e.dy[k];
+        }
+        if covered.any() {
+            let q = F32s::splat(e.qc + e.qb * (y - rec.rows.0) as f32) + q_lanes;
+            let at = row;
+            let stored_q = hidden(F32s::from(<[f32; LANES]>::try_from(&band.q[at..at + LANES]).expect("8 lanes")));
+            let stored_p = hidden(u32x8::from(<[u32; LANES]>::try_from(&band.prim[at..at + LANES]).expect("8 lanes")));
+            let nearer: u32x8 = bytemuck::cast(q.simd_gt(stored_q));
+            let tie = bytemuck::cast::<F32s, u32x8>(q.simd_eq(stored_q)) & prim.simd_lt(stored_p);
+            let wins = bytemuck::cast::<i32x8, u32x8>(covered) & (nearer | tie);
+            band.q[at..at + LANES].copy_from_slice(&bytemuck::cast::<u32x8, F32s>(wins).select(q, stored_q).to_array());
+            band.prim[at..at + LANES].copy_from_slice(&wins.select(prim, stored_p).to_array());
+        }
+        row += band.width;
     }
 }
 
@@ -847,5 +997,96 @@ mod tests {
         assert_eq!(n, 4);
         assert!(poly[..n].iter().all(|c| c[2] >= 0.0));
         assert!(poly[..n].contains(&[0.5, 0.0, 0.0]) && poly[..n].contains(&[0.0, 0.5, 0.0]));
+    }
+
+    /// A 1280×720 pair looking down −z with a 90° field of view, the right eye 6.5 cm to the
+    /// right, its centre away from the origin (so the f64 differences are not trivial).
+    fn rig() -> Projection {
+        Projection {
+            centre: [3.25, -1.5, 7.0],
+            rx: [1.0, 0.0, 0.0],
+            ry: [0.0, 1.0, 0.0],
+            rw: [0.0, 0.0, -1.0],
+            right_offset: [-0.065, 1e-9, -2e-9],
+            hw: 640.0,
+            hh: 360.0,
+            ray_slack: 0.0,
+            px_per_radian: 1500.0,
+            m_inv: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]],
+            centre_offset: [0.065, 0.0, 0.0],
+            width: 1280,
+            height: 720,
+        }
+    }
+
+    /// The four-wide setup against the scalar one, triangle by triangle: the same records
+    /// (bit for bit) and the same "clipped" count, on seeded random triangles around the
+    /// eye (in front, behind, across the near plane, far off screen) and on edge cases:
+    /// vertices on half-subpixel positions (the rounding's ties), non-finite and collinear
+    /// vertices, a vertex past the guard band, a triangle exactly on the near plane.
+    #[test]
+    fn the_four_wide_setup_makes_the_scalar_setups_records() {
+        let p = rig();
+        let near = 1e-3f32;
+        let mut rng = crate::synth::Rng::new(0x5e7_0f0);
+        let mut tris: Vec<[f32; 9]> = Vec::new();
+        let c = p.centre;
+        for _ in 0..4000 {
+            // A centre in front of, beside or behind the eye, and a size from sub-pixel to huge.
+            let z = rng.range(-3.0, 40.0);
+            let spread = [0.001, 0.05, 1.0, 30.0][rng.below(4)];
+            let at = [rng.range(-1.2, 1.2) * z.abs(), rng.range(-0.7, 0.7) * z.abs(), -z];
+            tris.push(core::array::from_fn(|i| c[i % 3] + at[i % 3] + rng.range(-spread, spread)));
+        }
+        // Vertices whose screen x lands exactly on k + 1/512 px (a tie of the 1/256 snap):
+        // x_screen = X/w · 640 + 640 with w = 2.
+        let tie = |k: f32| (k + 1.0 / 512.0 - 640.0) / 640.0 * 2.0;
+        for k in [100.0, 101.0, 640.0, -3.0] {
+            tris.push([
+                c[0] + tie(k),
+                c[1],
+                c[2] - 2.0,
+                c[0] + tie(k + 5.0),
+                c[1] + 0.3,
+                c[2] - 2.0,
+                c[0] - tie(k),
+                c[1] - 0.2,
+                c[2] - 2.0,
+            ]);
+        }
+        let front = |x: f32, y: f32, z: f32| [c[0] + x, c[1] + y, c[2] - z];
+        let tri = |a: [f32; 3], b: [f32; 3], d: [f32; 3]| [a[0], a[1], a[2], b[0], b[1], b[2], d[0], d[1], d[2]];
+        tris.push(tri(front(f32::NAN, 0.0, 2.0), front(1.0, 0.0, 2.0), front(0.0, 1.0, 2.0)));
+        tris.push(tri(front(f32::INFINITY, 0.0, 2.0), front(1.0, 0.0, 2.0), front(0.0, 1.0, 2.0)));
+        tris.push(tri(front(0.0, 0.0, 2.0), front(1.0, 1.0, 2.0), front(2.0, 2.0, 2.0)));
+        tris.push(tri(front(0.0, 0.0, 2.0), front(1e7, 0.0, 2.0), front(0.0, 1.0, 2.0)));
+        tris.push(tri(front(0.0, 0.0, near), front(1.0, 0.0, near), front(0.0, 1.0, near)));
+        tris.push(tri(front(0.0, 0.0, 1.0), front(1.0, 0.0, -1.0), front(0.0, 1.0, 1.0)));
+        while !tris.len().is_multiple_of(4) {
+            tris.push(tris[tris.len() % 7]);
+        }
+        let near64 = both_eyes_near(&p, near);
+        let (mut kinds, mut snapped) = ([0usize; 3], [[Snapped::default(); 3]; 4]);
+        for (group, four) in tris.chunks_exact(4).enumerate() {
+            let ts = [&four[0], &four[1], &four[2], &four[3]];
+            let (culled, simple) = setup_four(ts, &p, near64, &mut snapped);
+            for lane in 0..4 {
+                let prim = (group * 4 + lane) as u32;
+                let mut want = Vec::new();
+                let clipped = setup_triangle(ts[lane], prim, &p, near, &mut want);
+                if simple >> lane & 1 != 0 {
+                    kinds[0] += 1;
+                    let got: Vec<_> = record(snapped[lane], prim, &p, [true; 2]).into_iter().collect();
+                    assert_eq!((got, false), (want, clipped), "triangle {prim}: {:?}", ts[lane]);
+                } else if culled >> lane & 1 != 0 {
+                    kinds[1] += 1;
+                    assert_eq!((want.len(), clipped), (0, false), "triangle {prim} culled: {:?}", ts[lane]);
+                } else {
+                    kinds[2] += 1;
+                }
+            }
+        }
+        // Every kind of lane was met, or the comparison proved little.
+        assert!(kinds.iter().all(|&k| k > 50), "simple, culled, left to the scalar setup: {kinds:?}");
     }
 }
