@@ -809,13 +809,7 @@ fn walk_narrow(rec: &FixedRecord, eye: usize, band: &mut Band<'_>) {
             let valid = xs.simd_ge(i32x8::splat(lo as i32)) & xs.simd_le(i32x8::splat(hi as i32));
             let covered: u32x8 = bytemuck::cast(valid & outside.simd_ge(i32x8::splat(0)));
             let at = row + bx;
-            let stored_q = hidden(F32s::from(<[f32; LANES]>::try_from(&band.q[at..at + LANES]).expect("8 lanes")));
-            let stored_p = hidden(u32x8::from(<[u32; LANES]>::try_from(&band.prim[at..at + LANES]).expect("8 lanes")));
-            let nearer: u32x8 = bytemuck::cast(q.simd_gt(stored_q));
-            let tie = bytemuck::cast::<F32s, u32x8>(q.simd_eq(stored_q)) & prim.simd_lt(stored_p);
-            let wins = covered & (nearer | tie);
-            band.q[at..at + LANES].copy_from_slice(&bytemuck::cast::<u32x8, F32s>(wins).select(q, stored_q).to_array());
-            band.prim[at..at + LANES].copy_from_slice(&wins.select(prim, stored_p).to_array());
+            depth_test_block(band, at, q, prim, covered);
             for k in 0..3 {
                 edge[k] += step[k];
             }
@@ -852,16 +846,24 @@ fn walk_small(rec: &FixedRecord, eye: usize, band: &mut Band<'_>) {
         if covered.any() {
             let q = F32s::splat(e.qc + e.qb * (y - rec.rows.0) as f32) + q_lanes;
             let at = row;
-            let stored_q = hidden(F32s::from(<[f32; LANES]>::try_from(&band.q[at..at + LANES]).expect("8 lanes")));
-            let stored_p = hidden(u32x8::from(<[u32; LANES]>::try_from(&band.prim[at..at + LANES]).expect("8 lanes")));
-            let nearer: u32x8 = bytemuck::cast(q.simd_gt(stored_q));
-            let tie = bytemuck::cast::<F32s, u32x8>(q.simd_eq(stored_q)) & prim.simd_lt(stored_p);
-            let wins = bytemuck::cast::<i32x8, u32x8>(covered) & (nearer | tie);
-            band.q[at..at + LANES].copy_from_slice(&bytemuck::cast::<u32x8, F32s>(wins).select(q, stored_q).to_array());
-            band.prim[at..at + LANES].copy_from_slice(&wins.select(prim, stored_p).to_array());
+            depth_test_block(band, at, q, prim, bytemuck::cast(covered));
         }
         row += band.width;
     }
+}
+
+/// The depth test of the eight pixels from plane index `at` (all inside the band's row): the
+/// `covered` lanes whose `q` wins ([`wins`], lane for lane) take `q` and `prim`. A blend and a
+/// plain store of all eight, taken or not.
+#[inline(always)]
+fn depth_test_block(band: &mut Band<'_>, at: usize, q: F32s, prim: u32x8, covered: u32x8) {
+    let stored_q = hidden(F32s::from(<[f32; LANES]>::try_from(&band.q[at..at + LANES]).expect("8 lanes")));
+    let stored_p = hidden(u32x8::from(<[u32; LANES]>::try_from(&band.prim[at..at + LANES]).expect("8 lanes")));
+    let nearer: u32x8 = bytemuck::cast(q.simd_gt(stored_q));
+    let tie = bytemuck::cast::<F32s, u32x8>(q.simd_eq(stored_q)) & prim.simd_lt(stored_p);
+    let wins = covered & (nearer | tie);
+    band.q[at..at + LANES].copy_from_slice(&bytemuck::cast::<u32x8, F32s>(wins).select(q, stored_q).to_array());
+    band.prim[at..at + LANES].copy_from_slice(&wins.select(prim, stored_p).to_array());
 }
 
 /// `v`, hidden from the optimiser (no instruction). The blocks store `select(wins, new,
