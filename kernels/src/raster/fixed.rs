@@ -201,7 +201,6 @@ impl FixedRasterizer {
         let n = tris.len();
         let chunks = n.div_ceil(CHUNK);
         let (band_rows, bands) = (self.band_rows, (proj.height as usize).div_ceil(self.band_rows));
-        let near_f32 = near;
         self.records.resize_with(chunks, Vec::new);
         self.counts.clear();
         self.counts.resize(chunks * 2 * bands, 0);
@@ -233,11 +232,11 @@ impl FixedRasterizer {
                 let (first, end) = (chunk * CHUNK, ((chunk + 1) * CHUNK).min(n));
                 let mut prim = first;
                 if body == Body::Simd {
-                    let near = both_eyes_near(proj, near);
+                    let near64 = both_eyes_near(proj, near);
                     let mut snapped = [[Snapped::default(); 3]; 4];
                     while prim + 4 <= end {
                         let ids: [u32; 4] = core::array::from_fn(|i| (prim + i) as u32);
-                        let (culled, simple) = setup_four(ids.map(|id| tris.get(id)), proj, near, &mut snapped);
+                        let (culled, simple) = setup_four(ids.map(|id| tris.get(id)), proj, near64, &mut snapped);
                         for (lane, id) in ids.into_iter().enumerate() {
                             let before = records.len();
                             if simple >> lane & 1 != 0 {
@@ -245,7 +244,7 @@ impl FixedRasterizer {
                                     records.push(rec);
                                 }
                             } else if culled >> lane & 1 == 0 {
-                                stats.clipped += u64::from(setup_triangle(tris.get(id), id, proj, near_f32, records));
+                                stats.clipped += u64::from(setup_triangle(tris.get(id), id, proj, near, records));
                             }
                             finish(id, before, records, &mut stats);
                         }
@@ -255,7 +254,7 @@ impl FixedRasterizer {
                 for prim in prim..end {
                     let prim = prim as u32;
                     let before = records.len();
-                    stats.clipped += u64::from(setup_triangle(tris.get(prim), prim, proj, near_f32, records));
+                    stats.clipped += u64::from(setup_triangle(tris.get(prim), prim, proj, near, records));
                     finish(prim, before, records, &mut stats);
                 }
                 stats
@@ -497,7 +496,8 @@ fn setup_four(ts: [&[f32; 9]; 4], p: &Projection, near: f64, out: &mut [[Snapped
             snapped[eye][k] = [(sx * one).round(), (sy * one).round(), q];
         }
     }
-    let (culled, simple) = (culled.to_bitmask(), simple.to_bitmask() & !culled.to_bitmask());
+    let culled = culled.to_bitmask();
+    let simple = simple.to_bitmask() & !culled;
     for (eye, v) in snapped.iter().enumerate() {
         for (k, [x, y, q]) in v.iter().enumerate() {
             let (x, y, q) = (x.to_array(), y.to_array(), q.to_array());
@@ -763,7 +763,6 @@ fn walk_narrow(rec: &FixedRecord, eye: usize, band: &mut Band<'_>) {
     let lane = i32x8::from([0, 1, 2, 3, 4, 5, 6, 7]);
     let lane_dx = e.dx.map(|d| lane * i32x8::splat(d as i32));
     let step = e.dx.map(|d| 8 * d);
-    const LIMIT: i64 = 1 << 30;
     let (prim, qa) = (u32x8::splat(rec.prim), F32s::splat(e.qa));
     let (c0, width) = (c0 as usize, (c1 - c0 + 1) as usize);
     // Where each edge crosses row dy, as a linear function of dy (the f64 form of
@@ -803,8 +802,7 @@ fn walk_narrow(rec: &FixedRecord, eye: usize, band: &mut Band<'_>) {
                 scalar_lanes(rec, e, &edge, q, from..to, &mut band.q[row + bx..], &mut band.prim[row + bx..]);
                 break;
             }
-            let outside = (0..3)
-                .fold(i32x8::splat(0), |acc, k| acc | (i32x8::splat(edge[k].clamp(-LIMIT, LIMIT) as i32) + lane_dx[k]));
+            let outside = edge_signs(&edge, &lane_dx);
             let xs = lane + i32x8::splat(bx as i32);
             let valid = xs.simd_ge(i32x8::splat(lo as i32)) & xs.simd_le(i32x8::splat(hi as i32));
             let covered: u32x8 = bytemuck::cast(valid & outside.simd_ge(i32x8::splat(0)));
@@ -827,7 +825,6 @@ fn walk_small(rec: &FixedRecord, eye: usize, band: &mut Band<'_>) {
     let Some(((c0, c1), (y0, y1))) = span(rec, eye, band) else { return };
     let lane = i32x8::from([0, 1, 2, 3, 4, 5, 6, 7]);
     let lane_dx = e.dx.map(|d| lane * i32x8::splat(d as i32));
-    const LIMIT: i64 = 1 << 30;
     let (prim, qa) = (u32x8::splat(rec.prim), F32s::splat(e.qa));
     // Lanes past the record's last column are never covered.
     let valid = lane.simd_le(i32x8::splat(c1 - c0));
@@ -837,19 +834,27 @@ fn walk_small(rec: &FixedRecord, eye: usize, band: &mut Band<'_>) {
     let mut edge: [i64; 3] = core::array::from_fn(|k| e.e0[k] + e.dy[k] * first);
     let mut row = (y0 as usize - band.rows.start) * band.width + c0 as usize;
     for y in y0..=y1 {
-        let outside = (0..3)
-            .fold(i32x8::splat(0), |acc, k| acc | (i32x8::splat(edge[k].clamp(-LIMIT, LIMIT) as i32) + lane_dx[k]));
+        let outside = edge_signs(&edge, &lane_dx);
         let covered = valid & outside.simd_ge(i32x8::splat(0));
         for k in 0..3 {
             edge[k] += e.dy[k];
         }
         if covered.any() {
             let q = F32s::splat(e.qc + e.qb * (y - rec.rows.0) as f32) + q_lanes;
-            let at = row;
-            depth_test_block(band, at, q, prim, bytemuck::cast(covered));
+            depth_test_block(band, row, q, prim, bytemuck::cast(covered));
         }
         row += band.width;
     }
+}
+
+/// The three edge functions of a block's eight lanes OR-ed together (negative where a lane
+/// is outside an edge): each from the block's exact `i64` value clamped to ±2³⁰ plus the lane
+/// steps `lane_dx` (at most 7 steps of < [`NARROW_STEP`]), so every sign is exact (see
+/// [`walk_narrow`]).
+#[inline(always)]
+fn edge_signs(edge: &[i64; 3], lane_dx: &[i32x8; 3]) -> i32x8 {
+    const LIMIT: i64 = 1 << 30;
+    (0..3).fold(i32x8::splat(0), |acc, k| acc | (i32x8::splat(edge[k].clamp(-LIMIT, LIMIT) as i32) + lane_dx[k]))
 }
 
 /// The depth test of the eight pixels from plane index `at` (all inside the band's row): the
