@@ -1,6 +1,8 @@
 //! Stereo and temporal reprojection at 1280×720 in both G-buffer layouts (and with motion
 //! planes), the scalar reference beside the SIMD body, on 1 and 2 threads, throughput in
-//! pixels; the band height sweep; the memory triad of the same run for the roofline.
+//! pixels; the band height sweep; the memory triad of the same run for the roofline. On an
+//! AVX-512 CPU `simd` is the body compiled with AVX-512 and `simd-avx2` the baseline's
+//! (`STEREOTRACE_ISA=avx2` makes `simd` the baseline's too).
 //!
 //! Run: `cargo bench -p stereotrace-kernels --bench reproject` (add `-- <filter>`).
 
@@ -9,7 +11,20 @@ mod common;
 use common::{Fixture, Outputs, pool, run_reprojection};
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use stereotrace_kernels::frame::PlaneBuf;
+use stereotrace_kernels::isa::Isa;
 use stereotrace_kernels::reproject::ReprojectParams;
+
+/// The bodies each group times: `simd` is the one the kernel takes on this CPU
+/// ([`Isa::active`]); on an AVX-512 CPU `simd-avx2` is the 8-lane body compiled for the
+/// baseline, so the two copies are compared in one run.
+fn bodies() -> Vec<(&'static str, Option<Isa>)> {
+    let mut bodies = vec![("simd", Some(Isa::active()))];
+    if Isa::active() == Isa::Avx512 {
+        bodies.push(("simd-avx2", Some(Isa::Avx2)));
+    }
+    bodies.push(("scalar", None));
+    bodies
+}
 
 fn reprojection(c: &mut Criterion) {
     let f = Fixture::new();
@@ -21,15 +36,14 @@ fn reprojection(c: &mut Criterion) {
         group.throughput(Throughput::Elements(f.extent().pixels() as u64));
         for threads in [1, 2] {
             let pool = pool(threads);
-            for simd in [true, false] {
-                let body = if simd { "simd" } else { "scalar" };
+            for (body, isa) in bodies() {
                 group.bench_function(BenchmarkId::new(format!("{body}/compact"), threads), |b| {
                     let (t, s) = (target.compact(), source.compact());
-                    b.iter(|| pool.install(|| run_reprojection(&t, &s, source, &f.params, &mut out, simd, None)))
+                    b.iter(|| pool.install(|| run_reprojection(&t, &s, source, &f.params, &mut out, isa, None)))
                 });
                 group.bench_function(BenchmarkId::new(format!("{body}/full"), threads), |b| {
                     let (t, s) = (target.gbuffer(), source.gbuffer());
-                    b.iter(|| pool.install(|| run_reprojection(&t, &s, source, &f.params, &mut out, simd, None)))
+                    b.iter(|| pool.install(|| run_reprojection(&t, &s, source, &f.params, &mut out, isa, None)))
                 });
                 if group_name == "reproject_temporal" {
                     // Zero motion vectors: the same result, so this prices reading them.
@@ -37,7 +51,7 @@ fn reprojection(c: &mut Criterion) {
                     group.bench_function(BenchmarkId::new(format!("{body}/compact+motion"), threads), |b| {
                         let (t, s) = (target.compact(), source.compact());
                         b.iter(|| {
-                            pool.install(|| run_reprojection(&t, &s, source, &f.params, &mut out, simd, Some(&still)))
+                            pool.install(|| run_reprojection(&t, &s, source, &f.params, &mut out, isa, Some(&still)))
                         })
                     });
                 }
@@ -57,7 +71,7 @@ fn band_rows(c: &mut Criterion) {
         let params = ReprojectParams { band_rows: rows, ..f.params };
         group.bench_function(BenchmarkId::from_parameter(rows), |b| {
             let (t, s) = (f.left.compact(), f.right.compact());
-            b.iter(|| pool.install(|| run_reprojection(&t, &s, &f.right, &params, &mut out, true, None)))
+            b.iter(|| pool.install(|| run_reprojection(&t, &s, &f.right, &params, &mut out, Some(Isa::active()), None)))
         });
     }
     group.finish();

@@ -5,6 +5,7 @@ use glam::Vec3;
 use stereotrace_kernels::check::same_bits;
 use stereotrace_kernels::frame::{Extent, Plane, PlaneBuf, PlaneMut, RgbBuf, RgbPlanes, RgbPlanesMut};
 use stereotrace_kernels::gbuffer::{GBuffer, SurfaceLayout};
+use stereotrace_kernels::isa::Isa;
 use stereotrace_kernels::reproject::{
     self, Reason, ReasonCounts, ReprojectInput, ReprojectOutput, ReprojectParams, TapPolicy, Tolerances,
 };
@@ -30,6 +31,15 @@ fn run_reprojection<L: SurfaceLayout>(
     params: &ReprojectParams,
     simd: bool,
 ) -> Result<Reprojected, FrameError> {
+    run_body(input, params, if simd { Some(Isa::active()) } else { None })
+}
+
+/// The SIMD body of `isa`, or the scalar reference for `None`.
+fn run_body<L: SurfaceLayout>(
+    input: &ReprojectInput<'_, L>,
+    params: &ReprojectParams,
+    isa: Option<Isa>,
+) -> Result<Reprojected, FrameError> {
     let e = input.target.extent();
     // Sentinels: a pixel a mask skips must keep them.
     let mut colour = RgbBuf::new(e, -7.0);
@@ -42,9 +52,20 @@ fn run_reprojection<L: SurfaceLayout>(
         reason: reason.view_mut(),
         weight: Some(weight.view_mut()),
     };
-    let counts =
-        if simd { reproject::reproject(input, out, params)? } else { reproject::reproject_scalar(input, out, params)? };
+    let counts = match isa {
+        Some(isa) => reproject::reproject_with(input, out, params, isa)?,
+        None => reproject::reproject_scalar(input, out, params)?,
+    };
     Ok(Reprojected { counts, colour, extra, reason, weight })
+}
+
+/// Every SIMD body this CPU has (the AVX-512 one is the 8-lane source compiled again with
+/// AVX-512 enabled) gives the scalar reference's bits.
+fn assert_every_body_matches_scalar<L: SurfaceLayout>(input: &ReprojectInput<'_, L>, params: &ReprojectParams) {
+    let reference = run_body(input, params, None).unwrap();
+    for isa in Isa::ALL.into_iter().filter(|isa| isa.is_supported()) {
+        assert_same(&run_body(input, params, Some(isa)).unwrap(), &reference);
+    }
 }
 
 fn assert_same_planes(what: &str, a: &PlaneBuf, b: &PlaneBuf) {
@@ -106,15 +127,9 @@ fn simd_equals_scalar_on_stereo_and_temporal_pairs_at_awkward_widths() {
             for policy in [TapPolicy::Renormalize, TapPolicy::Strict] {
                 let p = params(policy);
                 let (tf, sf) = (left.gbuffer(), right.gbuffer());
-                let input = input_for(&tf, &sf, &right, Some(extra.view()));
-                let a = run_reprojection(&input, &p, true).unwrap();
-                let b = run_reprojection(&input, &p, false).unwrap();
-                assert_same(&a, &b);
+                assert_every_body_matches_scalar(&input_for(&tf, &sf, &right, Some(extra.view())), &p);
                 let (tc, sc) = (left.compact(), right.compact());
-                let input = input_for(&tc, &sc, &right, None);
-                let a = run_reprojection(&input, &p, true).unwrap();
-                let b = run_reprojection(&input, &p, false).unwrap();
-                assert_same(&a, &b);
+                assert_every_body_matches_scalar(&input_for(&tc, &sc, &right, None), &p);
             }
         }
     }
@@ -193,6 +208,10 @@ fn corrupt(frame: &mut SynthFrame, rng: &mut Rng, share: f32) {
 
 #[test]
 fn simd_equals_scalar_with_edge_values_and_random_cameras() {
+    let isas: Vec<Isa> = Isa::ALL.into_iter().filter(|isa| isa.is_supported()).collect();
+    if isas.len() < Isa::ALL.len() {
+        eprintln!("SKIP part: this CPU runs only {isas:?}; the other bodies are compared where it has them");
+    }
     let mut rng = Rng::new(7);
     for case in 0..60 {
         let e = extent(1 + rng.below(40), 1 + rng.below(12));
@@ -223,11 +242,9 @@ fn simd_equals_scalar_with_edge_values_and_random_cameras() {
         for policy in [TapPolicy::Renormalize, TapPolicy::Strict] {
             let p = ReprojectParams { tolerances, policy, band_rows: 1 + rng.below(5) };
             let (tf, sf) = (target.gbuffer(), source.gbuffer());
-            let input = input_for(&tf, &sf, &source, None);
-            assert_same(&run_reprojection(&input, &p, true).unwrap(), &run_reprojection(&input, &p, false).unwrap());
+            assert_every_body_matches_scalar(&input_for(&tf, &sf, &source, None), &p);
             let (tc, sc) = (target.compact(), source.compact());
-            let input = input_for(&tc, &sc, &source, Some(source.colour.g().view()));
-            assert_same(&run_reprojection(&input, &p, true).unwrap(), &run_reprojection(&input, &p, false).unwrap());
+            assert_every_body_matches_scalar(&input_for(&tc, &sc, &source, Some(source.colour.g().view())), &p);
         }
     }
 }
@@ -724,8 +741,8 @@ fn motion_with_edge_values_matches_the_scalar_reference_and_is_invalid_where_not
         let (tc, sc) = (target.compact(), source.compact());
         let input =
             ReprojectInput { motion: Some(motion.each_ref().map(|p| p.view())), ..input_for(&tc, &sc, &source, None) };
+        assert_every_body_matches_scalar(&input, &p);
         let simd = run_reprojection(&input, &p, true).unwrap();
-        assert_same(&simd, &run_reprojection(&input, &p, false).unwrap());
         for i in 0..e.pixels() {
             let finite = (0..3).all(|c| motion[c].as_slice()[i].is_finite());
             let background = target.surfaces.depth.as_slice()[i] == f32::INFINITY;

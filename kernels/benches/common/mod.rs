@@ -12,6 +12,7 @@ use glam::Vec3;
 use rayon::ThreadPool;
 use stereotrace_kernels::frame::{Extent, PlaneBuf, RgbBuf};
 use stereotrace_kernels::gbuffer::SurfaceLayout;
+use stereotrace_kernels::isa::Isa;
 use stereotrace_kernels::reproject::{self, ReprojectInput, ReprojectOutput, ReprojectParams, Tolerances};
 use stereotrace_kernels::synth::{AnalyticScene, SynthFrame, camera_at};
 
@@ -86,7 +87,7 @@ pub fn run_reprojection<L: SurfaceLayout>(
     source_frame: &SynthFrame,
     params: &ReprojectParams,
     out: &mut Outputs,
-    simd: bool,
+    body: Option<Isa>,
     motion: Option<&[PlaneBuf; 3]>,
 ) {
     let input = ReprojectInput {
@@ -100,8 +101,10 @@ pub fn run_reprojection<L: SurfaceLayout>(
         jitter: None,
     };
     let o = ReprojectOutput { colour: out.colour.view_mut(), extra: None, reason: out.reason.view_mut(), weight: None };
-    let counts =
-        if simd { reproject::reproject(&input, o, params) } else { reproject::reproject_scalar(&input, o, params) };
+    let counts = match body {
+        Some(isa) => reproject::reproject_with(&input, o, params, isa),
+        None => reproject::reproject_scalar(&input, o, params),
+    };
     black_box(counts.expect("valid input"));
 }
 

@@ -265,7 +265,8 @@ fn check_reprojection<L: SurfaceLayout>(
         assert_eq!(reproject::reproject_scalar(&input, out, params).err(), Some(refusal));
         return;
     }
-    let run = |simd: bool| {
+    // `None`: the scalar reference; `Some(isa)`: that SIMD body.
+    let run = |body: Option<Isa>| {
         let mut colour = RgbBuf::new(e, f32::NAN);
         let mut extra_out = PlaneBuf::new(e, f32::NAN);
         let mut reason = PlaneBuf::new(e, u8::MAX);
@@ -276,24 +277,30 @@ fn check_reprojection<L: SurfaceLayout>(
             reason: reason.view_mut(),
             weight: Some(weight.view_mut()),
         };
-        let counts = if simd {
-            reproject::reproject(&input, out, params)
-        } else {
-            reproject::reproject_scalar(&input, out, params)
+        let counts = match body {
+            Some(isa) => reproject::reproject_with(&input, out, params, isa),
+            None => reproject::reproject_scalar(&input, out, params),
         };
         (counts.expect("validated input"), colour, extra_out, reason, weight)
     };
-    let (counts, colour, extra_out, reason, weight) = run(true);
-    let (counts_ref, colour_ref, extra_ref, reason_ref, weight_ref) = run(false);
-    assert_eq!(counts, counts_ref, "reason counts");
-    assert_eq!(reason, reason_ref, "reason codes");
-    for (a, b) in [(colour.r(), colour_ref.r()), (colour.g(), colour_ref.g()), (colour.b(), colour_ref.b())] {
-        assert_bits("colour", a, b);
+    let (counts_ref, colour_ref, extra_ref, reason_ref, weight_ref) = run(None);
+    // Every SIMD body this CPU has, each against the reference; the checks below read the
+    // last (the widest), which equals the others.
+    let mut widest = None;
+    for isa in Isa::ALL.into_iter().filter(|isa| isa.is_supported()) {
+        let (counts, colour, extra_out, reason, weight) = run(Some(isa));
+        assert_eq!(counts, counts_ref, "reason counts ({isa:?})");
+        assert_eq!(reason, reason_ref, "reason codes ({isa:?})");
+        for (a, b) in [(colour.r(), colour_ref.r()), (colour.g(), colour_ref.g()), (colour.b(), colour_ref.b())] {
+            assert_bits("colour", a, b);
+        }
+        if extra.is_some() {
+            assert_bits("extra channel", &extra_out, &extra_ref);
+        }
+        assert_bits("weight", &weight, &weight_ref);
+        widest = Some((counts, colour, reason, weight));
     }
-    if extra.is_some() {
-        assert_bits("extra channel", &extra_out, &extra_ref);
-    }
-    assert_bits("weight", &weight, &weight_ref);
+    let (counts, colour, reason, weight) = widest.expect("the 8-lane body runs everywhere");
     assert!(reason.as_slice().iter().all(|&c| Reason::from_code(c).is_some()));
     // Pixels a mask skips keep the NaN the outputs started with and read `Invalid`.
     let on = |i: usize| mask.is_none_or(|m| m.as_slice()[i] != 0);

@@ -37,6 +37,11 @@
 //! shifted by one lane with the next 8 pixels' first on top, and those next 8 are kept for
 //! the next group, whose tap 0 usually starts there. The values are the same, so the result
 //! is too. Tail: the remaining `width % 8` pixels of a row go through the scalar reference.
+//!
+//! Instruction set: on an AVX-512 CPU ([`Isa::active`]) the same 8-lane body is compiled a
+//! second time with AVX-512 F/BW/DQ/VL enabled and taken at run time. Its comparisons land
+//! in mask registers and its selects become masked moves, so the same lane-wise operations
+//! take fewer instructions and give the same bits ([`reproject_with`] runs either body).
 
 mod scalar;
 mod simd;
@@ -45,6 +50,7 @@ use crate::bands::{SharedRows, for_each_band};
 use crate::camera::CameraModel;
 use crate::frame::{Extent, FrameError, Plane, PlaneMut, RgbPlanes, RgbPlanesMut, same_extent};
 use crate::gbuffer::{SurfaceLayout, Surfel};
+use crate::isa::Isa;
 use crate::simd::F32s;
 use scalar::{reproject_pixel_prepared, write_pixel};
 use simd::simd_row;
@@ -513,17 +519,42 @@ pub fn reproject_scalar<L: SurfaceLayout>(
 /// ```
 pub fn reproject<L: SurfaceLayout>(
     input: &ReprojectInput<'_, L>,
+    out: ReprojectOutput<'_>,
+    params: &ReprojectParams,
+) -> Result<ReasonCounts, FrameError> {
+    reproject_with(input, out, params, Isa::active())
+}
+
+/// [`reproject`] with the body of a chosen instruction set (the 8-lane body where the CPU
+/// lacks it, see [`Isa::is_supported`]). Both bodies give the same bits.
+pub fn reproject_with<L: SurfaceLayout>(
+    input: &ReprojectInput<'_, L>,
     mut out: ReprojectOutput<'_>,
     params: &ReprojectParams,
+    isa: Isa,
 ) -> Result<ReasonCounts, FrameError> {
     let prepared = prepare(input, params)?;
     check_output(&prepared, &out)?;
+    let avx512 = isa == Isa::Avx512 && isa.is_supported();
     let counts = run(&prepared, out.reborrow(), params.band_rows, |p, y, mut row| {
-        if p.channel_count == 4 { simd_row::<L, 4>(p, y, &mut row) } else { simd_row::<L, 3>(p, y, &mut row) }
+        if avx512 {
+            // SAFETY: taken only where the CPU reports the features the function enables.
+            unsafe { simd_row_avx512(p, y, &mut row) }
+        } else if p.channel_count == 4 {
+            simd_row::<L, 4>(p, y, &mut row)
+        } else {
+            simd_row::<L, 3>(p, y, &mut row)
+        }
     });
     #[cfg(feature = "check-scalar")]
     check_against_scalar(input, &out, params, counts);
     Ok(counts)
+}
+
+/// [`simd_row`] compiled with AVX-512 (see the module notes).
+#[target_feature(enable = "avx512f,avx512bw,avx512dq,avx512vl")]
+fn simd_row_avx512<L: SurfaceLayout>(p: &Prepared<'_, L>, y: usize, row: &mut RowOut<'_>) -> ReasonCounts {
+    if p.channel_count == 4 { simd_row::<L, 4>(p, y, row) } else { simd_row::<L, 3>(p, y, row) }
 }
 
 #[cfg(feature = "check-scalar")]
