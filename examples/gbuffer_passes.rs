@@ -51,8 +51,8 @@ fn main() -> Result<(), String> {
         raster.planes = stereotrace::pipeline::Layout::Compact;
     }
     raster.visibility_by = match std::env::var("VISIBILITY").as_deref() {
-        Ok("fixed") => stereotrace::render::raster::Visibility::Fixed,
-        Ok("exact") | Err(_) => stereotrace::render::raster::Visibility::Exact,
+        Ok("fixed") | Err(_) => stereotrace::render::raster::Visibility::Fixed,
+        Ok("exact") => stereotrace::render::raster::Visibility::Exact,
         Ok(other) => return Err(format!("VISIBILITY={other}: expected exact or fixed")),
     };
     let (mut gl, mut gr) = (GBufferBuf::new(left), GBufferBuf::new(right));

@@ -156,8 +156,14 @@ fn the_jittered_default_is_the_papers_estimator() {
 fn the_renderer_source_reads_each_eyes_own_visibility_and_never_a_stale_one() {
     let extent = Extent::new(64, 40).unwrap();
     let renderer = Renderer::new(resolve("atrium-moving-light").unwrap()).unwrap();
-    let options = RendererOptions::with_first_sample(GBufferPass::Raster, FirstSample::Centre);
-    let mut source = RendererSource::new(&renderer, options, extent).unwrap();
+    for pass in [GBufferPass::Raster, GBufferPass::Exact] {
+        each_eye_reads_its_own_visibility(&renderer, pass, extent);
+    }
+}
+
+fn each_eye_reads_its_own_visibility(renderer: &Renderer, pass: GBufferPass, extent: Extent) {
+    let options = RendererOptions::with_first_sample(pass, FirstSample::Centre);
+    let mut source = RendererSource::new(renderer, options, extent).unwrap();
     let frame = 4;
     let view = FrameView::new(&renderer, &StereoRig::default(), extent, frame).unwrap();
     source.begin_frame(frame);
@@ -170,7 +176,9 @@ fn the_renderer_source_reads_each_eyes_own_visibility_and_never_a_stale_one() {
             source.trace(view.camera(eye), &request, PixelSelection::All, 0..extent.height(), &mut out).unwrap();
         (out, stats)
     };
+    // The same pass again, outside the source, for the visibility it read.
     let mut raster = RasterGBuffers::new(extent);
+    raster.visibility_by = pass.visibility().expect("a rasterised pass");
     let [mut hl, mut hr] = view.cameras.map(GBufferBuf::new);
     renderer.render_gbuffers_raster(&view.lights, [&mut hl, &mut hr], &mut raster).unwrap();
     for eye in [Eye::Left, Eye::Right] {
@@ -181,7 +189,7 @@ fn the_renderer_source_reads_each_eyes_own_visibility_and_never_a_stale_one() {
             trace_packets(&renderer, &view.lights, view.camera(eye), &request, &mut reference, PrimaryRays::Centre)
                 .unwrap();
         let differs = disagreements(&renderer, &view, eye, &raster.visibility()[eye as usize].prim);
-        assert_eq!(compare(&image, &reference, &differs).0, 0, "{eye:?}");
+        assert_eq!(compare(&image, &reference, &differs).0, 0, "{pass:?} {eye:?}");
         assert!(stats.rays < traced.rays, "{eye:?}: the visibility was not read");
     }
     // The next frame begun, its G-buffers not yet filled: every centre ray is traced, so the

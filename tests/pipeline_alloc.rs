@@ -22,7 +22,9 @@ fn frames_after_the_first_allocate_nothing() {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
     let cases = Mode::ALL.into_iter().flat_map(|mode| {
         [Order::Paper, Order::StereoFirst].into_iter().flat_map(move |order| {
-            [GBufferPass::Raster, GBufferPass::Traced].into_iter().map(move |pass| (mode, order, pass))
+            [GBufferPass::Raster, GBufferPass::Traced, GBufferPass::Exact]
+                .into_iter()
+                .map(move |pass| (mode, order, pass))
         })
     });
     for (mode, order, pass) in cases {

@@ -72,7 +72,8 @@ impl ReferenceArgs {
 /// How the pipelines make their G-buffers.
 #[derive(Args, Clone, Copy, Debug)]
 pub struct GBufferArg {
-    /// How the G-buffers are made: rasterised (default) or traced (the reference).
+    /// How the G-buffers are made: rasterised in fixed point as GPUs do (default), traced (the
+    /// reference), or rasterised with the tracer's triangle test (exact).
     #[arg(long, value_enum, default_value_t = GBufferPass::Raster)]
     pub gbuffer: GBufferPass,
     /// Where each pixel's first sample of a frame starts: jittered in the pixel (default, the

@@ -225,7 +225,7 @@ impl Setting {
 pub fn settings(opts: &TradeoffOptions) -> Vec<Setting> {
     let mut out = Vec::new();
     let other_pass = match opts.gbuffer.gbuffer {
-        GBufferPass::Raster | GBufferPass::Fixed => GBufferPass::Traced,
+        GBufferPass::Raster | GBufferPass::Exact => GBufferPass::Traced,
         GBufferPass::Traced => GBufferPass::Raster,
     };
     for &spp in &opts.spp {

@@ -406,7 +406,7 @@ impl Runner<'_> {
                     ("pipeline", format!("{cfg:?}")),
                     // The renderer's own option, not a pipeline setting: its images differ
                     // within the pass's tolerance, so its results are their own entries.
-                    ("gbuffer", spec.gbuffer.name().into()),
+                    ("gbuffer", spec.gbuffer.cache_key().into()),
                     ("frames", spec.frames.to_string()),
                     ("warmup", spec.warmup.to_string()),
                     ("curves", format!("{curves_hash:016x}")),

@@ -209,6 +209,7 @@ impl FixedRasterizer {
             .zip(self.counts.par_chunks_mut(2 * bands))
             .enumerate()
             .map(|(chunk, (records, counts))| {
+                let capacity = records.capacity();
                 records.clear();
                 let mut stats = RasterStats::default();
                 // Counts the records triangle `prim` pushed from `before` on.
@@ -257,6 +258,11 @@ impl FixedRasterizer {
                     stats.clipped += u64::from(setup_triangle(tris.get(prim), prim, proj, near, records));
                     finish(prim, before, records, &mut stats);
                 }
+                if records.capacity() != capacity {
+                    // It grew this frame: a quarter more room, so that a camera that moves a
+                    // little does not make it grow again next frame.
+                    records.reserve(records.len() / 4);
+                }
                 stats
             })
             .reduce(RasterStats::default, |a, b| a + b)
@@ -280,7 +286,7 @@ impl FixedRasterizer {
             }
             self.bin_start[eye * (bands + 1) + bands] = total;
         }
-        self.bins.resize(total as usize, 0);
+        super::resize_with_headroom(&mut self.bins, total as usize, 0);
         let bins = super::SharedSlice::new(&mut self.bins);
         self.records.par_iter().zip(self.counts.par_chunks_mut(2 * bands)).enumerate().for_each(
             |(chunk, (records, cursors))| {

@@ -605,7 +605,7 @@ impl Rasterizer {
             }
             self.bin_start[eye * (bands + 1) + bands] = total;
         }
-        self.bins.resize(total as usize, 0);
+        resize_with_headroom(&mut self.bins, total as usize, 0);
         // Each chunk writes its records at its own cursors: disjoint ranges of `bins`.
         let bins = SharedSlice::new(&mut self.bins);
         self.records.par_chunks(CHUNK).zip(self.counts.par_chunks_mut(2 * bands)).zip(&self.kept).enumerate().for_each(
@@ -946,6 +946,17 @@ fn depth_plane(d: &[[f64; 3]; 3], p: &Projection, eye: usize) -> (f64, f64, f64,
     // f64 rounding, amplified where the plane passes near the eye (D small against its terms).
     let rel = 64.0 * f64::EPSILON * scale / dot.abs();
     (qa, qb, qc, rel)
+}
+
+/// Resizes `v` to `len`, and when that needs a larger allocation takes a quarter more than
+/// asked: the binning buffers follow the camera, so a frame that needs a few more entries
+/// than the last would otherwise allocate again (frames after the first allocate nothing
+/// unless the load grows by more than that).
+pub(crate) fn resize_with_headroom<T: Clone>(v: &mut Vec<T>, len: usize, value: T) {
+    if len > v.capacity() {
+        v.reserve_exact(len + len / 4 - v.len());
+    }
+    v.resize(len, value);
 }
 
 /// A slice written at disjoint indices from several threads (the binning pass).

@@ -18,18 +18,21 @@ use crate::source::{FrameSource, Layout, PipelineError, PixelSelection, RasterPa
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum GBufferPass {
-    /// Both eyes rasterised in one pass over the triangles, then resolved with the tracer's
-    /// own triangle test (`render::raster`): the same texels as `traced` except at exact depth
-    /// ties, at a fraction of the cost.
+    /// Both eyes rasterised as GPUs rasterise (vertices snapped to 1/256 px, integer edge
+    /// functions, the top-left rule), then resolved with the tracer's own triangle test: the
+    /// traced pass's triangle except within 1/256 px of an edge or at a depth tie, and where
+    /// the triangle is the same, the same texel. `fixed`, its name before it became the
+    /// default, is accepted.
     #[default]
+    #[cfg_attr(feature = "clap", value(alias = "fixed"))]
+    #[serde(alias = "fixed")]
     Raster,
     /// One primary ray per pixel through the BVH (the reference).
     Traced,
-    /// Both eyes rasterised as GPUs rasterise (vertices snapped to 1/256 px, integer edge
-    /// functions, the top-left rule), then resolved like `raster`: the traced pass's triangle
-    /// except within 1/256 px of an edge or at a depth tie, and where the triangle is the
-    /// same, the same texel.
-    Fixed,
+    /// Both eyes rasterised with the tracer's own triangle test wherever rounding could
+    /// decide (`render::raster`'s exact rasteriser): the same texels as `traced` except at
+    /// exact depth ties, but slower than `raster` (kept for the bit-level comparison).
+    Exact,
 }
 
 impl GBufferPass {
@@ -38,7 +41,27 @@ impl GBufferPass {
         match self {
             GBufferPass::Raster => "raster",
             GBufferPass::Traced => "traced",
-            GBufferPass::Fixed => "fixed",
+            GBufferPass::Exact => "exact",
+        }
+    }
+
+    /// The pass's key in evaluation caches: the name each pass's results were stored under
+    /// before the fixed-point pass became `raster` (then `fixed`; the exact pass was
+    /// `raster`), so a cache filled earlier is never read as the other pass's.
+    pub fn cache_key(self) -> &'static str {
+        match self {
+            GBufferPass::Raster => "fixed",
+            GBufferPass::Traced => "traced",
+            GBufferPass::Exact => "raster",
+        }
+    }
+
+    /// The rasteriser that finds the visibility, `None` for the traced pass.
+    pub fn visibility(self) -> Option<Visibility> {
+        match self {
+            GBufferPass::Raster => Some(Visibility::Fixed),
+            GBufferPass::Traced => None,
+            GBufferPass::Exact => Some(Visibility::Exact),
         }
     }
 }
@@ -114,7 +137,7 @@ impl From<RenderError> for PipelineError {
 pub struct RendererSource<R: Borrow<Renderer>> {
     renderer: R,
     lights: FrameLights,
-    /// The rasterised G-buffer pass's buffers (with [`GBufferPass::Raster`] or `Fixed`).
+    /// The rasterised G-buffer pass's buffers (with [`GBufferPass::Raster`] or `Exact`).
     raster: Option<RasterGBuffers>,
     /// The cameras of the rasterised pass's visibility buffers, while they show this frame
     /// (cleared when a frame begins): a trace with one of them reads its centre hits there.
@@ -126,15 +149,13 @@ impl<R: Borrow<Renderer>> RendererSource<R> {
     /// The renderer with `options`, for frames of `extent`; fails only if the per-pixel
     /// buffers cannot be allocated ([`crate::kernels::FrameError::OutOfMemory`]).
     pub fn new(renderer: R, options: RendererOptions, extent: Extent) -> Result<Self, PipelineError> {
-        let raster = match options.gbuffer {
-            GBufferPass::Raster | GBufferPass::Fixed => {
+        let raster = match options.gbuffer.visibility() {
+            Some(visibility) => {
                 let mut raster = RasterGBuffers::try_new(extent)?;
-                if options.gbuffer == GBufferPass::Fixed {
-                    raster.visibility_by = Visibility::Fixed;
-                }
+                raster.visibility_by = visibility;
                 Some(raster)
             }
-            GBufferPass::Traced => None,
+            None => None,
         };
         Ok(Self { lights: renderer.borrow().frame_lights(0), renderer, raster, visible_cameras: None, options })
     }
