@@ -165,7 +165,7 @@ fn each_eye_reads_its_own_visibility(renderer: &Renderer, pass: GBufferPass, ext
     let options = RendererOptions::with_first_sample(pass, FirstSample::Centre);
     let mut source = RendererSource::new(renderer, options, extent).unwrap();
     let frame = 4;
-    let view = FrameView::new(&renderer, &StereoRig::default(), extent, frame).unwrap();
+    let view = FrameView::new(renderer, &StereoRig::default(), extent, frame).unwrap();
     source.begin_frame(frame);
     let [mut gl, mut gr] = view.cameras.map(GBufferBuf::new);
     source.fill_gbuffers([&mut gl, &mut gr], Layout::Compact).unwrap();
@@ -186,23 +186,23 @@ fn each_eye_reads_its_own_visibility(renderer: &Renderer, pass: GBufferPass, ext
         let mut reference = RgbBuf::new(extent, -1.0);
         let request = view.request(eye, 1, 11, 0);
         let traced =
-            trace_packets(&renderer, &view.lights, view.camera(eye), &request, &mut reference, PrimaryRays::Centre)
+            trace_packets(renderer, &view.lights, view.camera(eye), &request, &mut reference, PrimaryRays::Centre)
                 .unwrap();
-        let differs = disagreements(&renderer, &view, eye, &raster.visibility()[eye as usize].prim);
+        let differs = disagreements(renderer, &view, eye, &raster.visibility()[eye as usize].prim);
         assert_eq!(compare(&image, &reference, &differs).0, 0, "{pass:?} {eye:?}");
         assert!(stats.rays < traced.rays, "{eye:?}: the visibility was not read");
     }
     // The next frame begun, its G-buffers not yet filled: every centre ray is traced, so the
     // packet loop equals the reference everywhere, ties included.
     source.begin_frame(frame + 1);
-    let next = FrameView::new(&renderer, &StereoRig::default(), extent, frame + 1).unwrap();
+    let next = FrameView::new(renderer, &StereoRig::default(), extent, frame + 1).unwrap();
     let request = next.request(Eye::Right, 1, 11, 0);
     let mut image = RgbBuf::new(extent, -1.0);
     let stats =
         source.trace(next.camera(Eye::Right), &request, PixelSelection::All, 0..extent.height(), &mut image).unwrap();
     let mut reference = RgbBuf::new(extent, -1.0);
     let traced =
-        trace_packets(&renderer, &next.lights, next.camera(Eye::Right), &request, &mut reference, PrimaryRays::Centre)
+        trace_packets(renderer, &next.lights, next.camera(Eye::Right), &request, &mut reference, PrimaryRays::Centre)
             .unwrap();
     assert_eq!(image, reference);
     assert_eq!(stats, traced);
