@@ -790,9 +790,11 @@ struct StPipelineConfig stereotrace_pipeline_config_default(void);
 // Creates a pipeline over this project's renderer on `scene`: a built-in scene name
 // ("cornell", "atrium", ...), a TOML manifest or a scene folder (UTF-8 path). Reprojection
 // tolerances are `config.reprojection`, or when null the scene's, scaled to the frame
-// height. The per-pixel buffers are allocated here (`ST_STATUS_OUT_OF_MEMORY` if that
-// fails, with nothing kept); the rasteriser's binning buffers grow with the first frames,
-// by the scene's triangles. Destroy it with [`stereotrace_pipeline_destroy`].
+// height. Its G-buffers are rasterised in fixed point as GPUs rasterise (the CLI's default
+// `--gbuffer raster`). The per-pixel buffers are allocated here (`ST_STATUS_OUT_OF_MEMORY`
+// if that fails, with nothing kept); the rasteriser's binning buffers grow with the first
+// frames, by the scene's triangles, with a quarter of headroom each time they grow.
+// Destroy it with [`stereotrace_pipeline_destroy`].
 //
 // # Safety
 // `scene` must be null or a NUL-terminated string; `config` null or valid; `out` null or
