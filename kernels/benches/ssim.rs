@@ -111,7 +111,7 @@ fn bench_ssim(c: &mut Criterion) {
             });
             // Every instruction set this CPU has, in the same run (AVX2: 8 lanes; AVX-512:
             // 16 lanes, what `ssim` picks on such a CPU unless STEREOTRACE_ISA=avx2).
-            for isa in Isa::ALL.into_iter().filter(|isa| isa.is_supported()) {
+            for isa in Isa::supported() {
                 for threads in [1, 2] {
                     let pool = pool(threads);
                     let id = BenchmarkId::new(format!("{v}/simd-{}", isa.name()), threads);

@@ -60,6 +60,11 @@ impl Isa {
         }
     }
 
+    /// Every instruction set this CPU supports, narrowest first (the bodies a test compares).
+    pub fn supported() -> impl Iterator<Item = Isa> {
+        Isa::ALL.into_iter().filter(|isa| isa.is_supported())
+    }
+
     /// The widest instruction set this CPU supports.
     pub fn detected() -> Isa {
         if Isa::Avx512.is_supported() { Isa::Avx512 } else { Isa::Avx2 }

@@ -540,10 +540,8 @@ pub fn reproject_with<L: SurfaceLayout>(
         if avx512 {
             // SAFETY: taken only where the CPU reports the features the function enables.
             unsafe { simd_row_avx512(p, y, &mut row) }
-        } else if p.channel_count == 4 {
-            simd_row::<L, 4>(p, y, &mut row)
         } else {
-            simd_row::<L, 3>(p, y, &mut row)
+            simd_row_any_channels(p, y, &mut row)
         }
     });
     #[cfg(feature = "check-scalar")]
@@ -551,10 +549,16 @@ pub fn reproject_with<L: SurfaceLayout>(
     Ok(counts)
 }
 
-/// [`simd_row`] compiled with AVX-512 (see the module notes).
+/// [`simd_row`] with the input's channel count.
+#[inline(always)]
+fn simd_row_any_channels<L: SurfaceLayout>(p: &Prepared<'_, L>, y: usize, row: &mut RowOut<'_>) -> ReasonCounts {
+    if p.channel_count == 4 { simd_row::<L, 4>(p, y, row) } else { simd_row::<L, 3>(p, y, row) }
+}
+
+/// [`simd_row_any_channels`] compiled with AVX-512 (see the module notes).
 #[target_feature(enable = "avx512f,avx512bw,avx512dq,avx512vl")]
 fn simd_row_avx512<L: SurfaceLayout>(p: &Prepared<'_, L>, y: usize, row: &mut RowOut<'_>) -> ReasonCounts {
-    if p.channel_count == 4 { simd_row::<L, 4>(p, y, row) } else { simd_row::<L, 3>(p, y, row) }
+    simd_row_any_channels(p, y, row)
 }
 
 #[cfg(feature = "check-scalar")]
