@@ -89,6 +89,58 @@ fn simd_equals_scalar_bit_for_bit_at_any_band_height() {
     }
 }
 
+/// The SIMD setup skips clusters of 64 consecutive triangles whose bounding box lies beyond
+/// one side plane of each eye's frustum. Skipping must change nothing: a cluster far off to
+/// the side is skipped; a cluster with one visible triangle is not; a cluster that only the
+/// right eye sees (a sliver beside the left eye's frustum) is not, and the right eye shows it.
+#[test]
+fn off_screen_clusters_are_skipped_and_nothing_else_changes() {
+    const CLUSTER: usize = 64;
+    let extent = Extent::new(64, 36).unwrap();
+    let cameras = rig(0.0, extent, 60.0);
+    // The half-width of the view at unit depth, from the camera's own ray corner.
+    let half_width = (cameras[0].ray_origin_corner[0] / cameras[0].ray_origin_corner[2]).abs();
+    let mut rng = Rng::new(5);
+    let mut cluster = |x: (f32, f32), y: (f32, f32), z: f32, size: f32| -> Vec<TriVerts> {
+        (0..CLUSTER)
+            .map(|_| {
+                let c = Vec3::new(rng.range(x.0, x.1), rng.range(y.0, y.1), z);
+                let d = size;
+                tri([c + Vec3::new(-d, -d, 0.0), c + Vec3::new(d, -d, 0.0), c + Vec3::new(0.0, d, 0.0)])
+            })
+            .collect()
+    };
+    let far_left = cluster((-40.0, -30.0), (-1.0, 1.0), -5.0, 0.2);
+    let far_above = cluster((-1.0, 1.0), (30.0, 40.0), -5.0, 0.2);
+    let mut one_visible = cluster((30.0, 40.0), (-1.0, 1.0), -5.0, 0.2);
+    one_visible[17] = tri([Vec3::new(-0.5, -0.5, -5.0), Vec3::new(0.5, -0.5, -5.0), Vec3::new(0.0, 0.5, -5.0)]);
+    // At depth 1 the left eye sees x up to −0.0325 + half_width, the right eye 6.5 cm more.
+    let edge = -0.0325 + half_width;
+    let right_only = cluster((edge + 0.02, edge + 0.045), (-0.2, 0.2), -1.0, 0.005);
+    let tris: Vec<TriVerts> = [far_left, one_visible, right_only, far_above].concat();
+    let run = |body: Body| {
+        let mut out = [VisibilityBuffer::new(extent), VisibilityBuffer::new(extent)];
+        let [l, r] = &mut out;
+        let stats = FixedRasterizer::new()
+            .rasterize(Triangles { main: &tris, extra: &[] }, [&cameras[0], &cameras[1]], &NoMasks, NEAR, [l, r], body)
+            .expect("valid input");
+        (out, stats)
+    };
+    let ((simd, simd_stats), (scalar, scalar_stats)) = (run(Body::Simd), run(Body::Scalar));
+    assert_eq!(simd_stats.cluster_culled, 2 * CLUSTER as u64, "the far-left and far-above clusters");
+    assert_eq!(scalar_stats.cluster_culled, 0, "the scalar reference sets up every triangle");
+    assert_eq!(simd_stats.visible, scalar_stats.visible);
+    for eye in 0..2 {
+        assert!(bits(&simd[eye]) == bits(&scalar[eye]), "eye {eye}: skipping changed the output");
+    }
+    let shows = |eye: usize, ids: std::ops::Range<usize>| {
+        simd[eye].prim.as_slice().iter().any(|&p| p != NO_PRIM && ids.contains(&(p as usize)))
+    };
+    assert!(shows(0, CLUSTER..2 * CLUSTER) && shows(1, CLUSTER..2 * CLUSTER), "the one visible triangle");
+    assert!(!shows(0, 2 * CLUSTER..3 * CLUSTER), "the sliver is outside the left eye");
+    assert!(shows(1, 2 * CLUSTER..3 * CLUSTER), "the right eye shows the sliver");
+}
+
 /// The oracle: the exact f64 ray through the centre of `(x, y)` (offset by `(ox, oy)` px)
 /// against every triangle; the nearest hit past the near plane (view depth), the smaller id
 /// on equal depth.

@@ -124,6 +124,9 @@ pub struct RasterSteps {
     pub triangles: u64,
     /// Of those, the visible ones in at least one eye (the last frame's).
     pub visible: u64,
+    /// Of those, the ones the setup skipped with their whole cluster off screen (the last
+    /// frame's).
+    pub cluster_culled: u64,
     /// (record, band of rows) pairs the fragment loop walked (the last frame's).
     pub band_records: u64,
     /// Fragments decided on the exact path: uncertain coverage, depth near-ties and
@@ -458,6 +461,7 @@ fn raster_steps(stats: &[FrameStats]) -> Option<RasterSteps> {
         resolve: series(|p| p.resolve),
         triangles: last.raster.triangles,
         visible: last.raster.visible,
+        cluster_culled: last.raster.cluster_culled,
         band_records: last.raster.band_records,
         exact_fragments: last.raster.exact,
     })
@@ -491,13 +495,14 @@ impl ThroughputReport {
         out += &stage("g-buffers", &self.gbuffer);
         if let Some(r) = &self.raster {
             out += &format!(
-                "    raster       setup {:.2}, binning {:.2}, fragments {:.2}, resolve {:.2} ms (medians; {} of {} triangles visible, {} fragments on the exact path)\n",
+                "    raster       setup {:.2}, binning {:.2}, fragments {:.2}, resolve {:.2} ms (medians; {} of {} triangles visible, {} skipped in off-screen clusters, {} fragments on the exact path)\n",
                 r.setup.median_ms,
                 r.binning.median_ms,
                 r.fragments.median_ms,
                 r.resolve.median_ms,
                 r.visible,
                 r.triangles,
+                r.cluster_culled,
                 r.exact_fragments
             );
         }

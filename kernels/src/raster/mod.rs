@@ -160,6 +160,10 @@ pub struct RasterStats {
     pub visible: u64,
     /// Triangles that crossed the near plane and were clipped.
     pub clipped: u64,
+    /// Triangles the fixed-point pass's SIMD setup skipped because their whole cluster lies
+    /// outside both frusta (0 for the exact pass and the scalar bodies, which set up every
+    /// triangle; the skipped ones would have been culled, so the output is the same).
+    pub cluster_culled: u64,
     /// (record, band) pairs walked.
     pub band_records: u64,
     /// Fragments decided on the exact path (uncertain coverage, near ties, masks).
@@ -181,6 +185,7 @@ impl core::ops::Add for RasterStats {
             triangles: self.triangles + o.triangles,
             visible: self.visible + o.visible,
             clipped: self.clipped + o.clipped,
+            cluster_culled: self.cluster_culled + o.cluster_culled,
             band_records: self.band_records + o.band_records,
             exact: self.exact + o.exact,
             exact_ties: self.exact_ties + o.exact_ties,
