@@ -70,7 +70,7 @@ const CHUNK: usize = 4096;
 /// off-screen geometry comes in runs: on the real scenes 15–45 % of all triangles lie in
 /// clusters of 64 that are wholly off screen.
 const CLUSTER: usize = 64;
-const _: () = assert!(CHUNK % CLUSTER == 0 && CLUSTER % 4 == 0);
+const _: () = assert!(CHUNK.is_multiple_of(CLUSTER) && CLUSTER.is_multiple_of(4));
 /// A clipped triangle has at most 3 + 9 vertices (the near plane and each eye's four guard
 /// planes add one each): at most ten fan triangles.
 const MAX_POLYGON: usize = 12;
@@ -246,7 +246,7 @@ impl FixedRasterizer {
                     let mut snapped = [[Snapped::default(); 3]; 4];
                     while prim + 4 <= end {
                         // Chunks start on cluster boundaries (CHUNK is a multiple of CLUSTER).
-                        if (prim - first) % CLUSTER == 0
+                        if (prim - first).is_multiple_of(CLUSTER)
                             && prim + CLUSTER <= end
                             && cluster_outside((prim..prim + CLUSTER).map(|id| tris.get(id as u32)), proj)
                         {
