@@ -80,6 +80,11 @@ pub trait SurfaceLayout: Sync {
     fn surfels_gather(&self, taps: &TapCoords) -> Surfels;
     /// Bytes read per pixel (for roofline figures).
     fn bytes_per_pixel(&self) -> usize;
+    /// This G-buffer as the compact layout, if it is one (the AVX-512 reprojection body
+    /// decodes compact planes 16 pixels at a time).
+    fn as_compact(&self) -> Option<&CompactGBuffer<'_>> {
+        None
+    }
 }
 
 /// The full-precision G-buffer of one eye and frame: seven f32 planes of one extent (the
@@ -282,6 +287,10 @@ impl SurfaceLayout for CompactGBuffer<'_> {
     fn bytes_per_pixel(&self) -> usize {
         4 + 4
     }
+
+    fn as_compact(&self) -> Option<&CompactGBuffer<'_>> {
+        Some(self)
+    }
 }
 
 /// An owned G-buffer of one eye and frame, the one type every producer fills (the
@@ -405,7 +414,7 @@ impl GBufferBuf {
 /// signed-normalised range, so no real normal encodes to it.
 pub const NO_NORMAL: u32 = 0x8000_8000;
 
-const SNORM_MAX: f32 = 32767.0;
+pub(crate) const SNORM_MAX: f32 = 32767.0;
 
 /// Octahedral encoding of a normal into two 16-bit signed-normalised components
 /// (x in the low half, y in the high half). Zero-length or non-finite input gives

@@ -5,9 +5,9 @@
 //! have a 16-lane AVX-512 body, compiled into the same binary inside
 //! `#[target_feature(enable = "avx512f,avx512bw,avx512dq,avx512vl")]` functions and taken only
 //! when the CPU reports those features ([`Isa::detected`]). Today that is SSIM
-//! ([`crate::ssim::ssim_with`]). Reprojection ([`crate::reproject::reproject_with`]) has a
-//! second copy of its 8-lane body compiled with the same features: not wider, but its
-//! comparisons and selects use mask registers, which saves instructions, not lanes.
+//! ([`crate::ssim::ssim_with`]) and reprojection ([`crate::reproject::reproject_with`]),
+//! whose AVX-512 body takes 16 pixels at a time where both G-buffers are compact and the
+//! group is an ordinary one, and is its 8-lane body compiled with AVX-512 elsewhere.
 //!
 //! The choice is made once per process ([`Isa::active`]) and can be narrowed with the
 //! environment variable [`ISA_ENV`] (`STEREOTRACE_ISA=avx2` forces the 8-lane bodies on an

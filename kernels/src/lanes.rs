@@ -214,7 +214,7 @@ pub(crate) mod avx512 {
     /// Sixteen `f32` lanes in one `zmm` register.
     #[derive(Clone, Copy)]
     #[repr(transparent)]
-    pub(crate) struct F32x16(__m512);
+    pub(crate) struct F32x16(pub(crate) __m512);
 
     /// A binary operator as one intrinsic.
     macro_rules! binary {

@@ -60,7 +60,8 @@ fn run_body<L: SurfaceLayout>(
 }
 
 /// Every SIMD body this CPU has (the AVX-512 one is the 8-lane source compiled again with
-/// AVX-512 enabled) gives the scalar reference's bits.
+/// AVX-512 enabled, plus its 16-pixel path for compact G-buffers) gives the scalar
+/// reference's bits.
 fn assert_every_body_matches_scalar<L: SurfaceLayout>(input: &ReprojectInput<'_, L>, params: &ReprojectParams) {
     let reference = run_body(input, params, None).unwrap();
     for isa in Isa::supported() {
@@ -130,6 +131,9 @@ fn simd_equals_scalar_on_stereo_and_temporal_pairs_at_awkward_widths() {
                 assert_every_body_matches_scalar(&input_for(&tf, &sf, &right, Some(extra.view())), &p);
                 let (tc, sc) = (left.compact(), right.compact());
                 assert_every_body_matches_scalar(&input_for(&tc, &sc, &right, None), &p);
+                // The temporal history's case: compact planes with the history length as a
+                // fourth channel (the AVX-512 body's 16-pixel path takes 3 and 4 channels).
+                assert_every_body_matches_scalar(&input_for(&tc, &sc, &right, Some(extra.view())), &p);
             }
         }
     }

@@ -19,7 +19,7 @@
 //!    takes four triangles at a time in `f64x4` lanes through the culls, the projection and
 //!    the snap (the same operations, so the same vertices); a triangle that needs clipping
 //!    goes through the scalar setup, which is [`Body::Scalar`]'s for every triangle. Before
-//!    that, [`Body::Simd`] skips each run of [`CLUSTER`] triangles whose bounding box lies
+//!    that, [`Body::Simd`] skips each run of 64 triangles whose bounding box lies
 //!    beyond one side plane of each eye's frustum (`cluster_outside`): every triangle in it
 //!    would be culled, so the records are the same.
 //! 2. **Binning** to bands of rows per eye, in triangle order (as [`super::Rasterizer`]).

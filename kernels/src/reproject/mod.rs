@@ -38,13 +38,21 @@
 //! the next group, whose tap 0 usually starts there. The values are the same, so the result
 //! is too. Tail: the remaining `width % 8` pixels of a row go through the scalar reference.
 //!
-//! Instruction set: on an AVX-512 CPU ([`Isa::active`]) the same 8-lane body is compiled a
-//! second time with AVX-512 F/BW/DQ/VL enabled and taken at run time. Its comparisons land
-//! in mask registers and its selects become masked moves, so the same lane-wise operations
-//! take fewer instructions and give the same bits ([`reproject_with`] runs either body).
+//! Instruction set: on an AVX-512 CPU ([`Isa::active`]) the AVX-512 body is taken at run
+//! time ([`reproject_with`] runs either body). Where both G-buffers are compact and no
+//! pixel mask is given, it first tries 16 target pixels at a time in one `zmm` register
+//! (the `wide` module): the coherent path's common case, every lane reprojected, with `k`
+//! masks for the tests. A group that is anything else (a lane of sky or off frame, taps
+//! that are not one row of consecutive pixels, a discarded lane) is refused before anything
+//! is written and goes, with the group after it, through the 8-lane body, compiled a
+//! second time with AVX-512 F/BW/DQ/VL (its comparisons land in mask registers, its
+//! selects become masked moves). Both do the reference's lane-wise operations in its order,
+//! so every body gives the same bits.
 
 mod scalar;
 mod simd;
+#[cfg(target_arch = "x86_64")]
+mod wide;
 
 use crate::bands::{SharedRows, for_each_band};
 use crate::camera::CameraModel;
@@ -541,7 +549,7 @@ pub fn reproject_with<L: SurfaceLayout>(
             // SAFETY: taken only where the CPU reports the features the function enables.
             unsafe { simd_row_avx512(p, y, &mut row) }
         } else {
-            simd_row_any_channels(p, y, &mut row)
+            simd_row_any_channels::<L, false>(p, y, &mut row)
         }
     });
     #[cfg(feature = "check-scalar")]
@@ -549,16 +557,21 @@ pub fn reproject_with<L: SurfaceLayout>(
     Ok(counts)
 }
 
-/// [`simd_row`] with the input's channel count.
+/// [`simd_row`] with the input's channel count. `AVX512` lets it take 16-pixel groups
+/// (only inside [`simd_row_avx512`]).
 #[inline(always)]
-fn simd_row_any_channels<L: SurfaceLayout>(p: &Prepared<'_, L>, y: usize, row: &mut RowOut<'_>) -> ReasonCounts {
-    if p.channel_count == 4 { simd_row::<L, 4>(p, y, row) } else { simd_row::<L, 3>(p, y, row) }
+fn simd_row_any_channels<L: SurfaceLayout, const AVX512: bool>(
+    p: &Prepared<'_, L>,
+    y: usize,
+    row: &mut RowOut<'_>,
+) -> ReasonCounts {
+    if p.channel_count == 4 { simd_row::<L, 4, AVX512>(p, y, row) } else { simd_row::<L, 3, AVX512>(p, y, row) }
 }
 
 /// [`simd_row_any_channels`] compiled with AVX-512 (see the module notes).
 #[target_feature(enable = "avx512f,avx512bw,avx512dq,avx512vl")]
 fn simd_row_avx512<L: SurfaceLayout>(p: &Prepared<'_, L>, y: usize, row: &mut RowOut<'_>) -> ReasonCounts {
-    simd_row_any_channels(p, y, row)
+    simd_row_any_channels::<L, true>(p, y, row)
 }
 
 #[cfg(feature = "check-scalar")]

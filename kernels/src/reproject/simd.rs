@@ -9,7 +9,7 @@ use crate::simd::{F32s, LANES, TapCoords, store};
 
 /// One output row through the SIMD body (`C` channels), the tail through the scalar one.
 #[inline(always)]
-pub(super) fn simd_row<L: SurfaceLayout, const C: usize>(
+pub(super) fn simd_row<L: SurfaceLayout, const C: usize, const AVX512: bool>(
     p: &Prepared<'_, L>,
     y: usize,
     row: &mut RowOut<'_>,
@@ -18,8 +18,31 @@ pub(super) fn simd_row<L: SurfaceLayout, const C: usize>(
     let width = row.reason.len();
     let mut cache = [SourceCache::EMPTY; 2];
     let mask_row = p.pixel_mask.map(|m| m.row(y));
+    // Both G-buffers compact and no pixel mask: the AVX-512 body tries 16 pixels at a time.
+    #[cfg(target_arch = "x86_64")]
+    let compact = match (AVX512, p.target.as_compact(), p.source.as_compact(), mask_row) {
+        (true, Some(target), Some(source), None) => Some((target, source)),
+        _ => None,
+    };
+    // After a group the 16-pixel path refused, the next one goes to the 8-lane body too
+    // (refusals come in runs: edges, skies, disocclusions).
+    #[cfg(target_arch = "x86_64")]
+    let mut wide_from = 0;
     let mut x = 0;
     while x + LANES <= width {
+        #[cfg(target_arch = "x86_64")]
+        if let Some((target, source)) = compact
+            && x >= wide_from
+            && x + super::wide::WIDE <= width
+        {
+            // SAFETY: `compact` is `Some` only with `AVX512`, which only `simd_row_avx512`
+            // sets, after checking the CPU; x + 16 <= width is tested above.
+            if unsafe { super::wide::group::<L, C>(p, target, source, x, y, row, &mut counts) } {
+                x += super::wide::WIDE;
+                continue;
+            }
+            wide_from = x + super::wide::WIDE;
+        }
         // Bit `i` set where lane `i` is to be reprojected.
         let wanted = match mask_row {
             None => ALL_LANES,
