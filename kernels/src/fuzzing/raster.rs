@@ -335,7 +335,8 @@ const SNAP_PX: f64 = 1.0 / 256.0;
 /// - **the snap**: exact (f64) geometry shows the raster's answer from some point within
 ///   1/256 px of the pixel centre (sampled on three circles), or every triangle it shows in
 ///   front of the raster's at the centre has an edge within 1/256 px of the centre (its
-///   snapped image may leave the centre out) or is a depth tie with it;
+///   snapped image may leave the centre out), is a depth tie with it, or lies within the
+///   tracer's error of the near plane (so the two explanations may meet at one pixel);
 /// - **a depth tie within the snap**: both triangles' planes pass the centre ray at depth keys
 ///   `q = 1/depth` closer than what moving their vertices by the snap can change
 ///   (`|∇q|₁/256` each, in pixels), plus the tracer's own rounding.
@@ -408,8 +409,9 @@ fn exact_nearest_at(camera: &CameraModel, tris: &[TriVerts], px: f64, py: f64) -
 ///   circles of 1/4, 1/2 and 1 snap), or
 /// - every triangle exact geometry shows in front of `got` at the centre (all it shows there,
 ///   when `got` is none) has an edge within the snap of the centre, so its snapped image may
-///   leave the centre out, and `got` itself covers the centre or has an edge within the snap
-///   (two triangles meeting there without sharing an edge may both be snapped off it).
+///   leave the centre out, or lies within the tracer's error of the near plane, and `got`
+///   itself covers the centre or has an edge within the snap (two triangles meeting there
+///   without sharing an edge may both be snapped off it).
 fn snap_explains(camera: &CameraModel, tris: &[TriVerts], got: u32, x: usize, y: usize) -> bool {
     let (cx, cy) = (x as f64 + 0.5, y as f64 + 0.5);
     let sees = |px: f64, py: f64| exact_nearest_at(camera, tris, px, py) == got;
@@ -435,9 +437,12 @@ fn snap_explains(camera: &CameraModel, tris: &[TriVerts], got: u32, x: usize, y:
         },
     };
     let (o, d) = ray_f64(camera, cx, cy);
+    // A hit within the tracer's f32 error of the near plane may lie on its far side in exact
+    // geometry and its near side in the raster's (as in [`near_plane_explains`]).
+    let at_near_plane = |t: &TriVerts, depth: f64| depth < f64::from(RASTER_NEAR) + tracer_error(o, t);
     tris.iter().enumerate().all(|(i, t)| {
         i as u32 == got
-            || exact_hit(t, o, d).is_none_or(|depth| depth >= got_depth)
+            || exact_hit(t, o, d).is_none_or(|depth| depth >= got_depth || at_near_plane(t, depth))
             || boundary(t).is_some_and(|(_, dist)| dist <= SNAP_PX)
             || tris.get(got as usize).is_some_and(|g| keys_tie(camera, g, t, cx, cy))
     })
