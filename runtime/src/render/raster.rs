@@ -26,7 +26,7 @@ use crate::kernels::gbuffer::GBufferBuf;
 use crate::kernels::gbuffer::encode_normals;
 use crate::kernels::raster::fixed::FixedRasterizer;
 use crate::kernels::raster::{AlphaTest, Body, NO_PRIM, Rasterizer, Triangles, VisibilityBuffer};
-use crate::kernels::simd::{F32s, LANES, lane_offsets};
+use crate::kernels::simd::{F32s, LANES, lane_offsets, u32x8};
 use crate::kernels::{Extent, FrameError};
 use crate::source::{Layout, RasterPassStats};
 
@@ -191,24 +191,19 @@ impl Renderer {
             let mut x0 = 0;
             while x0 + LANES <= width {
                 let group: &[u32; LANES] = prims[x0..x0 + LANES].try_into().expect("8 lanes");
-                let mut background = 0u32;
-                let mut moving = 0u32;
-                for (i, &p) in group.iter().enumerate() {
-                    background |= u32::from(p == NO_PRIM) << i;
-                    moving |= u32::from(p >= mesh_len && p != NO_PRIM) << i;
-                }
-                let mesh_lanes = !(background | moving) & ((1 << LANES) - 1);
+                // Which lanes see the mesh, the sky or a moving light: three compares, not
+                // a scalar loop (which cost a tenth of the resolve's instructions).
+                let ids = u32x8::from(*group);
+                let is_mesh = ids.simd_lt(u32x8::splat(mesh_len));
+                let background = ids.simd_eq(u32x8::splat(NO_PRIM)).to_bitmask();
+                let mesh_lanes = is_mesh.to_bitmask();
+                let moving = !(background | mesh_lanes) & ((1 << LANES) - 1);
                 let mut scalar = moving;
                 if mesh_lanes != 0 {
                     // Lanes without a mesh triangle compute on a neighbour's and are
                     // overwritten below.
-                    let stand_in = group[mesh_lanes.trailing_zeros() as usize];
-                    let mut lanes = *group;
-                    for p in &mut lanes {
-                        if *p >= mesh_len {
-                            *p = stand_in;
-                        }
-                    }
+                    let stand_in = u32x8::splat(group[mesh_lanes.trailing_zeros() as usize]);
+                    let lanes = is_mesh.select(ids, stand_in).to_array();
                     let (texels, undecided) = self.resolve_lanes::<ALL_PLANES>(&camera, x0, y, &lanes);
                     if ALL_PLANES {
                         row.set_lanes(x0, &texels);
@@ -312,12 +307,16 @@ impl Renderer {
         // out of the arithmetic. Both are exact, so the texels do not depend on the choice.
         let kz = [k0, k1, k2].iter().position(|k| k.all());
         match kz {
-            Some(kz) if neg.all() || neg.none() => {
-                // kx = kz + 1, ky = kz + 2 (mod 3), swapped when d[kz] < 0.
-                let (kx, ky) = ((kz + 1) % 3, (kz + 2) % 3);
-                let k = if neg.all() { [ky, kx, kz] } else { [kx, ky, kz] };
-                self.resolve_lanes_permuted::<ALL_PLANES, _>(camera, dir, GroupAxes(k), prims)
-            }
+            // kx = kz + 1, ky = kz + 2 (mod 3), swapped when d[kz] < 0; as constants, so the
+            // permutation is a choice of registers rather than an index into a stack array.
+            Some(kz) if neg.all() || neg.none() => match (kz, neg.all()) {
+                (0, false) => self.resolve_lanes_permuted::<ALL_PLANES, _>(camera, dir, GroupAxes::<1, 2, 0>, prims),
+                (0, true) => self.resolve_lanes_permuted::<ALL_PLANES, _>(camera, dir, GroupAxes::<2, 1, 0>, prims),
+                (1, false) => self.resolve_lanes_permuted::<ALL_PLANES, _>(camera, dir, GroupAxes::<2, 0, 1>, prims),
+                (1, true) => self.resolve_lanes_permuted::<ALL_PLANES, _>(camera, dir, GroupAxes::<0, 2, 1>, prims),
+                (_, false) => self.resolve_lanes_permuted::<ALL_PLANES, _>(camera, dir, GroupAxes::<0, 1, 2>, prims),
+                (_, true) => self.resolve_lanes_permuted::<ALL_PLANES, _>(camera, dir, GroupAxes::<1, 0, 2>, prims),
+            },
             _ => {
                 let x = (neg.select(k1, k2), neg.select(k2, k0));
                 let y = (neg.select(k2, k1), neg.select(k0, k2));
@@ -342,7 +341,7 @@ impl Renderer {
         let (ox, oy, oz) = axes.pick(&c);
         // The eight triangles, vertex by vertex (one triangle's, splat, when all eight lanes
         // see the same one: the common case inside a triangle), permuted per lane.
-        let uniform = prims.iter().all(|&p| p == prims[0]);
+        let uniform = u32x8::from(*prims).simd_eq(u32x8::splat(prims[0])).all();
         let verts = lane_triangles(&mesh.positions, prims, uniform);
         let sheared = |v: &[F32s; 3]| {
             let (vx, vy, vz) = axes.pick(v);
@@ -401,15 +400,14 @@ trait AxisPick: Copy {
     fn pick(&self, v: &[F32s; 3]) -> (F32s, F32s, F32s);
 }
 
-/// One permutation for all eight lanes, `[kx, ky, kz]`.
+/// One permutation for all eight lanes: component `KX` is the x axis, `KY` y and `KZ` z.
 #[derive(Clone, Copy)]
-struct GroupAxes([usize; 3]);
+struct GroupAxes<const KX: usize, const KY: usize, const KZ: usize>;
 
-impl AxisPick for GroupAxes {
+impl<const KX: usize, const KY: usize, const KZ: usize> AxisPick for GroupAxes<KX, KY, KZ> {
     #[inline(always)]
     fn pick(&self, v: &[F32s; 3]) -> (F32s, F32s, F32s) {
-        let [kx, ky, kz] = self.0;
-        (v[kx], v[ky], v[kz])
+        (v[KX], v[KY], v[KZ])
     }
 }
 
