@@ -98,6 +98,13 @@ fn tracer_error(eye: DVec3, tri: &TriVerts) -> f64 {
 /// The raster's near plane in the fuzz target: the smallest view depth it rasterises.
 const RASTER_NEAR: f32 = 1e-6;
 
+/// The view depths at which a hit on `tri` may fall on either side of the raster's near
+/// plane: within the tracer's error of it (`[RASTER_NEAR − e, RASTER_NEAR + e)`).
+fn near_plane_band(eye: DVec3, tri: &TriVerts) -> (f64, f64) {
+    let (near, e) = (f64::from(RASTER_NEAR), tracer_error(eye, tri));
+    (near - e, near + e)
+}
+
 /// Whether the raster's near plane explains a disagreement at `(x, y)`: the tracer's closest
 /// hit, on `tracer` at `tracer_t`, lies at or in front of the near plane, which the raster by
 /// design does not draw (pixel rays have unit view depth, so `t` is the view depth). A hit
@@ -114,18 +121,16 @@ fn near_plane_explains(
     y: usize,
 ) -> bool {
     let eye = DVec3::from(Vec3::from(camera.centre));
-    let error = |t: &TriVerts| tracer_error(eye, t);
-    let near = f64::from(RASTER_NEAR);
     let (Some(r), Some(tracer_tri)) = (pixel_ray(camera, x, y), tris.get(tracer as usize)) else { return false };
-    if f64::from(tracer_t) >= near + error(tracer_tri) {
+    if f64::from(tracer_t) >= near_plane_band(eye, tracer_tri).1 {
         return false;
     }
     let mut beyond = (NO_PRIM, f32::INFINITY);
     for (i, t) in tris.iter().enumerate() {
         let Some(hit) = intersect_triangle(&r, t, f32::INFINITY) else { continue };
-        let (id, e, hit_t) = (i as u32, error(t), f64::from(hit.t));
-        if hit_t < near + e {
-            if id == got && hit_t >= near - e {
+        let (id, (low, high), hit_t) = (i as u32, near_plane_band(eye, t), f64::from(hit.t));
+        if hit_t < high {
+            if id == got && hit_t >= low {
                 return true;
             }
         } else if hit.t < beyond.1 || (hit.t == beyond.1 && id < beyond.0) {
@@ -439,7 +444,7 @@ fn snap_explains(camera: &CameraModel, tris: &[TriVerts], got: u32, x: usize, y:
     let (o, d) = ray_f64(camera, cx, cy);
     // A hit within the tracer's f32 error of the near plane may lie on its far side in exact
     // geometry and its near side in the raster's (as in [`near_plane_explains`]).
-    let at_near_plane = |t: &TriVerts, depth: f64| depth < f64::from(RASTER_NEAR) + tracer_error(o, t);
+    let at_near_plane = |t: &TriVerts, depth: f64| depth < near_plane_band(o, t).1;
     tris.iter().enumerate().all(|(i, t)| {
         i as u32 == got
             || exact_hit(t, o, d).is_none_or(|depth| depth >= got_depth || at_near_plane(t, depth))

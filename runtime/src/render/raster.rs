@@ -191,8 +191,8 @@ impl Renderer {
             let mut x0 = 0;
             while x0 + LANES <= width {
                 let group: &[u32; LANES] = prims[x0..x0 + LANES].try_into().expect("8 lanes");
-                // Which lanes see the mesh, the sky or a moving light: three compares, not
-                // a scalar loop (which cost a tenth of the resolve's instructions).
+                // Which lanes see the mesh, the sky or a moving light: two vector compares,
+                // not a scalar loop (which cost a tenth of the resolve's instructions).
                 let ids = u32x8::from(*group);
                 let is_mesh = ids.simd_lt(u32x8::splat(mesh_len));
                 let background = ids.simd_eq(u32x8::splat(NO_PRIM)).to_bitmask();
