@@ -30,6 +30,9 @@ use crate::kernels::simd::{F32s, LANES, lane_offsets, u32x8};
 use crate::kernels::{Extent, FrameError};
 use crate::source::{Layout, RasterPassStats};
 
+/// How many pixels ahead of its group the resolve prefetches triangle data.
+const PREFETCH_AHEAD: usize = 2 * LANES;
+
 /// The rasterised pass's own buffers (kept between frames).
 #[derive(Clone, Debug)]
 pub struct RasterGBuffers {
@@ -190,6 +193,9 @@ impl Renderer {
             let prims = &prims[y * width..(y + 1) * width];
             let mut x0 = 0;
             while x0 + LANES <= width {
+                if let Some(ahead) = prims.get(x0 + PREFETCH_AHEAD..x0 + PREFETCH_AHEAD + LANES) {
+                    self.prefetch_triangles(ahead.try_into().expect("8 lanes"), mesh_len);
+                }
                 let group: &[u32; LANES] = prims[x0..x0 + LANES].try_into().expect("8 lanes");
                 // Which lanes see the mesh, the sky or a moving light: two vector compares,
                 // not a scalar loop (which cost a tenth of the resolve's instructions).
@@ -230,6 +236,39 @@ impl Renderer {
                 row.set(x, &self.resolve_pixel(lights, &camera, x, y, prims[x]));
             }
         });
+    }
+
+    /// Starts loading the mesh data of the triangles `ahead` names (each once where
+    /// neighbours share one): the resolve's triangles are scattered over arrays larger than
+    /// the L2 cache, and without this each group waits on its own loads.
+    #[inline(always)]
+    fn prefetch_triangles(&self, ahead: &[u32; LANES], mesh_len: u32) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use core::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+            let mesh = &self.scene.mesh;
+            let ids = u32x8::from(*ahead);
+            let previous =
+                u32x8::from(core::array::from_fn::<u32, LANES, _>(|i| if i == 0 { NO_PRIM } else { ahead[i - 1] }));
+            let mut m = (ids.simd_lt(u32x8::splat(mesh_len)) & !ids.simd_eq(previous)).to_bitmask();
+            while m != 0 {
+                let p = ahead[m.trailing_zeros() as usize] as usize;
+                m &= m - 1;
+                let at = |s: *const u8| {
+                    // SAFETY: a prefetch reads nothing; the addresses lie inside the arrays.
+                    unsafe {
+                        _mm_prefetch::<_MM_HINT_T0>(s as *const i8);
+                        _mm_prefetch::<_MM_HINT_T0>(s.add(32) as *const i8);
+                    }
+                };
+                at(mesh.positions[p].as_ptr() as *const u8);
+                if let Some(normals) = &mesh.normals {
+                    at(normals[p].as_ptr() as *const u8);
+                }
+                // SAFETY: as above.
+                unsafe { _mm_prefetch::<_MM_HINT_T0>(&mesh.material[p] as *const u32 as *const i8) };
+            }
+        }
     }
 
     /// One pixel: the watertight test of its centre ray on the triangle the raster found
