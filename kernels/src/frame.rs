@@ -257,6 +257,21 @@ impl<'a, T: Copy> Plane<'a, T> {
         &self.data[start..start + self.extent.width]
     }
 
+    /// Starts loading the cache line of pixel `(x, y)` (reads nothing; outside the extent,
+    /// does nothing).
+    #[inline(always)]
+    pub fn prefetch(&self, x: usize, y: usize) {
+        #[cfg(target_arch = "x86_64")]
+        if x < self.extent.width && y < self.extent.height {
+            // SAFETY: a prefetch reads nothing, and the address lies inside the plane.
+            unsafe {
+                core::arch::x86_64::_mm_prefetch::<{ core::arch::x86_64::_MM_HINT_T0 }>(
+                    self.data.as_ptr().add(y * self.stride + x).cast(),
+                )
+            };
+        }
+    }
+
     /// The pixel at `(x, y)`. Panics outside the extent.
     #[inline]
     pub fn get(&self, x: usize, y: usize) -> T {

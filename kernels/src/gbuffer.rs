@@ -80,6 +80,10 @@ pub trait SurfaceLayout: Sync {
     fn surfels_gather(&self, taps: &TapCoords) -> Surfels;
     /// Bytes read per pixel (for roofline figures).
     fn bytes_per_pixel(&self) -> usize;
+    /// Starts loading the cache lines of pixel `(x, y)` in every plane (reads nothing; a
+    /// pixel outside the extent is ignored). For sparse reads, which the hardware prefetcher
+    /// cannot foresee.
+    fn prefetch(&self, x: usize, y: usize);
     /// This G-buffer as the compact layout, if it is one (the AVX-512 reprojection body
     /// decodes compact planes 16 pixels at a time).
     fn as_compact(&self) -> Option<&CompactGBuffer<'_>> {
@@ -135,6 +139,14 @@ unsafe fn load_row(p: &Plane<'_>, x: usize, y: usize) -> F32s {
 impl SurfaceLayout for GBuffer<'_> {
     fn extent(&self) -> Extent {
         self.depth.extent()
+    }
+
+    #[inline(always)]
+    fn prefetch(&self, x: usize, y: usize) {
+        self.depth.prefetch(x, y);
+        for p in self.position.iter().chain(&self.normal) {
+            p.prefetch(x, y);
+        }
     }
 
     fn surfel(&self, x: usize, y: usize) -> Surfel {
@@ -243,6 +255,12 @@ impl<'a> CompactGBuffer<'a> {
 impl SurfaceLayout for CompactGBuffer<'_> {
     fn extent(&self) -> Extent {
         self.depth.extent()
+    }
+
+    #[inline(always)]
+    fn prefetch(&self, x: usize, y: usize) {
+        self.depth.prefetch(x, y);
+        self.normal.prefetch(x, y);
     }
 
     fn surfel(&self, x: usize, y: usize) -> Surfel {

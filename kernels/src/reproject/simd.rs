@@ -46,7 +46,17 @@ pub(super) fn simd_row<L: SurfaceLayout, const C: usize, const AVX512: bool>(
         // Bit `i` set where lane `i` is to be reprojected.
         let wanted = match mask_row {
             None => ALL_LANES,
-            Some(m) => m[x..x + LANES].iter().enumerate().fold(0, |bits, (i, &v)| bits | (u32::from(v != 0) << i)),
+            Some(m) => {
+                // A sparse mask leaves the planes uncached where it wants pixels: start
+                // loading those of the group two ahead (the target's, and the source's
+                // around the same place, where a small motion puts the taps).
+                if let Some(ahead) = m.get(x + MASK_AHEAD..x + MASK_AHEAD + LANES)
+                    && wanted_bits(ahead) != 0
+                {
+                    prefetch_group(p, x + MASK_AHEAD, y);
+                }
+                wanted_bits(&m[x..x + LANES])
+            }
         };
         if wanted == 0 {
             row.reason[x..x + LANES].fill(Reason::Invalid as u8);
@@ -93,6 +103,29 @@ pub(super) fn simd_row<L: SurfaceLayout, const C: usize, const AVX512: bool>(
         write_pixel(p, x, y, row, &mut counts);
     }
     counts
+}
+
+/// How far ahead (pixels) a masked row prefetches the planes of a wanted group.
+const MASK_AHEAD: usize = 2 * LANES;
+
+/// Bit `i` set where `mask[i]` is non-zero (the first `LANES` bytes).
+#[inline(always)]
+fn wanted_bits(mask: &[u8]) -> u32 {
+    mask[..LANES].iter().enumerate().fold(0, |bits, (i, &v)| bits | (u32::from(v != 0) << i))
+}
+
+/// Prefetches what the group at `(x, y)` will read: the target's planes, and the source's
+/// planes and samples on rows `y − 1 ..= y + 1`.
+#[inline(always)]
+fn prefetch_group<L: SurfaceLayout>(p: &Prepared<'_, L>, x: usize, y: usize) {
+    p.target.prefetch(x, y);
+    if let Some(motion) = &p.motion {
+        motion.iter().for_each(|m| m.prefetch(x, y));
+    }
+    for sy in y.saturating_sub(1)..=y + 1 {
+        p.source.prefetch(x, sy);
+        p.channels[..p.channel_count].iter().for_each(|c| c.prefetch(x, sy));
+    }
 }
 
 #[inline(always)]
