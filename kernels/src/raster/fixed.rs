@@ -88,11 +88,18 @@ pub(crate) struct FixedEyeEdges {
     pub qa: f32,
     pub qb: f32,
     pub qc: f32,
-    /// `1 / dx[k]` (0 where `dx[k]` is 0): where each edge crosses a row, for the SIMD body's
-    /// row spans.
-    pub inv_dx: [f64; 3],
     /// Columns `cols.0..=cols.1` (empty when the first exceeds the second).
     pub cols: (i32, i32),
+}
+
+impl FixedEyeEdges {
+    /// `1 / dx[k]` (0 where `dx[k]` is 0): where each edge crosses a row, for the SIMD body's
+    /// row spans. Worked out by the walks that use it, not kept in the record: most records
+    /// are small enough to need no span, and a smaller record is less to write and read.
+    #[inline(always)]
+    fn inv_dx(&self) -> [f64; 3] {
+        self.dx.map(|d| if d == 0 { 0.0 } else { 1.0 / d as f64 })
+    }
 }
 
 /// One snapped triangle (a fan piece of a clipped one) for both eyes.
@@ -711,7 +718,6 @@ fn record(v: [Snapped; 3], prim: u32, p: &Projection, eyes: [bool; 2]) -> Option
             e.e0[k] = ex * (py - y[k]) - ey * (px - x[k]) - i64::from(!owns);
             e.dx[k] = step_x * ONE;
             e.dy[k] = step_y * ONE;
-            e.inv_dx[k] = if e.dx[k] == 0 { 0.0 } else { 1.0 / e.dx[k] as f64 };
         }
         // q is linear in screen space: the plane through the three snapped vertices,
         // relative to the first pixel centre.
@@ -788,14 +794,14 @@ fn walk_scalar<M: AlphaTest>(rec: &FixedRecord, eye: usize, view: &EyeView<'_, M
 /// widened by a pixel on each side, so every covered pixel is inside (the lanes then test
 /// each pixel exactly). `None` when no pixel can be.
 #[inline(always)]
-fn row_span(e: &FixedEyeEdges, dy: i64, width: usize) -> Option<(usize, usize)> {
+fn row_span(e: &FixedEyeEdges, inv_dx: &[f64; 3], dy: i64, width: usize) -> Option<(usize, usize)> {
     let (mut lo, mut hi) = (0.0f64, (width - 1) as f64);
     for k in 0..3 {
         let at = (e.e0[k] + e.dy[k] * dy) as f64;
         match e.dx[k].signum() {
             // E grows to the right: covered from its zero on.
-            1 => lo = lo.max(-at * e.inv_dx[k] - 1.0),
-            -1 => hi = hi.min(-at * e.inv_dx[k] + 1.0),
+            1 => lo = lo.max(-at * inv_dx[k] - 1.0),
+            -1 => hi = hi.min(-at * inv_dx[k] + 1.0),
             // Parallel to the row: all of it or none.
             _ if at < 0.0 => return None,
             _ => {}
@@ -839,7 +845,8 @@ fn walk_narrow(rec: &FixedRecord, eye: usize, band: &mut Band<'_>) {
     let (c0, width) = (c0 as usize, (c1 - c0 + 1) as usize);
     // Where each edge crosses row dy, as a linear function of dy (the f64 form of
     // `row_span`, without its per-row products).
-    let crossing = |k: usize| (-(e.e0[k] as f64) * e.inv_dx[k], -(e.dy[k] as f64) * e.inv_dx[k]);
+    let inv_dx = e.inv_dx();
+    let crossing = |k: usize| (-(e.e0[k] as f64) * inv_dx[k], -(e.dy[k] as f64) * inv_dx[k]);
     let crossings = [crossing(0), crossing(1), crossing(2)];
     let last_column = (width - 1) as f64;
     for y in y0..=y1 {
@@ -993,10 +1000,11 @@ fn walk_wide<M: AlphaTest>(rec: &FixedRecord, eye: usize, view: &EyeView<'_, M>,
     let prim = u32x8::splat(rec.prim);
     let lane_bits = u32x8::from([1, 2, 4, 8, 16, 32, 64, 128]);
     let width = (c1 - c0 + 1) as usize;
+    let inv_dx = e.inv_dx();
     let mut masked = 0;
     for y in y0..=y1 {
         let dy = i64::from(y - rec.rows.0);
-        let Some((first, last)) = row_span(e, dy, width) else { continue };
+        let Some((first, last)) = row_span(e, &inv_dx, dy, width) else { continue };
         let q_row = e.qc + e.qb * (y - rec.rows.0) as f32;
         let row = (y as usize - band.rows.start) * band.width;
         let mut edge: [i64; 3] = core::array::from_fn(|k| e.e0[k] + e.dy[k] * dy + e.dx[k] * first as i64);
