@@ -82,8 +82,10 @@ pub trait SurfaceLayout: Sync {
     fn bytes_per_pixel(&self) -> usize;
     /// Starts loading the cache lines of pixel `(x, y)` in every plane (reads nothing; a
     /// pixel outside the extent is ignored). For sparse reads, which the hardware prefetcher
-    /// cannot foresee.
-    fn prefetch(&self, x: usize, y: usize);
+    /// cannot foresee. The default does nothing, so a layout that does not prefetch is still
+    /// correct.
+    #[inline(always)]
+    fn prefetch(&self, _x: usize, _y: usize) {}
     /// This G-buffer as the compact layout, if it is one (the AVX-512 reprojection body
     /// decodes compact planes 16 pixels at a time).
     fn as_compact(&self) -> Option<&CompactGBuffer<'_>> {
