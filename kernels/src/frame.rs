@@ -261,14 +261,8 @@ impl<'a, T: Copy> Plane<'a, T> {
     /// does nothing).
     #[inline(always)]
     pub fn prefetch(&self, x: usize, y: usize) {
-        #[cfg(target_arch = "x86_64")]
         if x < self.extent.width && y < self.extent.height {
-            // SAFETY: a prefetch reads nothing, and the address lies inside the plane.
-            unsafe {
-                core::arch::x86_64::_mm_prefetch::<{ core::arch::x86_64::_MM_HINT_T0 }>(
-                    self.data.as_ptr().add(y * self.stride + x).cast(),
-                )
-            };
+            crate::simd::prefetch(self.data.as_ptr().wrapping_add(y * self.stride + x));
         }
     }
 

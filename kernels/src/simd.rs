@@ -32,6 +32,21 @@ pub fn lane_offsets() -> F32s {
     F32s::from([0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0])
 }
 
+/// Starts loading the cache line holding `p` into every cache level.
+///
+/// Safe for any address, even dangling or null: a prefetch is a hint that never faults and
+/// changes nothing the program can observe. On targets without one it does nothing.
+#[inline(always)]
+pub fn prefetch<T>(p: *const T) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: SSE is part of the x86-64 baseline, and a prefetch reads nothing.
+    unsafe {
+        core::arch::x86_64::_mm_prefetch::<{ core::arch::x86_64::_MM_HINT_T0 }>(p.cast::<i8>());
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = p;
+}
+
 /// `a * b + c`, rounded twice (see the determinism policy).
 #[inline(always)]
 pub fn mad(a: F32s, b: F32s, c: F32s) -> F32s {

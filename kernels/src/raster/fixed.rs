@@ -51,7 +51,7 @@ use wide::{f64x4, i32x8, i64x4, u32x8};
 use super::{AlphaTest, Body, EyeView, NO_PRIM, Projection, RasterStats, Triangles, VisibilityBuffer, band_range};
 use crate::camera::CameraModel;
 use crate::frame::{Extent, FrameError, same_extent};
-use crate::simd::{F32s, LANES, lane_offsets};
+use crate::simd::{F32s, LANES, lane_offsets, prefetch};
 
 /// Fractional bits of the snapped vertex coordinates: vertices land on a 1/256-pixel grid,
 /// as on most GPUs.
@@ -357,13 +357,9 @@ impl FixedRasterizer {
             for (i, &r) in list.iter().enumerate() {
                 // The records of a band are scattered over the frame's records: fetch ahead.
                 if let Some(&ahead) = list.get(i + 6) {
-                    let p = &record(ahead).eyes[eye] as *const FixedEyeEdges as *const i8;
-                    #[cfg(target_arch = "x86_64")]
-                    // SAFETY: a prefetch of a valid reference's address; it reads nothing.
-                    unsafe {
-                        core::arch::x86_64::_mm_prefetch::<{ core::arch::x86_64::_MM_HINT_T0 }>(p);
-                        core::arch::x86_64::_mm_prefetch::<{ core::arch::x86_64::_MM_HINT_T0 }>(p.add(64));
-                    }
+                    let p = (&record(ahead).eyes[eye] as *const FixedEyeEdges).cast::<u8>();
+                    prefetch(p);
+                    prefetch(p.wrapping_add(64));
                 }
                 let rec = record(r);
                 stats.exact += match body {

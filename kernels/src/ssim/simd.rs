@@ -35,7 +35,7 @@ use crate::frame::{PlaneMut, RgbPlanes};
 
 use crate::isa::Isa;
 use crate::lanes::Lanes;
-use crate::simd::F32s;
+use crate::simd::{F32s, prefetch};
 
 /// Loads one vector from `a[i..]` (callers use constant trip counts, so the bounds
 /// checks fold away).
@@ -500,18 +500,6 @@ fn prefetch_segment<V: Lanes>(ctx: &Ctx<'_, V>, c0: usize, y: usize) {
             prefetch(row.wrapping_add(end - 1));
         }
     }
-}
-
-#[inline(always)]
-fn prefetch(p: *const f32) {
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: SSE is part of the x86-64 baseline, and a prefetch is a hint: it never faults
-    // and changes nothing the program can observe.
-    unsafe {
-        core::arch::x86_64::_mm_prefetch::<{ core::arch::x86_64::_MM_HINT_T0 }>(p.cast::<i8>());
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = p;
 }
 
 /// Row `y` of every plane, columns `c0 − PAD ‥ c0 + TILE + PAD`: borrowed from the images

@@ -26,7 +26,7 @@ use crate::kernels::gbuffer::GBufferBuf;
 use crate::kernels::gbuffer::encode_normals;
 use crate::kernels::raster::fixed::FixedRasterizer;
 use crate::kernels::raster::{AlphaTest, Body, NO_PRIM, Rasterizer, Triangles, VisibilityBuffer};
-use crate::kernels::simd::{F32s, LANES, lane_offsets, u32x8};
+use crate::kernels::simd::{F32s, LANES, lane_offsets, prefetch, u32x8};
 use crate::kernels::{Extent, FrameError};
 use crate::source::{Layout, RasterPassStats};
 
@@ -243,31 +243,24 @@ impl Renderer {
     /// the L2 cache, and without this each group waits on its own loads.
     #[inline(always)]
     fn prefetch_triangles(&self, ahead: &[u32; LANES], mesh_len: u32) {
-        #[cfg(target_arch = "x86_64")]
-        {
-            use core::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-            let mesh = &self.scene.mesh;
-            let ids = u32x8::from(*ahead);
-            let previous =
-                u32x8::from(core::array::from_fn::<u32, LANES, _>(|i| if i == 0 { NO_PRIM } else { ahead[i - 1] }));
-            let mut m = (ids.simd_lt(u32x8::splat(mesh_len)) & !ids.simd_eq(previous)).to_bitmask();
-            while m != 0 {
-                let p = ahead[m.trailing_zeros() as usize] as usize;
-                m &= m - 1;
-                let at = |s: *const u8| {
-                    // SAFETY: a prefetch reads nothing; the addresses lie inside the arrays.
-                    unsafe {
-                        _mm_prefetch::<_MM_HINT_T0>(s as *const i8);
-                        _mm_prefetch::<_MM_HINT_T0>(s.add(32) as *const i8);
-                    }
-                };
-                at(mesh.positions[p].as_ptr() as *const u8);
-                if let Some(normals) = &mesh.normals {
-                    at(normals[p].as_ptr() as *const u8);
-                }
-                // SAFETY: as above.
-                unsafe { _mm_prefetch::<_MM_HINT_T0>(&mesh.material[p] as *const u32 as *const i8) };
+        let mesh = &self.scene.mesh;
+        let ids = u32x8::from(*ahead);
+        let previous =
+            u32x8::from(core::array::from_fn::<u32, LANES, _>(|i| if i == 0 { NO_PRIM } else { ahead[i - 1] }));
+        let mut m = (ids.simd_lt(u32x8::splat(mesh_len)) & !ids.simd_eq(previous)).to_bitmask();
+        while m != 0 {
+            let p = ahead[m.trailing_zeros() as usize] as usize;
+            m &= m - 1;
+            // A triangle's three vertices span 36 bytes, so they may straddle two lines.
+            let lines = |s: *const u8| {
+                prefetch(s);
+                prefetch(s.wrapping_add(32));
+            };
+            lines(mesh.positions[p].as_ptr().cast());
+            if let Some(normals) = &mesh.normals {
+                lines(normals[p].as_ptr().cast());
             }
+            prefetch(&mesh.material[p]);
         }
     }
 
