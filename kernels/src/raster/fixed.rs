@@ -812,10 +812,13 @@ fn row_span(e: &FixedEyeEdges, inv_dx: &[f64; 3], dy: i64, width: usize) -> Opti
 fn walk_simd<M: AlphaTest>(rec: &FixedRecord, eye: usize, view: &EyeView<'_, M>, band: &mut Band<'_>) -> u64 {
     let e = &rec.eyes[eye];
     if !rec.masked && e.dx.iter().all(|d| d.abs() < NARROW_STEP) {
-        if e.cols.1 - e.cols.0 < LANES as i32 && e.cols.0 as usize + LANES <= band.width {
+        let fit = edges_fit_i32(rec, e);
+        if fit && e.cols.1 - e.cols.0 < LANES as i32 && e.cols.0 as usize + LANES <= band.width {
             walk_small(rec, eye, band);
+        } else if fit {
+            walk_narrow::<true>(rec, eye, band);
         } else {
-            walk_narrow(rec, eye, band);
+            walk_narrow::<false>(rec, eye, band);
         }
         return 0;
     }
@@ -828,15 +831,18 @@ const NARROW_STEP: i64 = 1 << 27;
 
 /// [`walk_simd`] for an opaque record whose edges step by less than [`NARROW_STEP`] per pixel
 /// (almost all of them), with no branch per block: eight lanes of each edge function in one
-/// `i32x8`, from the block's exact `i64` value clamped to ±2³⁰. The clamp keeps every sign:
-/// a value past 2³⁰ stays past 2³⁰ − 7·2²⁷ > 0 across the block (likewise below), and values
-/// within it are exact. The depth test is a blend and a store, taken or not.
-fn walk_narrow(rec: &FixedRecord, eye: usize, band: &mut Band<'_>) {
+/// `i32x8`. With `FIT` (every value fits `i32`, [`edges_fit_i32`]) the lanes are set once a
+/// row and step by one add a block. Otherwise each block's comes from its exact `i64` value
+/// clamped to ±2³⁰, which keeps every sign: a value past 2³⁰ stays past 2³⁰ − 7·2²⁷ > 0
+/// across the block (likewise below), and values within it are exact. The depth test is a
+/// blend and a store, taken or not.
+fn walk_narrow<const FIT: bool>(rec: &FixedRecord, eye: usize, band: &mut Band<'_>) {
     let e = &rec.eyes[eye];
     let Some(((c0, c1), (y0, y1))) = span(rec, eye, band) else { return };
     let lane = i32x8::from([0, 1, 2, 3, 4, 5, 6, 7]);
     let lane_dx = e.dx.map(|d| lane * i32x8::splat(d as i32));
     let step = e.dx.map(|d| 8 * d);
+    let step_lanes = step.map(|d| i32x8::splat(d as i32));
     let (prim, qa) = (u32x8::splat(rec.prim), F32s::splat(e.qa));
     let (c0, width) = (c0 as usize, (c1 - c0 + 1) as usize);
     // Where each edge crosses row dy, as a linear function of dy (the f64 form of
@@ -868,51 +874,81 @@ fn walk_narrow(rec: &FixedRecord, eye: usize, band: &mut Band<'_>) {
         // an earlier unaligned store cannot be forwarded and waits for it).
         let (lo, hi) = (c0 + first, c0 + last);
         let mut bx = lo;
-        let mut edge: [i64; 3] = core::array::from_fn(|k| e.e0[k] + e.dy[k] * dy + e.dx[k] * (bx as i64 - c0 as i64));
+        let edge_at = |bx: usize| -> [i64; 3] {
+            core::array::from_fn(|k| e.e0[k] + e.dy[k] * dy + e.dx[k] * (bx as i64 - c0 as i64))
+        };
+        let mut edge = edge_at(bx);
+        let mut lanes: [i32x8; 3] = core::array::from_fn(|k| i32x8::splat(edge[k] as i32) + lane_dx[k]);
         while bx <= hi {
             let q = q_row + (F32s::splat((bx as i64 - c0 as i64) as f32) + lane_offsets()) * qa;
             if bx + LANES > band.width {
                 // The image's right border: one lane at a time.
                 let (from, to) = (lo.max(bx) - bx, hi - bx + 1);
+                let edge = if FIT { edge_at(bx) } else { edge };
                 scalar_lanes(rec, e, &edge, q, from..to, &mut band.q[row + bx..], &mut band.prim[row + bx..]);
                 break;
             }
-            let outside = edge_signs(&edge, &lane_dx);
+            // Negative where a lane is outside any edge.
+            let outside = if FIT { lanes[0] | lanes[1] | lanes[2] } else { edge_signs(&edge, &lane_dx) };
             let xs = lane + i32x8::splat(bx as i32);
             let valid = xs.simd_ge(i32x8::splat(lo as i32)) & xs.simd_le(i32x8::splat(hi as i32));
             let covered: u32x8 = bytemuck::cast(valid & outside.simd_ge(i32x8::splat(0)));
             let at = row + bx;
             depth_test_block(band, at, q, prim, covered);
             for k in 0..3 {
-                edge[k] += step[k];
+                if FIT {
+                    lanes[k] += step_lanes[k];
+                } else {
+                    edge[k] += step[k];
+                }
             }
             bx += LANES;
         }
     }
 }
 
+/// Whether every edge function value the walks form for `e` (the record's rows, and its
+/// columns plus the seven lanes a block may reach past the last) lies strictly within `i32`,
+/// so they can keep and step them as `i32` lanes with no clamp. The bound is
+/// `|E₀| + |dx|·(columns + 7) + |dy|·rows` per edge, in `i64` (each term is far below 2⁶³ for
+/// snapped coordinates under the 2²¹-pixel limit). At 1280×720 nearly every record fits: an
+/// edge 8 px wide and 700 rows tall stays near 2³⁰.
+#[inline(always)]
+fn edges_fit_i32(rec: &FixedRecord, e: &FixedEyeEdges) -> bool {
+    let rows = i64::from(rec.rows.1 - rec.rows.0) + 1;
+    let columns = i64::from(e.cols.1 - e.cols.0) + 1;
+    (0..3).all(|k| {
+        e.e0[k].abs() + e.dx[k].abs() * (columns + LANES as i64 - 1) + e.dy[k].abs() * rows < i64::from(i32::MAX)
+    })
+}
+
 /// [`walk_narrow`] for a record at most eight columns wide that ends at least eight columns
-/// before the image's right border (most of a detailed scene's triangles): one block per row
-/// at the record's first column, so a row costs no span, and the edge values step by row in
-/// exact integers. A row that covers nothing loads and stores nothing.
+/// before the image's right border and whose edge values fit `i32` ([`edges_fit_i32`]): most
+/// of a detailed scene's triangles. One block per row at the record's first column, so a row
+/// costs no span; each edge's eight lane values live in one `i32x8` and step by row with one
+/// add, exact (nothing overflows, by the bound). A row that covers nothing loads and stores
+/// nothing.
 fn walk_small(rec: &FixedRecord, eye: usize, band: &mut Band<'_>) {
     let e = &rec.eyes[eye];
     let Some(((c0, c1), (y0, y1))) = span(rec, eye, band) else { return };
     let lane = i32x8::from([0, 1, 2, 3, 4, 5, 6, 7]);
-    let lane_dx = e.dx.map(|d| lane * i32x8::splat(d as i32));
     let (prim, qa) = (u32x8::splat(rec.prim), F32s::splat(e.qa));
     // Lanes past the record's last column are never covered.
     let valid = lane.simd_le(i32x8::splat(c1 - c0));
     // The depth key's lanes relative to the row's: the reference's `qa · (x − c0)`.
     let q_lanes = lane_offsets() * qa;
     let first = i64::from(y0 - rec.rows.0);
-    let mut edge: [i64; 3] = core::array::from_fn(|k| e.e0[k] + e.dy[k] * first);
+    let mut edge: [i32x8; 3] = core::array::from_fn(|k| {
+        i32x8::splat((e.e0[k] + e.dy[k] * first) as i32) + lane * i32x8::splat(e.dx[k] as i32)
+    });
+    let step: [i32x8; 3] = core::array::from_fn(|k| i32x8::splat(e.dy[k] as i32));
     let mut row = (y0 as usize - band.rows.start) * band.width + c0 as usize;
     for y in y0..=y1 {
-        let outside = edge_signs(&edge, &lane_dx);
+        // Negative where a lane is outside any edge.
+        let outside = edge[0] | edge[1] | edge[2];
         let covered = valid & outside.simd_ge(i32x8::splat(0));
         for k in 0..3 {
-            edge[k] += e.dy[k];
+            edge[k] += step[k];
         }
         if covered.any() {
             let q = F32s::splat(e.qc + e.qb * (y - rec.rows.0) as f32) + q_lanes;
