@@ -266,9 +266,7 @@ impl FixedRasterizer {
                         for (lane, id) in ids.into_iter().enumerate() {
                             let before = records.len();
                             if simple >> lane & 1 != 0 {
-                                if let Some(rec) = record(snapped[lane], id, proj, [true; 2]) {
-                                    records.push(rec);
-                                }
+                                record(&snapped[lane], id, proj, [true; 2], records);
                             } else if culled >> lane & 1 == 0 {
                                 stats.clipped += u64::from(setup_triangle(tris.get(id), id, proj, near, records));
                             }
@@ -427,9 +425,7 @@ fn setup_triangle(t: &[f32; 9], prim: u32, p: &Projection, near: f32, out: &mut 
                 return true;
             }
         }
-        if let Some(rec) = record(verts, prim, p, [true; 2]) {
-            out.push(rec);
-        }
+        record(&verts, prim, p, [true; 2], out);
         return false;
     }
     let mut poly = [[0.0f64; 3]; MAX_POLYGON];
@@ -483,7 +479,11 @@ fn setup_four(ts: [&[f32; 9]; 4], p: &Projection, near: f64, out: &mut [[Snapped
     type F = f64x4;
     let all = F::splat(f64::from_bits(u64::MAX));
     let comp = |k: usize, c: usize| F::from(ts.map(|t| f64::from(t[3 * k + c]))) - F::splat(f64::from(p.centre[c]));
-    let d: [[F; 3]; 3] = core::array::from_fn(|k| core::array::from_fn(|c| comp(k, c)));
+    // The arrays here are written out, not built by `array::from_fn` or `map`: built that
+    // way, some builds assembled them on the stack and copied them with `memcpy` calls, a
+    // tenth of the setup's instructions on atrium.
+    let vertex = |k: usize| [comp(k, 0), comp(k, 1), comp(k, 2)];
+    let d: [[F; 3]; 3] = [vertex(0), vertex(1), vertex(2)];
     let finite = d.iter().flatten().fold(all, |acc, v| acc & v.is_finite());
     let (e1, e2) = ([0, 1, 2].map(|c| d[1][c] - d[0][c]), [0, 1, 2].map(|c| d[2][c] - d[0][c]));
     let area = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
@@ -491,10 +491,16 @@ fn setup_four(ts: [&[f32; 9]; 4], p: &Projection, near: f64, out: &mut [[Snapped
     let row = |r: &[f32; 3]| r.map(|x| F::splat(f64::from(x)));
     let (rx, ry, rw) = (row(&p.rx), row(&p.ry), row(&p.rw));
     let dot = |r: &[F; 3], v: &[F; 3]| r[0] * v[0] + r[1] * v[1] + r[2] * v[2];
-    let clip = d.map(|v| [dot(&rx, &v), dot(&ry, &v), dot(&rw, &v)]);
-    let offsets = [[0.0; 3], p.right_offset].map(|o| o.map(F::splat));
+    let to_clip = |v: &[F; 3]| [dot(&rx, v), dot(&ry, v), dot(&rw, v)];
+    let clip = [to_clip(&d[0]), to_clip(&d[1]), to_clip(&d[2])];
     // Per eye, the clip coordinates `(x, y, w)` of the three vertices.
-    let eye_clip = offsets.map(|o| clip.map(|c| [c[0] + o[0], c[1] + o[1], c[2] + o[2]]));
+    // (The left eye's offset is 0, added all the same, as `setup_triangle` adds it.)
+    let eye = |o: [f64; 3]| {
+        let o = o.map(F::splat);
+        let shifted = |c: &[F; 3]| [c[0] + o[0], c[1] + o[1], c[2] + o[2]];
+        [shifted(&clip[0]), shifted(&clip[1]), shifted(&clip[2])]
+    };
+    let eye_clip = [eye([0.0; 3]), eye(p.right_offset)];
     // All three vertices beyond one side plane of an eye's frustum.
     let outside = |v: &[[F; 3]; 3]| {
         let (mut right, mut left, mut up, mut down) = (all, all, all, all);
@@ -602,9 +608,7 @@ fn fan(poly: &[[f64; 3]], prim: u32, p: &Projection, eyes: [bool; 2], out: &mut 
         }
     }
     for k in 1..poly.len() - 1 {
-        if let Some(rec) = record([verts[0], verts[k], verts[k + 1]], prim, p, eyes) {
-            out.push(rec);
-        }
+        record(&[verts[0], verts[k], verts[k + 1]], prim, p, eyes, out);
     }
 }
 
@@ -652,10 +656,11 @@ fn clip_polygon(poly: &mut [[f64; 3]; MAX_POLYGON], n: usize, inside: impl Fn(&[
     m
 }
 
-/// The record of one snapped triangle for `eyes` (the other eye's part empty), or `None`
-/// when it covers no pixel centre in them (zero snapped area, or a bounding box between
-/// centres or off screen).
-fn record(v: [Snapped; 3], prim: u32, p: &Projection, eyes: [bool; 2]) -> Option<FixedRecord> {
+/// Pushes the record of one snapped triangle for `eyes` (the other eye's part empty) onto
+/// `out`, or nothing when it covers no pixel centre in them (zero snapped area, or a
+/// bounding box between centres or off screen). The record is written where it lands in
+/// `out`: built elsewhere and moved there, its 400-odd bytes were copied twice.
+fn record(v: &[Snapped; 3], prim: u32, p: &Projection, eyes: [bool; 2], out: &mut Vec<FixedRecord>) {
     // Pixel centres `i + 1/2` inside [lo, hi] (fixed point), clamped to the frame.
     let centres = |lo: i64, hi: i64, size: i32| -> (i32, i32) {
         let first = (lo - ONE / 2).div_euclid(ONE) + i64::from((lo - ONE / 2).rem_euclid(ONE) != 0);
@@ -683,15 +688,20 @@ fn record(v: [Snapped; 3], prim: u32, p: &Projection, eyes: [bool; 2]) -> Option
     }
     let visible = |eye: usize| cols[eye].0 <= cols[eye].1;
     if !(visible(0) || visible(1)) {
-        return None;
+        return;
     }
     let rows = match (visible(0), visible(1)) {
         (true, true) => (rows[0].0.min(rows[1].0), rows[0].1.max(rows[1].1)),
         (true, false) => rows[0],
         _ => rows[1],
     };
-    let mut rec =
-        FixedRecord { eyes: [FixedEyeEdges { cols: (1, 0), ..Default::default() }; 2], rows, prim, masked: false };
+    out.push(FixedRecord {
+        eyes: [FixedEyeEdges { cols: (1, 0), ..Default::default() }; 2],
+        rows,
+        prim,
+        masked: false,
+    });
+    let rec = out.last_mut().expect("just pushed");
     for eye in 0..2 {
         if !visible(eye) {
             continue;
@@ -726,7 +736,6 @@ fn record(v: [Snapped; 3], prim: u32, p: &Projection, eyes: [bool; 2]) -> Option
         let qc = q[0] - qa * fx[0] - qb * fy[0];
         (e.qa, e.qb, e.qc) = (qa as f32, qb as f32, qc as f32);
     }
-    Some(rec)
 }
 
 /// The depth test: a fragment of `prim` at `q` replaces the stored one when nearer (larger
@@ -1195,7 +1204,8 @@ mod tests {
                 let clipped = setup_triangle(ts[lane], prim, &p, near, &mut want);
                 if simple >> lane & 1 != 0 {
                     kinds[0] += 1;
-                    let got: Vec<_> = record(snapped[lane], prim, &p, [true; 2]).into_iter().collect();
+                    let mut got = Vec::new();
+                    record(&snapped[lane], prim, &p, [true; 2], &mut got);
                     assert_eq!((got, false), (want, clipped), "triangle {prim}: {:?}", ts[lane]);
                 } else if culled >> lane & 1 != 0 {
                     kinds[1] += 1;
