@@ -300,7 +300,7 @@ impl SurfaceLayout for CompactGBuffer<'_> {
         let depth = taps.gather_f32(&self.depth);
         let px = F32s::from(taps.x.map(|v| v as f32)) + F32s::splat(0.5);
         let py = F32s::from(taps.y.map(|v| v as f32)) + F32s::splat(0.5);
-        let packed = u32x8::from(taps.gather(&self.normal));
+        let packed = taps.gather_u32(&self.normal);
         Surfels { depth, position: self.positions(depth, px, py), normal: decode_normals_raw(packed) }
     }
 

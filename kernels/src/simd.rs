@@ -105,9 +105,25 @@ impl TapCoords {
         let xmax = F32s::splat((width - 1) as f32);
         let ymax = F32s::splat((height - 1) as f32);
         // max(NaN, 0) picks 0 in wide's `max` (it checks the right-hand side for NaN).
-        let xc = x.max(F32s::ZERO).min(xmax).to_array();
-        let yc = y.max(F32s::ZERO).min(ymax).to_array();
-        Self { x: xc.map(|v| v as u32), y: yc.map(|v| v as u32) }
+        let (xc, yc) = (x.max(F32s::ZERO).min(xmax), y.max(F32s::ZERO).min(ymax));
+        // Within [0, MAX_DIMENSION) (the widest extent), where truncating to i32 in one
+        // vector instruction is `as u32` lane by lane.
+        let int = |v: F32s| -> [u32; LANES] { bytemuck::cast(v.fast_trunc_int()) };
+        Self { x: int(xc), y: int(yc) }
+    }
+
+    /// Each lane's element index into `plane` (its coordinates clamped into the plane, as
+    /// [`TapCoords::gather`] does), or `None` where an index might not fit `i32`.
+    #[inline(always)]
+    fn indices<T: Copy>(&self, plane: &Plane<'_, T>) -> Option<i32x8> {
+        if plane.as_slice().len() > i32::MAX as usize {
+            return None;
+        }
+        let (w, h) = (plane.width() as u32, plane.height() as u32);
+        let x = u32x8::from(self.x).min(u32x8::splat(w - 1));
+        let y = u32x8::from(self.y).min(u32x8::splat(h - 1));
+        let (x, y): (i32x8, i32x8) = (bytemuck::cast(x), bytemuck::cast(y));
+        Some(y * i32x8::splat(plane.stride() as i32) + x)
     }
 
     /// Loads the taps from `plane` (elements may be any `Copy` type).
@@ -125,10 +141,37 @@ impl TapCoords {
         out
     }
 
-    /// Loads float taps as a vector.
+    /// Loads float taps as a vector: [`TapCoords::gather`], as one AVX2 gather where the
+    /// binary has AVX2 (the lanes' indices formed in one vector, not eight scalar ones).
     #[inline(always)]
     pub fn gather_f32(&self, plane: &Plane<'_, f32>) -> F32s {
+        #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+        if let Some(indices) = self.indices(plane) {
+            use core::arch::x86_64::{__m256, __m256i, _mm256_i32gather_ps};
+            // SAFETY: AVX2 is enabled at compile time; every index is `y·stride + x` with
+            // `x < width` and `y < height` (clamped in `indices`), below the plane's length
+            // ((height − 1)·stride + width, checked at construction), which fits `i32`.
+            let v = unsafe {
+                _mm256_i32gather_ps::<4>(plane.as_slice().as_ptr(), bytemuck::cast::<i32x8, __m256i>(indices))
+            };
+            return bytemuck::cast::<__m256, F32s>(v);
+        }
         F32s::from(self.gather(plane))
+    }
+
+    /// Loads `u32` taps: [`TapCoords::gather`], as one AVX2 gather where the binary has AVX2.
+    #[inline(always)]
+    pub fn gather_u32(&self, plane: &Plane<'_, u32>) -> u32x8 {
+        #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+        if let Some(indices) = self.indices(plane) {
+            use core::arch::x86_64::{__m256i, _mm256_i32gather_epi32};
+            // SAFETY: as in `gather_f32`.
+            let v = unsafe {
+                _mm256_i32gather_epi32::<4>(plane.as_slice().as_ptr().cast(), bytemuck::cast::<i32x8, __m256i>(indices))
+            };
+            return bytemuck::cast::<__m256i, u32x8>(v);
+        }
+        u32x8::from(self.gather(plane))
     }
 }
 
@@ -162,6 +205,43 @@ mod tests {
         let r = mad(a, F32s::splat(10.0), F32s::splat(-1.0));
         assert_eq!(r.to_array(), [mad1(0.1, 10.0, -1.0); LANES]);
         assert_eq!(mad1(0.1, 10.0, -1.0), 0.0);
+    }
+
+    /// The vector gathers load what the lane-by-lane one does: coordinates clamped into the
+    /// extent (NaN, infinities, negatives, past the edge), rows with padding, and a plane
+    /// smaller than the extent the coordinates were clamped for.
+    #[test]
+    fn vector_gathers_equal_the_lane_by_lane_gather() {
+        let (width, height, stride) = (37, 11, 41);
+        let floats: Vec<f32> = (0..stride * height).map(|i| i as f32 * 0.5 - 7.0).collect();
+        let words: Vec<u32> = (0..stride * height).map(|i| (i as u32).wrapping_mul(2_654_435_761)).collect();
+        let planes = [(width, height), (width - 5, height - 3)]
+            .map(|(w, h)| (Plane::new(&floats, w, h, stride).unwrap(), Plane::new(&words, w, h, stride).unwrap()));
+        let mut state = 0x9E37_79B9_u32;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state
+        };
+        let specials = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -1.0, -0.0, 1e9, 36.0, 36.999, 10.0, 11.0];
+        for round in 0..500 {
+            let coordinate = |next: &mut dyn FnMut() -> u32| -> f32 {
+                let r = next();
+                if round % 5 == 0 { specials[r as usize % specials.len()] } else { (r % 50) as f32 - 5.0 }
+            };
+            let xs: [f32; LANES] = core::array::from_fn(|_| coordinate(&mut next));
+            let ys: [f32; LANES] = core::array::from_fn(|_| coordinate(&mut next));
+            let taps = TapCoords::clamped(F32s::from(xs), F32s::from(ys), width, height);
+            for (i, (&x, &y)) in xs.iter().zip(&ys).enumerate() {
+                let clamp = |v: f32, max: usize| if v.is_nan() { 0 } else { v.clamp(0.0, max as f32) as u32 };
+                assert_eq!((taps.x[i], taps.y[i]), (clamp(x, width - 1), clamp(y, height - 1)), "{x} {y}");
+            }
+            for (f, u) in &planes {
+                assert_eq!(taps.gather_f32(f).to_array(), taps.gather(f), "{taps:?}");
+                assert_eq!(taps.gather_u32(u).to_array(), taps.gather(u), "{taps:?}");
+            }
+        }
     }
 
     #[test]
