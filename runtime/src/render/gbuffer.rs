@@ -231,21 +231,6 @@ pub(crate) fn for_each_gbuffer_row<F>(out: &mut GBufferBuf, row: F)
 where
     F: Fn(usize, GRow<'_>) + Sync + Send,
 {
-    rows_of(out).enumerate().for_each(|(y, r)| row(y, r));
-}
-
-/// Runs `row` on every row `y` of two buffers of one extent in parallel, with row `y` of
-/// each: a stereo pair's rows side by side.
-pub(crate) fn for_each_gbuffer_row_pair<F>(a: &mut GBufferBuf, b: &mut GBufferBuf, row: F)
-where
-    F: Fn(usize, GRow<'_>, GRow<'_>) + Sync + Send,
-{
-    assert_eq!(a.extent(), b.extent(), "a stereo pair's G-buffers have one extent");
-    rows_of(a).zip(rows_of(b)).enumerate().for_each(|(y, (ra, rb))| row(y, ra, rb));
-}
-
-/// Every row of `out`, as a parallel iterator of [`GRow`]s.
-fn rows_of(out: &mut GBufferBuf) -> impl IndexedParallelIterator<Item = GRow<'_>> {
     let width = out.extent().width();
     let GBufferBuf { depth, position: [px, py, pz], normal: [nx, ny, nz], normal_oct, material, .. } = out;
     let rows = (
@@ -259,11 +244,7 @@ fn rows_of(out: &mut GBufferBuf) -> impl IndexedParallelIterator<Item = GRow<'_>
         normal_oct.as_mut_slice().par_chunks_mut(width),
         material.as_mut_slice().par_chunks_mut(width),
     );
-    rows.into_par_iter().map(|(d, px, py, pz, nx, ny, nz, oct, mat)| GRow {
-        depth: d,
-        position: [px, py, pz],
-        normal: [nx, ny, nz],
-        oct,
-        material: mat,
-    })
+    rows.into_par_iter().enumerate().for_each(|(y, (d, px, py, pz, nx, ny, nz, oct, mat))| {
+        row(y, GRow { depth: d, position: [px, py, pz], normal: [nx, ny, nz], oct, material: mat })
+    });
 }

@@ -17,7 +17,7 @@ use glam::Vec3;
 
 use super::effects::{ALPHA_MASKS, has};
 use super::estimator::Surface;
-use super::gbuffer::{GLanes, GRow, GTexel, for_each_gbuffer_row_pair};
+use super::gbuffer::{GLanes, GTexel, for_each_gbuffer_row};
 use super::lights::FrameLights;
 use super::renderer::{RenderError, Renderer};
 use crate::kernels::CameraModel;
@@ -169,9 +169,11 @@ impl Renderer {
         let start = std::time::Instant::now();
         let [vis_left, vis_right] = &raster.visibility;
         if raster.planes == Layout::Full {
-            self.resolve::<true>(lights, [vis_left, vis_right], [left, right]);
+            self.resolve::<true>(lights, vis_left, left);
+            self.resolve::<true>(lights, vis_right, right);
         } else {
-            self.resolve::<false>(lights, [vis_left, vis_right], [left, right]);
+            self.resolve::<false>(lights, vis_left, left);
+            self.resolve::<false>(lights, vis_right, right);
         }
         Ok(RasterPassStats { raster: stats, resolve: start.elapsed() })
     }
@@ -182,83 +184,58 @@ impl Renderer {
     /// ([`Renderer::resolve_pixel`]); both compute what the traced pass does. `ALL_PLANES`
     /// is [`Layout::Full`]: a constant, so the compact layout's resolve does not compute the
     /// planes it does not write.
-    fn resolve<const ALL_PLANES: bool>(
-        &self,
-        lights: &FrameLights,
-        vis: [&VisibilityBuffer; 2],
-        out: [&mut GBufferBuf; 2],
-    ) {
-        let [left, right] = out;
-        let cameras = [left.camera, right.camera];
-        let width = left.extent().width();
-        let prims = vis.map(|v| v.prim.as_slice());
-        // Row y of both eyes in one task: the eyes see mostly the same triangles on a row (a
-        // disparity apart), so the right eye's loads of them find the left's in cache. (Eye
-        // after eye, the second pass reloaded them: 10 % slower on courtyard.)
-        for_each_gbuffer_row_pair(left, right, |y, left_row, right_row| {
-            for (eye, row) in [left_row, right_row].into_iter().enumerate() {
-                let row_prims = &prims[eye][y * width..(y + 1) * width];
-                self.resolve_row::<ALL_PLANES>(lights, &cameras[eye], row_prims, y, row);
+    fn resolve<const ALL_PLANES: bool>(&self, lights: &FrameLights, vis: &VisibilityBuffer, out: &mut GBufferBuf) {
+        let camera = out.camera;
+        let width = camera.extent.width();
+        let mesh_len = self.scene.mesh.len() as u32;
+        let prims = vis.prim.as_slice();
+        for_each_gbuffer_row(out, |y, mut row| {
+            let prims = &prims[y * width..(y + 1) * width];
+            let mut x0 = 0;
+            while x0 + LANES <= width {
+                if let Some(ahead) = prims.get(x0 + PREFETCH_AHEAD..x0 + PREFETCH_AHEAD + LANES) {
+                    self.prefetch_triangles(ahead.try_into().expect("8 lanes"), mesh_len);
+                }
+                let group: &[u32; LANES] = prims[x0..x0 + LANES].try_into().expect("8 lanes");
+                // Which lanes see the mesh, the sky or a moving light: two vector compares,
+                // not a scalar loop (which cost a tenth of the resolve's instructions).
+                let ids = u32x8::from(*group);
+                let is_mesh = ids.simd_lt(u32x8::splat(mesh_len));
+                let background = ids.simd_eq(u32x8::splat(NO_PRIM)).to_bitmask();
+                let mesh_lanes = is_mesh.to_bitmask();
+                let moving = !(background | mesh_lanes) & ((1 << LANES) - 1);
+                let mut scalar = moving;
+                if mesh_lanes != 0 {
+                    // Lanes without a mesh triangle compute on a neighbour's and are
+                    // overwritten below.
+                    let stand_in = u32x8::splat(group[mesh_lanes.trailing_zeros() as usize]);
+                    let lanes = is_mesh.select(ids, stand_in).to_array();
+                    let (texels, undecided) = self.resolve_lanes::<ALL_PLANES>(&camera, x0, y, &lanes);
+                    if ALL_PLANES {
+                        row.set_lanes(x0, &texels);
+                    } else {
+                        row.set_compact_lanes(x0, &texels);
+                    }
+                    scalar |= undecided & mesh_lanes;
+                }
+                let mut m = background;
+                while m != 0 {
+                    let i = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    row.set(x0 + i, &GTexel::BACKGROUND);
+                }
+                let mut m = scalar;
+                while m != 0 {
+                    let i = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    row.set(x0 + i, &self.resolve_pixel(lights, &camera, x0 + i, y, group[i]));
+                }
+                x0 += LANES;
+            }
+            for x in x0..width {
+                row.set(x, &self.resolve_pixel(lights, &camera, x, y, prims[x]));
             }
         });
-    }
-
-    /// One row of [`Renderer::resolve`]: `prims` is the row's visibility.
-    #[inline(always)]
-    fn resolve_row<const ALL_PLANES: bool>(
-        &self,
-        lights: &FrameLights,
-        camera: &CameraModel,
-        prims: &[u32],
-        y: usize,
-        mut row: GRow<'_>,
-    ) {
-        let width = prims.len();
-        let mesh_len = self.scene.mesh.len() as u32;
-        let mut x0 = 0;
-        while x0 + LANES <= width {
-            if let Some(ahead) = prims.get(x0 + PREFETCH_AHEAD..x0 + PREFETCH_AHEAD + LANES) {
-                self.prefetch_triangles(ahead.try_into().expect("8 lanes"), mesh_len);
-            }
-            let group: &[u32; LANES] = prims[x0..x0 + LANES].try_into().expect("8 lanes");
-            // Which lanes see the mesh, the sky or a moving light: two vector compares,
-            // not a scalar loop (which cost a tenth of the resolve's instructions).
-            let ids = u32x8::from(*group);
-            let is_mesh = ids.simd_lt(u32x8::splat(mesh_len));
-            let background = ids.simd_eq(u32x8::splat(NO_PRIM)).to_bitmask();
-            let mesh_lanes = is_mesh.to_bitmask();
-            let moving = !(background | mesh_lanes) & ((1 << LANES) - 1);
-            let mut scalar = moving;
-            if mesh_lanes != 0 {
-                // Lanes without a mesh triangle compute on a neighbour's and are
-                // overwritten below.
-                let stand_in = u32x8::splat(group[mesh_lanes.trailing_zeros() as usize]);
-                let lanes = is_mesh.select(ids, stand_in).to_array();
-                let (texels, undecided) = self.resolve_lanes::<ALL_PLANES>(camera, x0, y, &lanes);
-                if ALL_PLANES {
-                    row.set_lanes(x0, &texels);
-                } else {
-                    row.set_compact_lanes(x0, &texels);
-                }
-                scalar |= undecided & mesh_lanes;
-            }
-            let mut m = background;
-            while m != 0 {
-                let i = m.trailing_zeros() as usize;
-                m &= m - 1;
-                row.set(x0 + i, &GTexel::BACKGROUND);
-            }
-            let mut m = scalar;
-            while m != 0 {
-                let i = m.trailing_zeros() as usize;
-                m &= m - 1;
-                row.set(x0 + i, &self.resolve_pixel(lights, camera, x0 + i, y, group[i]));
-            }
-            x0 += LANES;
-        }
-        for x in x0..width {
-            row.set(x, &self.resolve_pixel(lights, camera, x, y, prims[x]));
-        }
     }
 
     /// Starts loading the mesh data of the triangles `ahead` names (each once where
