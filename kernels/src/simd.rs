@@ -113,7 +113,9 @@ impl TapCoords {
     }
 
     /// Each lane's element index into `plane` (its coordinates clamped into the plane, as
-    /// [`TapCoords::gather`] does), or `None` where an index might not fit `i32`.
+    /// [`TapCoords::gather`] does), or `None` where an index might not fit `i32`. (For the
+    /// AVX2 gathers only.)
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
     #[inline(always)]
     fn indices<T: Copy>(&self, plane: &Plane<'_, T>) -> Option<i32x8> {
         if plane.as_slice().len() > i32::MAX as usize {
