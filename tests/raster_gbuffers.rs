@@ -12,9 +12,13 @@
 //!   snapped vertices, which tilts a grazing surface's plane by up to that much); at least
 //!   99 % of the pixels of a frame of 10⁴ pixels or more agree.
 //!
-//! Where both see the same triangle the texels (depth, position, normals, material) must be
-//! identical bit for bit: the resolve is the traced pass's own texel function on the pixel's
-//! own ray. The test prints how many pixels of each kind it found.
+//! Where both see the same triangle the texels must agree within the issue's tolerance, not
+//! bit for bit (the resolve intersects the pixel's centre ray with the triangle's plane, one
+//! division for eight pixels, where the tracer runs its watertight test): depth within 1e-4
+//! relative, the position within the same distance along the ray, the shading normal within
+//! 1e-3 in every component, its octahedral code within that plus one quantisation step, and
+//! the same material. The test prints how many pixels of each kind it found, and the largest
+//! depth and normal differences.
 
 mod common;
 
@@ -23,6 +27,7 @@ use std::path::Path;
 use glam::{DVec3, Vec3};
 use stereotrace::camera::StereoRig;
 use stereotrace::kernels::bvh::{PreparedRay, Ray, TriVerts, intersect_triangle};
+use stereotrace::kernels::gbuffer::decode_normal;
 use stereotrace::kernels::raster::{Body, NO_PRIM};
 use stereotrace::kernels::{CameraModel, Extent, PlaneBuf};
 use stereotrace::pipeline::Layout;
@@ -39,6 +44,13 @@ struct Tally {
     edges: usize,
     unexplained: Vec<String>,
     texel_mismatches: Vec<String>,
+    /// The largest relative depth and normal-component differences where the same triangle
+    /// is seen.
+    depth_difference: f32,
+    normal_difference: f32,
+    /// Texels of the same triangle outside the tolerance where the traced texel is farther
+    /// from the exact one (f64) than the raster's.
+    tracer_rounding: usize,
 }
 
 fn triangle(renderer: &Renderer, lights: &FrameLights, prim: u32) -> TriVerts {
@@ -113,20 +125,79 @@ fn edge_distance(
         .fold(f64::INFINITY, f64::min)
 }
 
-fn texel_bits(g: &GBufferBuf, i: usize) -> [u32; 10] {
-    let f = |p: &PlaneBuf| p.as_slice()[i].to_bits();
-    [
-        f(&g.depth),
-        f(&g.position[0]),
-        f(&g.position[1]),
-        f(&g.position[2]),
-        f(&g.normal[0]),
-        f(&g.normal[1]),
-        f(&g.normal[2]),
-        g.normal_oct.as_slice()[i],
-        g.material.as_slice()[i],
-        0,
-    ]
+/// Depth, relative, where the same triangle is seen.
+const DEPTH_TOLERANCE: f32 = 1e-4;
+/// Each shading-normal component where the same triangle is seen.
+const NORMAL_TOLERANCE: f32 = 1e-3;
+
+/// The texel's depth and shading normal on `prim` in f64 from the pixel's own f32 centre ray
+/// (the rounding both passes share): the exact values both passes round.
+fn exact_texel(
+    renderer: &Renderer,
+    lights: &FrameLights,
+    camera: &CameraModel,
+    prim: u32,
+    x: usize,
+    y: usize,
+) -> (f64, DVec3) {
+    let dir = Vec3::from(camera.ray(x as f32 + 0.5, y as f32 + 0.5)).as_dvec3();
+    let origin = Vec3::from(camera.centre).as_dvec3();
+    let t = triangle(renderer, lights, prim).map(f64::from);
+    let v = [0, 3, 6].map(|i| DVec3::new(t[i], t[i + 1], t[i + 2]));
+    let (e1, e2, to_origin) = (v[1] - v[0], v[2] - v[0], origin - v[0]);
+    let p = dir.cross(e2);
+    let det = e1.dot(p);
+    let q = to_origin.cross(e1);
+    let (depth, b1, b2) = (e2.dot(q) / det, to_origin.dot(p) / det, dir.dot(q) / det);
+    let mut ng = e1.cross(e2).normalize();
+    if ng.dot(dir) > 0.0 {
+        ng = -ng;
+    }
+    let mesh = &renderer.scene().mesh;
+    let normal = match &mesh.normals {
+        Some(normals) if (prim as usize) < mesh.len() => {
+            let n = normals[prim as usize].map(Vec3::as_dvec3);
+            let ns = (n[0] * (1.0 - b1 - b2) + n[1] * b1 + n[2] * b2).normalize();
+            if ns.dot(ng) < 0.0 { -ns } else { ns }
+        }
+        _ => ng,
+    };
+    (depth, normal)
+}
+
+/// How far the raster texel `i` is from the traced one (relative depth, largest normal
+/// component), or what breaks the tolerance.
+fn texel_difference(raster: &GBufferBuf, traced: &GBufferBuf, i: usize) -> Result<(f32, f32), String> {
+    let (x, y) = (i % raster.extent().width(), i / raster.extent().width());
+    let (dr, dt) = (raster.depth.as_slice()[i], traced.depth.as_slice()[i]);
+    let depth = (dr - dt).abs() / dr.max(dt);
+    if !(depth <= DEPTH_TOLERANCE) {
+        return Err(format!("depth {dr} against {dt}"));
+    }
+    let dir = Vec3::from(raster.camera.ray(x as f32 + 0.5, y as f32 + 0.5));
+    let position = |g: &GBufferBuf| Vec3::from(g.position.each_ref().map(|p| p.as_slice()[i]));
+    let centre = Vec3::from(raster.camera.centre);
+    // The depth tolerance along the ray, and the f32 rounding of `centre + t · dir`.
+    let slack = DEPTH_TOLERANCE * dr.max(dt) * dir.length()
+        + 4.0 * f32::EPSILON * (centre.abs().max_element() + dr.max(dt) * dir.length());
+    if !(position(raster).distance(position(traced)) <= slack) {
+        return Err(format!("position {} against {}", position(raster), position(traced)));
+    }
+    let normal = |g: &GBufferBuf| Vec3::from(g.normal.each_ref().map(|p| p.as_slice()[i]));
+    let normal_difference = (normal(raster) - normal(traced)).abs().max_element();
+    if !(normal_difference <= NORMAL_TOLERANCE) {
+        return Err(format!("normal {} against {}", normal(raster), normal(traced)));
+    }
+    let oct = |g: &GBufferBuf| Vec3::from(decode_normal(g.normal_oct.as_slice()[i]));
+    // One quantisation step of a 16-bit component moves a decoded component by at most
+    // about 2 / 32767 · 2.
+    if !((oct(raster) - oct(traced)).abs().max_element() <= NORMAL_TOLERANCE + 2.5e-4) {
+        return Err(format!("octahedral normal {} against {}", oct(raster), oct(traced)));
+    }
+    if raster.material.as_slice()[i] != traced.material.as_slice()[i] {
+        return Err(format!("material {} against {}", raster.material.as_slice()[i], traced.material.as_slice()[i]));
+    }
+    Ok((depth, normal_difference))
 }
 
 /// What explains a disagreement, and how many pixels must agree, per rasteriser.
@@ -167,8 +238,42 @@ fn compare(renderer: &Renderer, extent: Extent, frame: u32, body: Body, kind: Vi
             let (x, y) = (i % extent.width(), i / extent.width());
             if r == t {
                 tally.agree += 1;
-                if texel_bits(g_raster, i) != texel_bits(&g_traced, i) && tally.texel_mismatches.len() < 10 {
-                    tally.texel_mismatches.push(format!("eye {eye} ({x}, {y}) prim {r}"));
+                if r == NO_PRIM {
+                    // Both background: the same constant texel.
+                    if g_raster.depth.as_slice()[i] != g_traced.depth.as_slice()[i]
+                        || g_raster.material.as_slice()[i] != g_traced.material.as_slice()[i]
+                    {
+                        tally.texel_mismatches.push(format!("eye {eye} ({x}, {y}): background texels differ"));
+                    }
+                    continue;
+                }
+                match texel_difference(g_raster, &g_traced, i) {
+                    Ok((depth, normal)) => {
+                        tally.depth_difference = tally.depth_difference.max(depth);
+                        tally.normal_difference = tally.normal_difference.max(normal);
+                    }
+                    Err(what) => {
+                        // Explained where the traced texel is the farther of the two from
+                        // the exact one: the tracer's own f32 rounding (a small triangle far
+                        // from the origin rounds barycentrics to ~1e-7 × distance / size).
+                        let (depth, normal) = exact_texel(renderer, &lights, camera, r, x, y);
+                        let error = |g: &GBufferBuf| {
+                            let n = DVec3::from(g.normal.each_ref().map(|p| f64::from(p.as_slice()[i])));
+                            ((f64::from(g.depth.as_slice()[i]) - depth).abs() / depth, (n - normal).abs().max_element())
+                        };
+                        let (raster_error, traced_error) = (error(g_raster), error(&g_traced));
+                        if raster_error.0 <= traced_error.0.max(f64::from(DEPTH_TOLERANCE) / 2.0)
+                            && raster_error.1 <= traced_error.1.max(f64::from(NORMAL_TOLERANCE) / 2.0)
+                        {
+                            tally.tracer_rounding += 1;
+                        } else if tally.texel_mismatches.len() < 10 {
+                            tally.texel_mismatches.push(format!(
+                                "eye {eye} ({x}, {y}) prim {r}: {what}; from the exact texel: raster \
+                                 {:.1e} / {:.1e}, traced {:.1e} / {:.1e} (depth / normal)",
+                                raster_error.0, raster_error.1, traced_error.0, traced_error.1
+                            ));
+                        }
+                    }
                 }
                 continue;
             }
@@ -208,7 +313,8 @@ fn check(name: &str, renderer: &Renderer, extent: Extent, frame: u32) {
 fn check_kind(name: &str, renderer: &Renderer, extent: Extent, frame: u32, kind: Visibility) {
     let t = compare(renderer, extent, frame, Body::Simd, kind);
     println!(
-        "{name} {kind:?} {}x{} frame {frame}: {} px, {} agree ({:.4} %), {} depth ties, {} edges, {} unexplained",
+        "{name} {kind:?} {}x{} frame {frame}: {} px, {} agree ({:.4} %), {} depth ties, {} edges, {} unexplained; \
+         texels within {:.1e} in depth and {:.1e} in normals, {} beyond where the traced texel is the farther from exact",
         extent.width(),
         extent.height(),
         t.pixels,
@@ -216,7 +322,10 @@ fn check_kind(name: &str, renderer: &Renderer, extent: Extent, frame: u32, kind:
         100.0 * t.agree as f64 / t.pixels as f64,
         t.ties,
         t.edges,
-        t.unexplained.len()
+        t.unexplained.len(),
+        t.depth_difference,
+        t.normal_difference,
+        t.tracer_rounding,
     );
     assert!(t.texel_mismatches.is_empty(), "{name}: same triangle, different texels: {:?}", t.texel_mismatches);
     assert!(
@@ -300,10 +409,21 @@ fn the_scalar_reference_and_the_simd_body_give_the_same_buffers_in_bands_of_any_
                 }
                 let [mut gl, mut gr] = cams.map(GBufferBuf::new);
                 let stats = renderer.render_gbuffers_raster(&lights, [&mut gl, &mut gr], &mut raster).unwrap();
-                (raster.visibility().clone(), stats)
+                (raster.visibility().clone(), stats, [gl, gr])
             };
-            let (simd, s1) = run(Body::Simd, None);
-            let (scalar, s2) = run(Body::Scalar, None);
+            let (simd, s1, g_simd) = run(Body::Simd, None);
+            let (scalar, s2, g_scalar) = run(Body::Scalar, None);
+            // The resolve's eight-lane body against its scalar reference, plane by plane.
+            for (a, b) in g_simd.iter().zip(&g_scalar) {
+                let bits = |p: &PlaneBuf| p.as_slice().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&a.depth), bits(&b.depth), "{name}: resolved depth");
+                for c in 0..3 {
+                    assert_eq!(bits(&a.position[c]), bits(&b.position[c]), "{name}: resolved position");
+                    assert_eq!(bits(&a.normal[c]), bits(&b.normal[c]), "{name}: resolved normal");
+                }
+                assert_eq!(a.normal_oct.as_slice(), b.normal_oct.as_slice(), "{name}: resolved octahedral normal");
+                assert_eq!(a.material.as_slice(), b.material.as_slice(), "{name}: resolved material");
+            }
             // Other band heights: the same buffers bit for bit (only the work's partition moves).
             for rows in [1, 7, 8] {
                 assert_eq!(run(Body::Simd, Some(rows)).0, simd, "{name}: bands of {rows} rows");
@@ -341,10 +461,12 @@ fn the_compact_planes_are_the_full_passs_and_the_rest_are_left_alone() {
         assert_eq!(bits(&a.depth), bits(&c.depth));
         assert_eq!(a.normal_oct.as_slice(), c.normal_oct.as_slice());
         assert_eq!(a.material.as_slice(), c.material.as_slice());
-        // Never written: still the NaN a new buffer holds, except where the scalar path
-        // (moving lights, undecided lanes, the row tails) wrote whole texels.
+        // Never written: still the NaN a new buffer holds (the scalar path too writes the
+        // compact planes only).
         let written = c.position[0].as_slice().iter().filter(|v| !v.is_nan()).count();
-        assert!(written < extent.pixels() / 10, "{written} positions written by the compact pass");
+        assert_eq!(written, 0, "positions written by the compact pass");
+        let written = c.normal[0].as_slice().iter().filter(|v| !v.is_nan()).count();
+        assert_eq!(written, 0, "normals written by the compact pass");
         assert!(a.depth.as_slice().iter().any(|d| d.is_finite()));
     }
 }

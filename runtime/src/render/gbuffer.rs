@@ -214,6 +214,14 @@ impl GRow<'_> {
         self.material[x..x + LANES].copy_from_slice(&lanes.material);
     }
 
+    /// [`GRow::set`] for the compact layout's planes only (see [`GRow::set_compact_lanes`]).
+    #[inline(always)]
+    pub(crate) fn set_compact(&mut self, x: usize, t: &GTexel) {
+        self.depth[x] = t.depth;
+        self.oct[x] = t.oct;
+        self.material[x] = t.material;
+    }
+
     #[inline(always)]
     pub(crate) fn set(&mut self, x: usize, t: &GTexel) {
         self.depth[x] = t.depth;

@@ -3,27 +3,35 @@
 //! the G-buffer the traced pass writes.
 //!
 //! The resolve intersects the pixel's own centre ray (the ray the traced pass would trace)
-//! with the one triangle the raster found, with the same watertight test, and writes the
-//! texel through the same function as the traced pass (`Renderer::gbuffer_texel`): where
-//! both see the same triangle, depth, position, normals and material are identical bit for
-//! bit. Which triangle is seen agrees with the traced pass everywhere except exact depth
-//! ties (the kernel's notes say why); `tests/raster_gbuffers.rs` checks both on every scene.
+//! with the plane of the one triangle the raster found: the tracer's watertight shear
+//! without its edge tests (the raster decided coverage) and with one reciprocal of the
+//! determinant for depth and both barycentrics, eight pixels at a time with a scalar
+//! reference it equals bit for bit. Its texels agree with the traced pass's within rounding,
+//! not bit for bit: `tests/raster_gbuffers.rs` holds depth to 1e-4 relative and normals to
+//! 1e-3 where both see the same triangle, on every scene, and checks the few texels beyond
+//! that against an f64 intersection (where the traced texel is the farther from it). Which
+//! triangle is seen agrees with the traced pass everywhere except depth ties and, for the
+//! fixed-point rasteriser, centres within its snap of an edge (the kernel's notes say why).
+//! A centre the raster covers is never a hole: one just outside the triangle (within the
+//! snap) takes the plane beyond the edge.
 //!
 //! Cut-outs are tested per fragment for the masked triangles only, moving-light triangles
 //! (not in the BVH) are rasterised after the static mesh with ids following it, and
 //! nothing is allocated once the buffers have grown to a frame's needs.
 
+use std::ops::{Add, Div, Mul, Sub};
+
 use glam::Vec3;
 
 use super::effects::{ALPHA_MASKS, has};
 use super::estimator::Surface;
-use super::gbuffer::{GLanes, GTexel, for_each_gbuffer_row};
+use super::gbuffer::{GLanes, GRow, GTexel, for_each_gbuffer_row};
 use super::lights::FrameLights;
 use super::renderer::{RenderError, Renderer};
 use crate::kernels::CameraModel;
 use crate::kernels::bvh::{Hit, PreparedRay, Ray, TriVerts, intersect_triangle_line};
 use crate::kernels::gbuffer::GBufferBuf;
-use crate::kernels::gbuffer::encode_normals;
+use crate::kernels::gbuffer::{encode_normal, encode_normals};
 use crate::kernels::raster::fixed::FixedRasterizer;
 use crate::kernels::raster::{AlphaTest, Body, NO_PRIM, Rasterizer, Triangles, VisibilityBuffer};
 use crate::kernels::simd::{F32s, LANES, lane_offsets, prefetch, u32x8};
@@ -169,30 +177,40 @@ impl Renderer {
         let start = std::time::Instant::now();
         let [vis_left, vis_right] = &raster.visibility;
         if raster.planes == Layout::Full {
-            self.resolve::<true>(lights, vis_left, left);
-            self.resolve::<true>(lights, vis_right, right);
+            self.resolve::<true>(lights, vis_left, left, raster.body);
+            self.resolve::<true>(lights, vis_right, right, raster.body);
         } else {
-            self.resolve::<false>(lights, vis_left, left);
-            self.resolve::<false>(lights, vis_right, right);
+            self.resolve::<false>(lights, vis_left, left, raster.body);
+            self.resolve::<false>(lights, vis_right, right, raster.body);
         }
         Ok(RasterPassStats { raster: stats, resolve: start.elapsed() })
     }
 
-    /// Writes `out` from one eye's visibility (see the module notes): eight pixels at a time
-    /// where the eight see mesh triangles or nothing ([`Renderer::resolve_lanes`]), one at a
-    /// time for moving lights and the lanes the SIMD test leaves undecided
-    /// ([`Renderer::resolve_pixel`]); both compute what the traced pass does. `ALL_PLANES`
-    /// is [`Layout::Full`]: a constant, so the compact layout's resolve does not compute the
-    /// planes it does not write.
-    fn resolve<const ALL_PLANES: bool>(&self, lights: &FrameLights, vis: &VisibilityBuffer, out: &mut GBufferBuf) {
+    /// Writes `out` from one eye's visibility (see the module notes): with [`Body::Simd`],
+    /// eight pixels at a time where the eight see mesh triangles or nothing
+    /// ([`Renderer::resolve_lanes`]), one at a time ([`Renderer::resolve_pixel`]) for moving
+    /// lights and the lanes the plane hit leaves undecided; with [`Body::Scalar`], every
+    /// pixel one at a time, the reference the SIMD body equals bit for bit. `ALL_PLANES` is
+    /// [`Layout::Full`]: a constant, so the compact layout's resolve neither computes nor
+    /// writes the planes it does not need.
+    fn resolve<const ALL_PLANES: bool>(
+        &self,
+        lights: &FrameLights,
+        vis: &VisibilityBuffer,
+        out: &mut GBufferBuf,
+        body: Body,
+    ) {
         let camera = out.camera;
         let width = camera.extent.width();
         let mesh_len = self.scene.mesh.len() as u32;
         let prims = vis.prim.as_slice();
+        let simd_width = if body == Body::Simd { width - width % LANES } else { 0 };
         for_each_gbuffer_row(out, |y, mut row| {
             let prims = &prims[y * width..(y + 1) * width];
-            let mut x0 = 0;
-            while x0 + LANES <= width {
+            let set = |row: &mut GRow<'_>, x: usize, texel: &GTexel| {
+                if ALL_PLANES { row.set(x, texel) } else { row.set_compact(x, texel) }
+            };
+            for x0 in (0..simd_width).step_by(LANES) {
                 if let Some(ahead) = prims.get(x0 + PREFETCH_AHEAD..x0 + PREFETCH_AHEAD + LANES) {
                     self.prefetch_triangles(ahead.try_into().expect("8 lanes"), mesh_len);
                 }
@@ -222,18 +240,17 @@ impl Renderer {
                 while m != 0 {
                     let i = m.trailing_zeros() as usize;
                     m &= m - 1;
-                    row.set(x0 + i, &GTexel::BACKGROUND);
+                    set(&mut row, x0 + i, &GTexel::BACKGROUND);
                 }
                 let mut m = scalar;
                 while m != 0 {
                     let i = m.trailing_zeros() as usize;
                     m &= m - 1;
-                    row.set(x0 + i, &self.resolve_pixel(lights, &camera, x0 + i, y, group[i]));
+                    set(&mut row, x0 + i, &self.resolve_pixel(lights, &camera, x0 + i, y, group[i]));
                 }
-                x0 += LANES;
             }
-            for x in x0..width {
-                row.set(x, &self.resolve_pixel(lights, &camera, x, y, prims[x]));
+            for x in simd_width..width {
+                set(&mut row, x, &self.resolve_pixel(lights, &camera, x, y, prims[x]));
             }
         });
     }
@@ -264,14 +281,17 @@ impl Renderer {
         }
     }
 
-    /// One pixel: the watertight test of its centre ray on the triangle the raster found
-    /// (the scalar reference of [`Renderer::resolve_lanes`], and the path for moving lights
-    /// and background).
+    /// One pixel (the scalar body of the resolve, and the path of the lanes the SIMD body
+    /// leaves undecided): a mesh triangle's plane hit ([`Renderer::plane_texel`]); for
+    /// moving lights, and where the plane hit does not decide, the tracer's watertight test
+    /// of the centre ray on the triangle the raster found, and no hit where that misses.
     fn resolve_pixel(&self, lights: &FrameLights, camera: &CameraModel, x: usize, y: usize, prim: u32) -> GTexel {
+        if let Some(texel) = self.plane_texel(camera, x, y, prim) {
+            return texel;
+        }
         let dir = Vec3::from(camera.ray(x as f32 + 0.5, y as f32 + 0.5));
         let surface = match self.visible_surface(lights, prim, &Ray::new(Vec3::from(camera.centre), dir)) {
             Visible::Surface(s) => Some(s),
-            // The centre ray misses the raster's triangle (rare): written as no hit.
             Visible::Nothing | Visible::Undecided => None,
         };
         self.gbuffer_texel(surface, dir, camera)
@@ -308,13 +328,52 @@ impl Renderer {
         })
     }
 
+    /// The scalar reference of [`Renderer::resolve_lanes`], one pixel whose visibility is the
+    /// mesh triangle `prim`: its centre ray's hit on the triangle's plane ([`centre_hit`]) and
+    /// the texel [`Renderer::gbuffer_texel`] writes for it, within rounding of the traced
+    /// pass's (`tests/raster_gbuffers.rs` holds the two to a tolerance). `None` where the
+    /// hit does not decide: behind the camera, a ray in the triangle's plane, or normals that
+    /// do not normalise; [`Renderer::resolve_pixel`] then asks the tracer's test.
+    fn plane_texel(&self, camera: &CameraModel, x: usize, y: usize, prim: u32) -> Option<GTexel> {
+        let mesh = &self.scene.mesh;
+        let verts = mesh.positions.get(prim as usize)?.map(|v| v.to_array());
+        let dir = camera.ray(x as f32 + 0.5, y as f32 + 0.5);
+        let [kx, ky, kz] = PreparedRay::for_triangles(&Ray::new(Vec3::from(camera.centre), Vec3::from(dir)))?.k;
+        let pick = |v: [f32; 3]| [v[kx], v[ky], v[kz]];
+        let hit = centre_hit(pick(dir), pick(camera.centre), verts.map(pick));
+        let cross = cross(sub(verts[1], verts[0]), sub(verts[2], verts[0]));
+        if !(hit.t > 0.0 && hit.t < f32::INFINITY) {
+            return None;
+        }
+        let normal = match &mesh.normals {
+            Some(normals) => {
+                let interpolated = hit.interpolate(normals[prim as usize].map(|v| v.to_array()));
+                let rcp = 1.0 / dot(interpolated, interpolated).sqrt();
+                if !(rcp < f32::INFINITY && rcp > 0.0 && dot(cross, cross) > 0.0) {
+                    return None;
+                }
+                let ns = interpolated.map(|c| c * rcp);
+                let facing = dot(cross, dir) > 0.0;
+                let ng = if facing { cross.map(|c| -c) } else { cross };
+                if dot(ns, ng) < 0.0 { ns.map(|c| -c) } else { ns }
+            }
+            None => {
+                let ng0 = self.geometric_normals[prim as usize].to_array();
+                if dot(ng0, dir) > 0.0 { ng0.map(|c| -c) } else { ng0 }
+            }
+        };
+        Some(GTexel {
+            depth: hit.t,
+            position: [0, 1, 2].map(|c| camera.centre[c] + hit.t * dir[c]),
+            normal,
+            oct: encode_normal(normal),
+            material: mesh.material[prim as usize],
+        })
+    }
+
     /// Eight neighbouring pixels of row `y` from `x0` that all see mesh triangles, as eight
-    /// SIMD lanes: the pixel rays, the watertight test (each lane its own axis permutation
-    /// and triangle), barycentrics and normals, with the operations of `camera.ray`,
-    /// `PreparedRay::new`, `intersect_triangle` and [`Renderer::gbuffer_texel`] in their
-    /// order, so every texel equals the traced pass's bit for bit. Returns the texels and the
-    /// lanes the scalar path must redo: an edge function of exactly 0 (the f64
-    /// recomputation), a miss, a zero determinant.
+    /// SIMD lanes: the pixel rays, their dominant-axis permutation (as the tracer's
+    /// `PreparedRay::new`), then [`Renderer::resolve_lanes_permuted`].
     #[inline(always)]
     fn resolve_lanes<const ALL_PLANES: bool>(
         &self,
@@ -357,7 +416,12 @@ impl Renderer {
         }
     }
 
-    /// The body of [`Renderer::resolve_lanes`] once each lane's axis permutation is known.
+    /// The body of [`Renderer::resolve_lanes`] once each lane's axis permutation is known:
+    /// each centre ray's hit on its lane's triangle's plane ([`centre_hit`]), the
+    /// interpolated shading normal turned to face the ray as [`Renderer::gbuffer_texel`]
+    /// turns it, and the material. The same operations in the same order as
+    /// [`Renderer::plane_texel`], so each lane equals it bit for bit. Returns the texels
+    /// and the lanes that reference returns `None` for, which the scalar path redoes.
     #[inline(always)]
     fn resolve_lanes_permuted<const ALL_PLANES: bool, A: AxisPick>(
         &self,
@@ -367,69 +431,48 @@ impl Renderer {
         prims: &[u32; LANES],
     ) -> (GLanes, u32) {
         let mesh = &self.scene.mesh;
-        let (d_x, d_y, d_z) = axes.pick(&dir);
-        let (sx, sy, sz) = (d_x / d_z, d_y / d_z, F32s::ONE / d_z);
         let c = map3(camera.centre, F32s::splat);
-        let (ox, oy, oz) = axes.pick(&c);
         // The eight triangles, vertex by vertex (one triangle's, splat, when all eight lanes
-        // see the same one: the common case inside a triangle), permuted per lane.
+        // see the same one: the common case inside a triangle).
         let uniform = u32x8::from(*prims).simd_eq(u32x8::splat(prims[0])).all();
         let verts = lane_triangles(&mesh.positions, prims, uniform);
-        let sheared = |v: &[F32s; 3]| {
-            let (vx, vy, vz) = axes.pick(v);
-            let vz = vz - oz;
-            ((vx - ox) - sx * vz, (vy - oy) - sy * vz, vz)
-        };
-        let (ax, ay, az) = sheared(&verts[0]);
-        let (bx, by, bz) = sheared(&verts[1]);
-        let (cx, cy, cz) = sheared(&verts[2]);
-        let u = cx * by - cy * bx;
-        let v = ax * cy - ay * cx;
-        let w = bx * ay - by * ax;
+        let hit = centre_hit(axes.pick(&dir), axes.pick(&c), verts.map(|v| axes.pick(&v)));
+        let cross = cross(sub(verts[1], verts[0]), sub(verts[2], verts[0]));
         let zero = F32s::ZERO;
-        let neg_e = u.simd_lt(zero) | v.simd_lt(zero) | w.simd_lt(zero);
-        let pos_e = u.simd_gt(zero) | v.simd_gt(zero) | w.simd_gt(zero);
-        let det = u + v + w;
-        let scalar =
-            (u.simd_eq(zero) | v.simd_eq(zero) | w.simd_eq(zero) | (neg_e & pos_e) | det.simd_eq(zero)).to_bitmask();
-        let t = (u * (sz * az) + v * (sz * bz) + w * (sz * cz)) / det;
-        let (b1, b2) = (v / det, w / det);
-        // Normals, as Mesh::geometric_normal / shading_normal and Renderer::normals.
-        let e1 = from3(|i| verts[1][i] - verts[0][i]);
-        let e2 = from3(|i| verts[2][i] - verts[0][i]);
-        let cross = [e1[1] * e2[2] - e2[1] * e1[2], e1[2] * e2[0] - e2[2] * e1[0], e1[0] * e2[1] - e2[0] * e1[1]];
-        let (ng0, ng_ok) = try_normalize(cross);
-        let ng0 = [ng_ok.select(ng0[0], zero), ng_ok.select(ng0[1], F32s::ONE), ng_ok.select(ng0[2], zero)];
-        let facing = dot3(&ng0, &dir).simd_gt(zero);
-        let ng = map3(ng0, |n| facing.select(-n, n));
-        let mut ns = ng0;
-        if let Some(normals) = &mesh.normals {
-            let n = lane_triangles(normals, prims, uniform);
-            let b0 = (F32s::ONE - b1) - b2;
-            let interp: [F32s; 3] = from3(|i| n[0][i] * b0 + n[1][i] * b1 + n[2][i] * b2);
-            let (s, ok) = try_normalize(interp);
-            // Unnormalisable: the (unflipped) geometric normal.
-            ns = from3(|i| ok.select(s[i], ng0[i]));
-        }
-        let against = dot3(&ns, &ng).simd_lt(zero);
-        let ns = map3(ns, |n| against.select(-n, n));
+        let decided = hit.t.simd_gt(zero) & hit.t.simd_lt(F32s::splat(f32::INFINITY));
+        let (normal, decided) = match &mesh.normals {
+            Some(normals) => {
+                let n = lane_triangles(normals, prims, uniform);
+                let (ns, ok) = try_normalize(hit.interpolate(n));
+                let facing = dot(cross, dir).simd_gt(zero);
+                let ng = map3(cross, |g| facing.select(-g, g));
+                let against = dot(ns, ng).simd_lt(zero);
+                let has_area = dot(cross, cross).simd_gt(zero);
+                (map3(ns, |n| against.select(-n, n)), decided & ok & has_area)
+            }
+            None => {
+                let ng0 = lane_geometric_normals(&self.geometric_normals, prims, uniform, cross);
+                let facing = dot(ng0, dir).simd_gt(zero);
+                (map3(ng0, |n| facing.select(-n, n)), decided)
+            }
+        };
         let lanes = GLanes {
-            depth: t,
+            depth: hit.t,
             // Dead in the compact layout's resolve, which does not write positions.
-            position: if ALL_PLANES { from3(|i| c[i] + t * dir[i]) } else { [F32s::ZERO; 3] },
-            normal: ns,
-            oct: encode_normals(ns),
+            position: if ALL_PLANES { from3(|i| c[i] + hit.t * dir[i]) } else { [F32s::ZERO; 3] },
+            normal,
+            oct: encode_normals(normal),
             material: lane_materials(&mesh.material, prims, uniform),
         };
-        (lanes, scalar)
+        (lanes, !decided.to_bitmask() & ((1 << LANES) - 1))
     }
 }
 
 /// Which component of a vector each lane takes as its ray's x, y and z axis (the
 /// watertight test's permutation: z the ray's dominant axis).
 trait AxisPick: Copy {
-    /// `v`'s components in the permuted order `(x, y, z)`.
-    fn pick(&self, v: &[F32s; 3]) -> (F32s, F32s, F32s);
+    /// `v`'s components in the permuted order `[x, y, z]`.
+    fn pick(&self, v: &[F32s; 3]) -> [F32s; 3];
 }
 
 /// One permutation for all eight lanes: component `KX` is the x axis, `KY` y and `KZ` z.
@@ -438,8 +481,8 @@ struct GroupAxes<const KX: usize, const KY: usize, const KZ: usize>;
 
 impl<const KX: usize, const KY: usize, const KZ: usize> AxisPick for GroupAxes<KX, KY, KZ> {
     #[inline(always)]
-    fn pick(&self, v: &[F32s; 3]) -> (F32s, F32s, F32s) {
-        (v[KX], v[KY], v[KZ])
+    fn pick(&self, v: &[F32s; 3]) -> [F32s; 3] {
+        [v[KX], v[KY], v[KZ]]
     }
 }
 
@@ -454,10 +497,103 @@ struct LaneAxes {
 
 impl AxisPick for LaneAxes {
     #[inline(always)]
-    fn pick(&self, v: &[F32s; 3]) -> (F32s, F32s, F32s) {
+    fn pick(&self, v: &[F32s; 3]) -> [F32s; 3] {
         let one = |(is0, is1): (F32s, F32s)| is0.select(v[0], is1.select(v[1], v[2]));
-        (one(self.x), one(self.y), one(self.z))
+        [one(self.x), one(self.y), one(self.z)]
     }
+}
+
+/// `f32` (one pixel, the scalar reference) or [`F32s`] (eight pixels): the arithmetic of
+/// [`centre_hit`], written once for both so that both round the same operations in the same
+/// order.
+trait Real: Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Div<Output = Self> {
+    const ONE: Self;
+}
+
+impl Real for f32 {
+    const ONE: f32 = 1.0;
+}
+
+impl Real for F32s {
+    const ONE: F32s = F32s::ONE;
+}
+
+/// A centre ray's hit on its triangle's plane.
+#[derive(Clone, Copy)]
+struct CentreHit<T> {
+    /// Distance along the ray (the view depth: G-buffer rays have unit view depth).
+    t: T,
+    /// Barycentric weights of corners 1 and 2 (outside `[0, 1]` just outside the triangle).
+    b1: T,
+    b2: T,
+}
+
+impl<T: Real> CentreHit<T> {
+    /// Per-corner values `[corner][axis]` interpolated at the hit, as
+    /// `Mesh::interpolated_normal` weights them.
+    #[inline(always)]
+    fn interpolate(&self, v: [[T; 3]; 3]) -> [T; 3] {
+        let b0 = (T::ONE - self.b1) - self.b2;
+        from3(|i| v[0][i] * b0 + v[1][i] * self.b1 + v[2][i] * self.b2)
+    }
+}
+
+/// Where the ray from `origin` along `dir` meets the plane of the triangle `v`, all three in
+/// the ray's axis permutation (`[x, y, z]`, z dominant): the tracer's watertight test
+/// (`intersect_triangle`) without its edge tests, and with one reciprocal of `d_z` and one
+/// of the determinant instead of its six divisions. The vertices are sheared into the
+/// ray's frame, where they lie within the triangle's size of the axis, which keeps the
+/// barycentrics as accurate as the tracer's (Möller–Trumbore's products of the far origin
+/// with the edges lose up to 50× more on small far triangles, measured). The rasteriser
+/// already decided that the triangle covers the pixel centre, so the hit is not tested
+/// against the edges: a centre within the snap of an edge (1/256 px) takes the plane just
+/// beyond it, as a GPU extrapolates its attributes, rather than a hole. A ray in the plane
+/// gives an infinite or NaN `t`; the callers refuse it.
+#[inline(always)]
+fn centre_hit<T: Real>(dir: [T; 3], origin: [T; 3], v: [[T; 3]; 3]) -> CentreHit<T> {
+    let rz = T::ONE / dir[2];
+    let (sx, sy) = (dir[0] / dir[2], dir[1] / dir[2]);
+    let sheared = |p: [T; 3]| {
+        let z = p[2] - origin[2];
+        [(p[0] - origin[0]) - sx * z, (p[1] - origin[1]) - sy * z, z]
+    };
+    let (a, b, c) = (sheared(v[0]), sheared(v[1]), sheared(v[2]));
+    let u = c[0] * b[1] - c[1] * b[0];
+    let v = a[0] * c[1] - a[1] * c[0];
+    let w = b[0] * a[1] - b[1] * a[0];
+    let inv_det = T::ONE / (u + v + w);
+    CentreHit { t: (u * (rz * a[2]) + v * (rz * b[2]) + w * (rz * c[2])) * inv_det, b1: v * inv_det, b2: w * inv_det }
+}
+
+/// `a − b`.
+#[inline(always)]
+fn sub<T: Real>(a: [T; 3], b: [T; 3]) -> [T; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+/// `a × b` as glam computes it.
+#[inline(always)]
+fn cross<T: Real>(a: [T; 3], b: [T; 3]) -> [T; 3] {
+    [a[1] * b[2] - b[1] * a[2], a[2] * b[0] - b[2] * a[0], a[0] * b[1] - b[0] * a[1]]
+}
+
+/// `a · b` as glam computes it.
+#[inline(always)]
+fn dot<T: Real>(a: [T; 3], b: [T; 3]) -> T {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// The eight lanes' unit geometric normals (`Mesh::geometric_normal`, `Vec3::Y` for a
+/// triangle without area): one table entry splat when `uniform`, else normalised from the
+/// lanes' `cross` as the table's entries were (cheaper than gathering 24 floats).
+#[inline(always)]
+fn lane_geometric_normals(table: &[Vec3], prims: &[u32; LANES], uniform: bool, cross: [F32s; 3]) -> [F32s; 3] {
+    if uniform {
+        let n = table[prims[0] as usize];
+        return [F32s::splat(n.x), F32s::splat(n.y), F32s::splat(n.z)];
+    }
+    let (n, ok) = try_normalize(cross);
+    [ok.select(n[0], F32s::ZERO), ok.select(n[1], F32s::ONE), ok.select(n[2], F32s::ZERO)]
 }
 
 /// Per-vertex data of the eight lanes' triangles as `[vertex][axis]` lanes: splat when
@@ -508,17 +644,11 @@ fn map3<T, U>(a: [T; 3], f: impl Fn(T) -> U) -> [U; 3] {
     [f(x), f(y), f(z)]
 }
 
-/// `a · b` as glam computes it, lane by lane.
-#[inline(always)]
-fn dot3(a: &[F32s; 3], b: &[F32s; 3]) -> F32s {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
 /// glam's `try_normalize`, lane by lane: `v · (1 / √(v·v))` where that reciprocal is finite
 /// and positive; the mask says where.
 #[inline(always)]
 fn try_normalize(v: [F32s; 3]) -> ([F32s; 3], F32s) {
-    let rcp = F32s::ONE / dot3(&v, &v).sqrt();
+    let rcp = F32s::ONE / dot(v, v).sqrt();
     let ok = rcp.simd_lt(F32s::splat(f32::INFINITY)) & rcp.simd_gt(F32s::ZERO);
     (map3(v, |c| c * rcp), ok)
 }
