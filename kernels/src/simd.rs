@@ -112,22 +112,6 @@ impl TapCoords {
         Self { x: int(xc), y: int(yc) }
     }
 
-    /// Each lane's element index into `plane` (its coordinates clamped into the plane, as
-    /// [`TapCoords::gather`] does), or `None` where an index might not fit `i32`. (For the
-    /// AVX2 gathers only.)
-    #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
-    #[inline(always)]
-    fn indices<T: Copy>(&self, plane: &Plane<'_, T>) -> Option<i32x8> {
-        if plane.as_slice().len() > i32::MAX as usize {
-            return None;
-        }
-        let (w, h) = (plane.width() as u32, plane.height() as u32);
-        let x = u32x8::from(self.x).min(u32x8::splat(w - 1));
-        let y = u32x8::from(self.y).min(u32x8::splat(h - 1));
-        let (x, y): (i32x8, i32x8) = (bytemuck::cast(x), bytemuck::cast(y));
-        Some(y * i32x8::splat(plane.stride() as i32) + x)
-    }
-
     /// Loads the taps from `plane` (elements may be any `Copy` type).
     #[inline(always)]
     pub fn gather<T: Copy + Default>(&self, plane: &Plane<'_, T>) -> [T; LANES] {
@@ -143,37 +127,42 @@ impl TapCoords {
         out
     }
 
-    /// Loads float taps as a vector: [`TapCoords::gather`], as one AVX2 gather where the
-    /// binary has AVX2 (the lanes' indices formed in one vector, not eight scalar ones).
+    /// Loads float taps as a vector ([`TapCoords::gather_words`]).
     #[inline(always)]
     pub fn gather_f32(&self, plane: &Plane<'_, f32>) -> F32s {
-        #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
-        if let Some(indices) = self.indices(plane) {
-            use core::arch::x86_64::{__m256, __m256i, _mm256_i32gather_ps};
-            // SAFETY: AVX2 is enabled at compile time; every index is `y·stride + x` with
-            // `x < width` and `y < height` (clamped in `indices`), below the plane's length
-            // ((height − 1)·stride + width, checked at construction), which fits `i32`.
-            let v = unsafe {
-                _mm256_i32gather_ps::<4>(plane.as_slice().as_ptr(), bytemuck::cast::<i32x8, __m256i>(indices))
-            };
-            return bytemuck::cast::<__m256, F32s>(v);
-        }
-        F32s::from(self.gather(plane))
+        bytemuck::cast(self.gather_words(plane))
     }
 
-    /// Loads `u32` taps: [`TapCoords::gather`], as one AVX2 gather where the binary has AVX2.
+    /// Loads `u32` taps as a vector ([`TapCoords::gather_words`]).
     #[inline(always)]
     pub fn gather_u32(&self, plane: &Plane<'_, u32>) -> u32x8 {
+        bytemuck::cast(self.gather_words(plane))
+    }
+
+    /// [`TapCoords::gather`] of a plane of 4-byte elements, as their bits: one AVX2 gather
+    /// where the binary has AVX2, its eight indices formed in one vector (not eight scalar
+    /// ones), lane by lane where an index might not fit `i32`.
+    #[inline(always)]
+    fn gather_words<T: bytemuck::Pod + Default>(&self, plane: &Plane<'_, T>) -> [u32; LANES] {
+        const { assert!(size_of::<T>() == 4, "4-byte elements") };
         #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
-        if let Some(indices) = self.indices(plane) {
+        if plane.as_slice().len() <= i32::MAX as usize {
             use core::arch::x86_64::{__m256i, _mm256_i32gather_epi32};
-            // SAFETY: as in `gather_f32`.
+            // Clamped into the plane as `gather` clamps (a no-op for matching extents).
+            let (w, h) = (plane.width() as u32, plane.height() as u32);
+            let x: i32x8 = bytemuck::cast(u32x8::from(self.x).min(u32x8::splat(w - 1)));
+            let y: i32x8 = bytemuck::cast(u32x8::from(self.y).min(u32x8::splat(h - 1)));
+            let indices = y * i32x8::splat(plane.stride() as i32) + x;
+            // SAFETY: AVX2 is enabled at compile time; every index is `y·stride + x` with
+            // `x < width` and `y < height` (clamped above), below the plane's length
+            // ((height − 1)·stride + width, checked at construction), which fits `i32`; the
+            // elements are 4 bytes (asserted above), the scale the gather reads with.
             let v = unsafe {
                 _mm256_i32gather_epi32::<4>(plane.as_slice().as_ptr().cast(), bytemuck::cast::<i32x8, __m256i>(indices))
             };
-            return bytemuck::cast::<__m256i, u32x8>(v);
+            return bytemuck::cast(v);
         }
-        u32x8::from(self.gather(plane))
+        self.gather(plane).map(|v| bytemuck::cast(v))
     }
 }
 
