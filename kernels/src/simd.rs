@@ -127,13 +127,14 @@ impl TapCoords {
         out
     }
 
-    /// Loads float taps as a vector ([`TapCoords::gather_words`]).
+    /// Loads float taps as a vector: [`TapCoords::gather`], as one AVX2 gather where the
+    /// binary has AVX2 (the lanes' indices formed in one vector, not eight scalar ones).
     #[inline(always)]
     pub fn gather_f32(&self, plane: &Plane<'_, f32>) -> F32s {
         bytemuck::cast(self.gather_words(plane))
     }
 
-    /// Loads `u32` taps as a vector ([`TapCoords::gather_words`]).
+    /// Loads `u32` taps as a vector, as [`TapCoords::gather_f32`] loads floats.
     #[inline(always)]
     pub fn gather_u32(&self, plane: &Plane<'_, u32>) -> u32x8 {
         bytemuck::cast(self.gather_words(plane))

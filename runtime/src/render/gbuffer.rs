@@ -131,7 +131,9 @@ impl Renderer {
     }
 
     /// What the G-buffer stores for a pixel whose centre ray (direction `dir`, unit view
-    /// depth) sees `surface`: the one definition both the traced and the rasterised pass use.
+    /// depth) sees `surface`: the traced pass's definition, and the rasterised pass's for moving
+    /// lights and the pixels its plane hit leaves undecided (its mesh texels follow the same
+    /// rules from the plane hit, `Renderer::plane_texel`).
     #[inline]
     pub(super) fn gbuffer_texel(&self, surface: Option<Surface>, dir: Vec3, camera: &CameraModel) -> GTexel {
         let Some(s) = surface else { return GTexel::BACKGROUND };

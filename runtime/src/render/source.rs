@@ -19,10 +19,10 @@ use crate::source::{FrameSource, Layout, PipelineError, PixelSelection, RasterPa
 #[serde(rename_all = "kebab-case")]
 pub enum GBufferPass {
     /// Both eyes rasterised as GPUs rasterise (vertices snapped to 1/256 px, integer edge
-    /// functions, the top-left rule), then resolved with the tracer's own triangle test: the
-    /// traced pass's triangle except within 1/256 px of an edge or at a depth tie, and where
-    /// the triangle is the same, the same texel. `fixed`, its name before it became the
-    /// default, is accepted.
+    /// functions, the top-left rule), then resolved on each triangle's plane: the traced
+    /// pass's triangle except within 1/256 px of an edge or at a depth tie, and where the
+    /// triangle is the same, its texel within rounding (depth 1e-4 relative, normals 1e-3,
+    /// tested). `fixed`, its name before it became the default, is accepted.
     #[default]
     #[cfg_attr(feature = "clap", value(alias = "fixed"))]
     #[serde(alias = "fixed")]
@@ -30,8 +30,9 @@ pub enum GBufferPass {
     /// One primary ray per pixel through the BVH (the reference).
     Traced,
     /// Both eyes rasterised with the tracer's own triangle test wherever rounding could
-    /// decide (`render::raster`'s exact rasteriser): the same texels as `traced` except at
-    /// exact depth ties, but slower than `raster` (kept for the bit-level comparison).
+    /// decide (`render::raster`'s exact rasteriser): the same triangles as `traced` except at
+    /// exact depth ties, resolved as `raster` is, but slower than `raster` (kept for the
+    /// comparison of visibility).
     Exact,
 }
 
