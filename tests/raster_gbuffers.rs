@@ -28,6 +28,7 @@ use glam::{DVec3, Vec3};
 use stereotrace::camera::StereoRig;
 use stereotrace::kernels::bvh::{PreparedRay, Ray, TriVerts, intersect_triangle};
 use stereotrace::kernels::gbuffer::decode_normal;
+use stereotrace::kernels::isa::Isa;
 use stereotrace::kernels::raster::{Body, NO_PRIM};
 use stereotrace::kernels::{CameraModel, Extent, PlaneBuf};
 use stereotrace::pipeline::Layout;
@@ -400,9 +401,10 @@ fn the_scalar_reference_and_the_simd_body_give_the_same_buffers_in_bands_of_any_
         let FrameView { lights, cameras: cams, .. } =
             FrameView::new(&renderer, &StereoRig::default(), extent, 5).unwrap();
         for kind in [Visibility::Exact, Visibility::Fixed] {
-            let run = |body: Body, band_rows: Option<usize>| {
+            let run = |body: Body, isa: Isa, band_rows: Option<usize>| {
                 let mut raster = RasterGBuffers::new(extent);
                 raster.body = body;
+                raster.isa = isa;
                 raster.visibility_by = kind;
                 if let Some(rows) = band_rows {
                     raster.set_band_rows(rows);
@@ -411,22 +413,28 @@ fn the_scalar_reference_and_the_simd_body_give_the_same_buffers_in_bands_of_any_
                 let stats = renderer.render_gbuffers_raster(&lights, [&mut gl, &mut gr], &mut raster).unwrap();
                 (raster.visibility().clone(), stats, [gl, gr])
             };
-            let (simd, s1, g_simd) = run(Body::Simd, None);
-            let (scalar, s2, g_scalar) = run(Body::Scalar, None);
-            // The resolve's eight-lane body against its scalar reference, plane by plane.
-            for (a, b) in g_simd.iter().zip(&g_scalar) {
-                let bits = |p: &PlaneBuf| p.as_slice().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
-                assert_eq!(bits(&a.depth), bits(&b.depth), "{name}: resolved depth");
-                for c in 0..3 {
-                    assert_eq!(bits(&a.position[c]), bits(&b.position[c]), "{name}: resolved position");
-                    assert_eq!(bits(&a.normal[c]), bits(&b.normal[c]), "{name}: resolved normal");
+            let (scalar, s2, g_scalar) = run(Body::Scalar, Isa::Avx2, None);
+            // The resolve's eight-lane body, in every instruction set's build this CPU has,
+            // against its scalar reference, plane by plane.
+            let bodies = Isa::ALL.into_iter().filter(|isa| isa.is_supported());
+            let runs: Vec<_> = bodies.map(|isa| (isa, run(Body::Simd, isa, None))).collect();
+            for (isa, (_, _, g_simd)) in &runs {
+                for (a, b) in g_simd.iter().zip(&g_scalar) {
+                    let bits = |p: &PlaneBuf| p.as_slice().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                    assert_eq!(bits(&a.depth), bits(&b.depth), "{name} {isa:?}: resolved depth");
+                    for c in 0..3 {
+                        assert_eq!(bits(&a.position[c]), bits(&b.position[c]), "{name} {isa:?}: resolved position");
+                        assert_eq!(bits(&a.normal[c]), bits(&b.normal[c]), "{name} {isa:?}: resolved normal");
+                    }
+                    let oct = (a.normal_oct.as_slice(), b.normal_oct.as_slice());
+                    assert_eq!(oct.0, oct.1, "{name} {isa:?}: resolved octahedral normal");
+                    assert_eq!(a.material.as_slice(), b.material.as_slice(), "{name} {isa:?}: resolved material");
                 }
-                assert_eq!(a.normal_oct.as_slice(), b.normal_oct.as_slice(), "{name}: resolved octahedral normal");
-                assert_eq!(a.material.as_slice(), b.material.as_slice(), "{name}: resolved material");
             }
+            let (simd, s1, _) = runs.into_iter().next().expect("the AVX2 build runs everywhere").1;
             // Other band heights: the same buffers bit for bit (only the work's partition moves).
             for rows in [1, 7, 8] {
-                assert_eq!(run(Body::Simd, Some(rows)).0, simd, "{name}: bands of {rows} rows");
+                assert_eq!(run(Body::Simd, Isa::active(), Some(rows)).0, simd, "{name}: bands of {rows} rows");
             }
             let counts = |s: &stereotrace::source::RasterPassStats| {
                 let r = &s.raster;

@@ -32,6 +32,7 @@ use crate::kernels::CameraModel;
 use crate::kernels::bvh::{Hit, PreparedRay, Ray, TriVerts, intersect_triangle_line};
 use crate::kernels::gbuffer::GBufferBuf;
 use crate::kernels::gbuffer::{encode_normal, encode_normals};
+use crate::kernels::isa::Isa;
 use crate::kernels::raster::fixed::FixedRasterizer;
 use crate::kernels::raster::{AlphaTest, Body, NO_PRIM, Rasterizer, Triangles, VisibilityBuffer};
 use crate::kernels::simd::{F32s, LANES, lane_offsets, prefetch, u32x8};
@@ -54,6 +55,9 @@ pub struct RasterGBuffers {
     extra: Vec<TriVerts>,
     /// The kernel body (the SIMD one, or its scalar reference for tests).
     pub body: Body,
+    /// The instruction set of the resolve's SIMD body ([`Isa::active`] unless set; the
+    /// 8-lane AVX2 build where the CPU lacks the one named). Every choice gives the same bits.
+    pub isa: Isa,
     /// Which planes the resolve writes: with [`Layout::Full`] every plane, as the traced
     /// pass writes them; with [`Layout::Compact`] depth, octahedral normal and material only,
     /// what the compact layout's reprojection reads (it rebuilds positions from depth), which
@@ -95,6 +99,7 @@ impl RasterGBuffers {
             visibility: [VisibilityBuffer::new(extent), VisibilityBuffer::new(extent)],
             extra: Vec::new(),
             body: Body::Simd,
+            isa: Isa::active(),
             planes: Layout::Full,
         }
     }
@@ -110,6 +115,7 @@ impl RasterGBuffers {
             visibility: [VisibilityBuffer::try_new(extent)?, VisibilityBuffer::try_new(extent)?],
             extra: Vec::new(),
             body: Body::Simd,
+            isa: Isa::active(),
             planes: Layout::Full,
         })
     }
@@ -176,12 +182,13 @@ impl Renderer {
         .map_err(|e: FrameError| RenderError::Frame(e))?;
         let start = std::time::Instant::now();
         let [vis_left, vis_right] = &raster.visibility;
+        let isa = (raster.body == Body::Simd && raster.isa.is_supported()).then_some(raster.isa);
         if raster.planes == Layout::Full {
-            self.resolve::<true>(lights, vis_left, left, raster.body);
-            self.resolve::<true>(lights, vis_right, right, raster.body);
+            self.resolve::<true>(lights, vis_left, left, raster.body, isa);
+            self.resolve::<true>(lights, vis_right, right, raster.body, isa);
         } else {
-            self.resolve::<false>(lights, vis_left, left, raster.body);
-            self.resolve::<false>(lights, vis_right, right, raster.body);
+            self.resolve::<false>(lights, vis_left, left, raster.body, isa);
+            self.resolve::<false>(lights, vis_right, right, raster.body, isa);
         }
         Ok(RasterPassStats { raster: stats, resolve: start.elapsed() })
     }
@@ -192,67 +199,113 @@ impl Renderer {
     /// lights and the lanes the plane hit leaves undecided; with [`Body::Scalar`], every
     /// pixel one at a time, the reference the SIMD body equals bit for bit. `ALL_PLANES` is
     /// [`Layout::Full`]: a constant, so the compact layout's resolve neither computes nor
-    /// writes the planes it does not need.
+    /// writes the planes it does not need. `isa` is the SIMD body's instruction set, one
+    /// the CPU has.
     fn resolve<const ALL_PLANES: bool>(
         &self,
         lights: &FrameLights,
         vis: &VisibilityBuffer,
         out: &mut GBufferBuf,
         body: Body,
+        isa: Option<Isa>,
     ) {
         let camera = out.camera;
         let width = camera.extent.width();
-        let mesh_len = self.scene.mesh.len() as u32;
         let prims = vis.prim.as_slice();
         let simd_width = if body == Body::Simd { width - width % LANES } else { 0 };
         for_each_gbuffer_row(out, |y, mut row| {
             let prims = &prims[y * width..(y + 1) * width];
-            let set = |row: &mut GRow<'_>, x: usize, texel: &GTexel| {
-                if ALL_PLANES { row.set(x, texel) } else { row.set_compact(x, texel) }
-            };
-            for x0 in (0..simd_width).step_by(LANES) {
-                if let Some(ahead) = prims.get(x0 + PREFETCH_AHEAD..x0 + PREFETCH_AHEAD + LANES) {
-                    self.prefetch_triangles(ahead.try_into().expect("8 lanes"), mesh_len);
-                }
-                let group: &[u32; LANES] = prims[x0..x0 + LANES].try_into().expect("8 lanes");
-                // Which lanes see the mesh, the sky or a moving light: two vector compares,
-                // not a scalar loop (which cost a tenth of the resolve's instructions).
-                let ids = u32x8::from(*group);
-                let is_mesh = ids.simd_lt(u32x8::splat(mesh_len));
-                let background = ids.simd_eq(u32x8::splat(NO_PRIM)).to_bitmask();
-                let mesh_lanes = is_mesh.to_bitmask();
-                let moving = !(background | mesh_lanes) & ((1 << LANES) - 1);
-                let mut scalar = moving;
-                if mesh_lanes != 0 {
-                    // Lanes without a mesh triangle compute on a neighbour's and are
-                    // overwritten below.
-                    let stand_in = u32x8::splat(group[mesh_lanes.trailing_zeros() as usize]);
-                    let lanes = is_mesh.select(ids, stand_in).to_array();
-                    let (texels, undecided) = self.resolve_lanes::<ALL_PLANES>(&camera, x0, y, &lanes);
-                    if ALL_PLANES {
-                        row.set_lanes(x0, &texels);
-                    } else {
-                        row.set_compact_lanes(x0, &texels);
-                    }
-                    scalar |= undecided & mesh_lanes;
-                }
-                let mut m = background;
-                while m != 0 {
-                    let i = m.trailing_zeros() as usize;
-                    m &= m - 1;
-                    set(&mut row, x0 + i, &GTexel::BACKGROUND);
-                }
-                let mut m = scalar;
-                while m != 0 {
-                    let i = m.trailing_zeros() as usize;
-                    m &= m - 1;
-                    set(&mut row, x0 + i, &self.resolve_pixel(lights, &camera, x0 + i, y, group[i]));
-                }
+            #[cfg(target_arch = "x86_64")]
+            if isa == Some(Isa::Avx512) {
+                // SAFETY: taken only where the CPU reports the features the function enables.
+                unsafe { self.resolve_row_avx512::<ALL_PLANES>(lights, &camera, prims, y, &mut row, simd_width) };
+                return;
             }
-            for x in simd_width..width {
-                set(&mut row, x, &self.resolve_pixel(lights, &camera, x, y, prims[x]));
-            }
+            self.resolve_row::<ALL_PLANES>(lights, &camera, prims, y, &mut row, simd_width);
         });
+    }
+
+    /// [`Renderer::resolve_row`] compiled with AVX-512 (F, BW, DQ, VL), taken at run time
+    /// where the CPU has it: the same eight-lane source, so the same bits, but with 32 vector
+    /// registers instead of AVX2's 16 (the body spills without them) and compares into mask
+    /// registers. It is not a 16-lane body: that one measured slower on Zen 4 (BENCHMARKS.md).
+    ///
+    /// # Safety
+    /// The CPU must have the features enabled here ([`Isa::Avx512`] supported).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx512bw,avx512dq,avx512vl")]
+    unsafe fn resolve_row_avx512<const ALL_PLANES: bool>(
+        &self,
+        lights: &FrameLights,
+        camera: &CameraModel,
+        prims: &[u32],
+        y: usize,
+        row: &mut GRow<'_>,
+        simd_width: usize,
+    ) {
+        self.resolve_row::<ALL_PLANES>(lights, camera, prims, y, row, simd_width);
+    }
+
+    /// Row `y` of [`Renderer::resolve`]: groups of eight from column 0 to `simd_width`, one
+    /// pixel at a time after it.
+    #[inline(always)]
+    fn resolve_row<const ALL_PLANES: bool>(
+        &self,
+        lights: &FrameLights,
+        camera: &CameraModel,
+        prims: &[u32],
+        y: usize,
+        row: &mut GRow<'_>,
+        simd_width: usize,
+    ) {
+        let camera = *camera;
+        let width = prims.len();
+        let mesh_len = self.scene.mesh.len() as u32;
+        let set = |row: &mut GRow<'_>, x: usize, texel: &GTexel| {
+            if ALL_PLANES { row.set(x, texel) } else { row.set_compact(x, texel) }
+        };
+        for x0 in (0..simd_width).step_by(LANES) {
+            if let Some(ahead) = prims.get(x0 + PREFETCH_AHEAD..x0 + PREFETCH_AHEAD + LANES) {
+                self.prefetch_triangles(ahead.try_into().expect("8 lanes"), mesh_len);
+            }
+            let group: &[u32; LANES] = prims[x0..x0 + LANES].try_into().expect("8 lanes");
+            // Which lanes see the mesh, the sky or a moving light: two vector compares,
+            // not a scalar loop (which cost a tenth of the resolve's instructions).
+            let ids = u32x8::from(*group);
+            let is_mesh = ids.simd_lt(u32x8::splat(mesh_len));
+            let background = ids.simd_eq(u32x8::splat(NO_PRIM)).to_bitmask();
+            let mesh_lanes = is_mesh.to_bitmask();
+            let moving = !(background | mesh_lanes) & ((1 << LANES) - 1);
+            let mut scalar = moving;
+            if mesh_lanes != 0 {
+                // Lanes without a mesh triangle compute on a neighbour's and are
+                // overwritten below.
+                let stand_in = u32x8::splat(group[mesh_lanes.trailing_zeros() as usize]);
+                let lanes = is_mesh.select(ids, stand_in).to_array();
+                let (texels, undecided) = self.resolve_lanes::<ALL_PLANES>(&camera, x0, y, &lanes);
+                if ALL_PLANES {
+                    row.set_lanes(x0, &texels);
+                } else {
+                    row.set_compact_lanes(x0, &texels);
+                }
+                scalar |= undecided & mesh_lanes;
+            }
+            let mut m = background;
+            while m != 0 {
+                let i = m.trailing_zeros() as usize;
+                m &= m - 1;
+                set(row, x0 + i, &GTexel::BACKGROUND);
+            }
+            let mut m = scalar;
+            while m != 0 {
+                let i = m.trailing_zeros() as usize;
+                m &= m - 1;
+                set(row, x0 + i, &self.resolve_pixel(lights, &camera, x0 + i, y, group[i]));
+            }
+        }
+        for x in simd_width..width {
+            set(row, x, &self.resolve_pixel(lights, &camera, x, y, prims[x]));
+        }
     }
 
     /// Starts loading the mesh data of the triangles `ahead` names (each once where
