@@ -7,7 +7,9 @@
 //! when the CPU reports those features ([`Isa::detected`]). Today that is SSIM
 //! ([`crate::ssim::ssim_with`]) and reprojection ([`crate::reproject::reproject_with`]),
 //! whose AVX-512 body takes 16 pixels at a time where both G-buffers are compact and the
-//! group is an ordinary one, and is its 8-lane body compiled with AVX-512 elsewhere.
+//! group is an ordinary one, and is its 8-lane body compiled with AVX-512 elsewhere. The BVH
+//! traversal loops (single rays and packets) are also compiled a second time with AVX-512, at
+//! eight lanes still: the tree runs the build its [`crate::bvh::TriangleBvh::isa`] names.
 //!
 //! The choice is made once per process ([`Isa::active`]) and can be narrowed with the
 //! environment variable [`ISA_ENV`] (`STEREOTRACE_ISA=avx2` forces the 8-lane bodies on an

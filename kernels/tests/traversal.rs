@@ -9,6 +9,7 @@ use stereotrace_kernels::bvh::{
     BuildQuality, BvhBuildParams, BvhError, Hit, MAX_DEPTH, PreparedRay, Ray, SPLIT_BUDGET, Tri, TriangleBvh,
     build_bvh2_binned_sah, build_bvh2_spatial_splits, node_hits, node_hits_scalar,
 };
+use stereotrace_kernels::isa::Isa;
 use stereotrace_kernels::traverse::{ALL_LANES, PacketHits, RayPacket, intersect_brute_force};
 
 const LANES: usize = 8;
@@ -164,6 +165,93 @@ fn check_scene(bvh: &TriangleBvh, tris: &[Tri], rays: &[Ray], brute: Option<usiz
     }
     check_packets(bvh, tris, rays, &singles, &[0, 2, 8]);
     singles.iter().filter(|h| h.is_some()).count()
+}
+
+/// Everything a traversal reports for `rays`, as bits: each single ray's closest hit and
+/// occlusion, then each packet's (eight rays at a time, single-ray thresholds 0 and 2) hits
+/// and masks.
+fn traversal_bits(bvh: &TriangleBvh, rays: &[Ray]) -> Vec<u32> {
+    let mut bits = Vec::new();
+    let push_hit = |bits: &mut Vec<u32>, h: Option<Hit>| match h {
+        Some(h) => bits.extend([h.t.to_bits(), h.prim, h.u.to_bits(), h.v.to_bits()]),
+        None => bits.push(u32::MAX),
+    };
+    for r in rays {
+        push_hit(&mut bits, bvh.intersect(r));
+        bits.push(u32::from(bvh.occluded(r)));
+    }
+    for chunk in rays.chunks(LANES) {
+        let mut lanes = [Ray::new(Vec3::ZERO, Vec3::X); LANES];
+        lanes[..chunk.len()].copy_from_slice(chunk);
+        let active = (1u32 << chunk.len()) - 1;
+        let packet = RayPacket::from_rays(&lanes);
+        for threshold in [0, 2] {
+            let mut hits = PacketHits::NONE;
+            bits.push(bvh.intersect_packet_with(&packet, active, &mut hits, threshold));
+            bits.push(bvh.occluded_packet_with(&packet, active, threshold));
+            for i in 0..chunk.len() {
+                push_hit(&mut bits, hits.get(i));
+            }
+        }
+    }
+    bits
+}
+
+/// Every instruction set's build of the traversal loops (`TriangleBvh::set_isa`) reports the
+/// same bits for `rays`, ties included: they are one source compiled twice. Leaves the tree
+/// with the instruction set it had.
+fn assert_instruction_sets_agree(bvh: &mut TriangleBvh, rays: &[Ray]) {
+    let had = bvh.isa();
+    let mut reference: Option<(Isa, Vec<u32>)> = None;
+    for isa in Isa::supported() {
+        bvh.set_isa(isa);
+        assert_eq!(bvh.isa(), isa);
+        let bits = traversal_bits(bvh, rays);
+        match &reference {
+            None => reference = Some((isa, bits)),
+            Some((first, expected)) => {
+                let at = expected.iter().zip(&bits).position(|(a, b)| a != b);
+                assert!(
+                    at.is_none() && expected.len() == bits.len(),
+                    "{} and {} builds of the traversal differ at word {at:?}",
+                    first.name(),
+                    isa.name()
+                );
+            }
+        }
+    }
+    bvh.set_isa(had);
+}
+
+/// The AVX-512 build of the traversal loops, where the CPU has AVX-512, equals the 8-lane
+/// build bit for bit (and both equal brute force through `check_scene`), on soups with long
+/// slivers in split and unsplit trees, coherent packets and rays along the axes.
+#[test]
+fn every_instruction_set_traces_the_same_bits() {
+    if Isa::supported().count() < 2 {
+        use std::io::Write;
+        let _ = writeln!(std::io::stderr().lock(), "SKIP AVX-512 traversal comparison: this CPU lacks AVX-512");
+    }
+    let mut rng = Rng::new(0x15a);
+    let tris = soup_with_slivers(&mut rng, 3000, 10.0, 0.8, 60, 0.05);
+    let mut rays = random_rays(&mut rng, &tris, 3000, 10.0);
+    for _ in 0..100 {
+        let eye = rng.vec(-15.0, 15.0);
+        let fwd = rng.unit();
+        rays.extend((0..LANES).map(|_| Ray::new(eye, fwd + rng.vec(-0.02, 0.02))));
+    }
+    for axis in [Vec3::X, Vec3::NEG_Y, Vec3::Z] {
+        rays.extend((0..LANES).map(|_| Ray::new(rng.vec(-12.0, 12.0), axis)));
+    }
+    for quality in [BuildQuality::Sah, BuildQuality::SahSplits] {
+        let (mut bvh, _) = TriangleBvh::build(&tris, quality).unwrap();
+        assert_eq!(bvh.isa(), Isa::active(), "a new tree runs the process's instruction set");
+        for isa in Isa::supported() {
+            bvh.set_isa(isa);
+            check_scene(&bvh, &tris, &rays, Some(300));
+        }
+        assert_instruction_sets_agree(&mut bvh, &rays);
+    }
 }
 
 #[test]
@@ -838,7 +926,7 @@ fn real_scene(name: &str) {
     };
     let scene = shared.join("scenes").join(name);
     let tris = load_obj(&scene.join("scene.obj"));
-    let (bvh, stats) = TriangleBvh::build(&tris, BuildQuality::Medium).unwrap();
+    let (mut bvh, stats) = TriangleBvh::build(&tris, BuildQuality::Medium).unwrap();
     println!("{name}: {stats:?}");
     assert_eq!(stats.triangles, tris.len());
     assert!(!stats.median_fallback);
@@ -852,6 +940,7 @@ fn real_scene(name: &str) {
     }
     println!("{name}: {hits}/{} rays hit", rays.len());
     assert!(hits > rays.len() / 5);
+    assert_instruction_sets_agree(&mut bvh, &rays);
 }
 
 #[test]

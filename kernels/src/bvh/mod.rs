@@ -104,6 +104,7 @@ pub use triangle::{
 };
 use wide::{WideNode, wide_nodes};
 
+use crate::isa::Isa;
 use crate::simd::LANES;
 
 /// Build quality presets, mapped onto obvhs's `BvhBuildParams`.
@@ -220,6 +221,8 @@ pub struct TriangleBvh {
     /// `primitive_indices` (BVH slot → caller's triangle index), kept as its own array.
     prim_ids: Vec<u32>,
     stats: BuildStats,
+    /// The instruction set the traversal loops run with ([`TriangleBvh::set_isa`]).
+    isa: Isa,
 }
 
 impl TriangleBvh {
@@ -308,7 +311,22 @@ impl TriangleBvh {
         };
         let (blocks, block_bases) = leaf_blocks(&cwbvh.nodes, &tris_bvh);
         let (wide, bounds) = wide_nodes(&cwbvh.nodes, &tris_bvh, &block_bases);
-        Ok((Self { cwbvh, tris: tris_bvh, blocks, wide, bounds, prim_ids, stats }, stats))
+        Ok((Self { cwbvh, tris: tris_bvh, blocks, wide, bounds, prim_ids, stats, isa: Isa::active() }, stats))
+    }
+
+    /// The instruction set the traversal loops (single rays and packets) run with:
+    /// [`Isa::active`] when the tree is built.
+    pub fn isa(&self) -> Isa {
+        self.isa
+    }
+
+    /// Runs the traversal loops with `isa`'s build of them, or the 8-lane build where the CPU
+    /// lacks it ([`Isa::is_supported`]). Both builds are the same source compiled twice, the
+    /// second with AVX-512 enabled (32 vector registers and mask compares, still eight lanes),
+    /// so they give the same hits bit for bit; this lets tests and benches run both in one
+    /// process.
+    pub fn set_isa(&mut self, isa: Isa) {
+        self.isa = if isa.is_supported() { isa } else { Isa::Avx2 };
     }
 
     /// The build statistics.

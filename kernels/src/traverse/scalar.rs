@@ -213,7 +213,40 @@ impl TriangleBvh {
     /// are visited nearest first, the others pushed with their entry distance, and a popped
     /// child whose entry lies beyond the far bound found since is skipped without reading
     /// its node (see the module notes for what this measured against obvhs's octant order).
+    ///
+    /// Runs the loop's AVX-512 build where the tree's [`TriangleBvh::isa`] says so.
     pub(crate) fn traverse<S: SingleSearch, C: Counter>(
+        &self,
+        r: &PreparedRay,
+        root: u32,
+        search: &mut S,
+        counter: &mut C,
+    ) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if self.isa() == crate::isa::Isa::Avx512 {
+            // SAFETY: `set_isa` and the build store `Avx512` only where the CPU has it.
+            return unsafe { self.traverse_avx512(r, root, search, counter) };
+        }
+        self.traverse_loop(r, root, search, counter)
+    }
+
+    /// [`Self::traverse_loop`] compiled with AVX-512 (F, BW, DQ, VL): the same eight-lane
+    /// source, so the same hits, with 32 vector registers and compares into mask registers.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx512bw,avx512dq,avx512vl")]
+    fn traverse_avx512<S: SingleSearch, C: Counter>(
+        &self,
+        r: &PreparedRay,
+        root: u32,
+        search: &mut S,
+        counter: &mut C,
+    ) -> bool {
+        self.traverse_loop(r, root, search, counter)
+    }
+
+    /// The loop of [`Self::traverse`], inlined into each instruction set's build.
+    #[inline(always)]
+    fn traverse_loop<S: SingleSearch, C: Counter>(
         &self,
         r: &PreparedRay,
         root: u32,

@@ -401,7 +401,29 @@ impl TriangleBvh {
     /// The lanes of `group` (one class) through the tree for `search`: as single rays when
     /// there are at most `threshold` of them, else as a packet whose entries drop to single
     /// rays once at most `threshold` lanes are left in them.
+    ///
+    /// Runs the loop's AVX-512 build where the tree's [`TriangleBvh::isa`] says so.
     fn packet_search<S: PacketSearch>(&self, l: &Lanes, group: u32, search: &mut S, threshold: u32) {
+        #[cfg(target_arch = "x86_64")]
+        if self.isa() == crate::isa::Isa::Avx512 {
+            // SAFETY: `set_isa` and the build store `Avx512` only where the CPU has it.
+            unsafe { self.packet_search_avx512(l, group, search, threshold) };
+            return;
+        }
+        self.packet_search_loop(l, group, search, threshold);
+    }
+
+    /// [`Self::packet_search_loop`] compiled with AVX-512 (F, BW, DQ, VL): the same eight-lane
+    /// source, so the same hits, with 32 vector registers and compares into mask registers.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx512bw,avx512dq,avx512vl")]
+    fn packet_search_avx512<S: PacketSearch>(&self, l: &Lanes, group: u32, search: &mut S, threshold: u32) {
+        self.packet_search_loop(l, group, search, threshold);
+    }
+
+    /// The loop of [`Self::packet_search`], inlined into each instruction set's build.
+    #[inline(always)]
+    fn packet_search_loop<S: PacketSearch>(&self, l: &Lanes, group: u32, search: &mut S, threshold: u32) {
         if group.count_ones() <= threshold {
             for i in lane_iter(group) {
                 search.single(self, l, i, 0);
