@@ -295,14 +295,17 @@ impl Fixture {
         assert_eq!(occlude_packets(bvh, &fixture.shadow_stream_8, 2), occluded);
         assert_eq!(trace_single(bvh, &fixture.diffuse_stream), diffuse_hits);
         assert_eq!(trace_packets(bvh, &fixture.diffuse_stream_8, 2), diffuse_hits);
+        // Skipped when counting Embree's work: its counters would take these rays in too.
         #[cfg(feature = "peer-embree")]
-        eprintln!(
-            "[{name}] Embree on the same rays: {} primary hits, {} shadow rays occluded, {} diffuse hits (ours: {})",
-            fixture.embree.intersect(&fixture.primary),
-            fixture.embree.occluded(&fixture.shadow),
-            fixture.embree.intersect(&fixture.diffuse),
-            diffuse_hits
-        );
+        if embree_count_request().is_none() {
+            eprintln!(
+                "[{name}] Embree on the same rays: {} primary hits, {} shadow rays occluded, {} diffuse hits (ours: {})",
+                fixture.embree.intersect(&fixture.primary),
+                fixture.embree.occluded(&fixture.shadow),
+                fixture.embree.intersect(&fixture.diffuse),
+                diffuse_hits
+            );
+        }
         fixture
     }
 }
@@ -758,5 +761,69 @@ fn attribution(_: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, traversal, trees, attribution);
+/// The request of [`embree_counts`]: `STEREOTRACE_BENCH_EMBREE_COUNTS=scene/kind/shape`, with
+/// kind `primary`, `shadow` or `diffuse` and shape `single` or `packet_8x1`.
+fn embree_count_request() -> Option<String> {
+    std::env::var("STEREOTRACE_BENCH_EMBREE_COUNTS").ok()
+}
+
+/// Embree's side of the attribution table: Embree keeps no per-ray counts in its release
+/// builds, but a build with its statistics counters (CMake `EMBREE_STAT_COUNTERS=ON`) adds up
+/// nodes, leaves and triangle blocks tested in the whole process and prints them when the
+/// process exits. With `STEREOTRACE_BENCH_EMBREE_COUNTS` set (and such a library on the
+/// loader's path, in place of Debian's), this traces one ray set of one scene once, prints how
+/// many rays it traced, and exits before anything else runs, so the printed totals divided by
+/// that number are Embree's work per ray on exactly the rays of the timed rows
+/// (`tools/bench/embree_counts.py` runs every row and prints the table).
+#[cfg(feature = "peer-embree")]
+fn embree_counts(_: &mut Criterion) {
+    let Some(request) = embree_count_request() else { return };
+    let parts: Vec<&str> = request.split('/').collect();
+    let [scene, kind, shape] = parts[..] else {
+        panic!("STEREOTRACE_BENCH_EMBREE_COUNTS: expected scene/kind/shape, got '{request}'")
+    };
+    let f = match scene {
+        "sponza" => sponza().expect("STEREOTRACE_BENCH_EMBREE_COUNTS: ../shared/scenes/sponza not found"),
+        "procedural700k" => procedural(),
+        name => builtin(BUILTINS.iter().find(|b| **b == name).unwrap_or_else(|| panic!("unknown scene '{name}'"))),
+    };
+    // Calls: rays for single rays, packets for packets (Embree 3.13 counts neither itself).
+    let (calls, hits) = match (kind, shape) {
+        ("primary", "single") => (f.primary.len(), f.embree.intersect(&f.primary)),
+        ("shadow", "single") => (f.shadow.len(), f.embree.occluded(&f.shadow)),
+        ("diffuse", "single") => (f.diffuse.len(), f.embree.intersect(&f.diffuse)),
+        ("primary", "packet_8x1") => (f.primary_8x1.len(), f.embree.intersect8(&f.primary_8x1)),
+        ("shadow", "packet_8x1") => (f.shadow_8x1.len(), f.embree.occluded8(&f.shadow_8x1)),
+        _ => panic!("STEREOTRACE_BENCH_EMBREE_COUNTS: no ray set '{kind}/{shape}'"),
+    };
+    // Our counts of the same rays, in the same process, for the table beside Embree's.
+    let mut c = stereotrace_kernels::traverse::TraversalCounts::default();
+    let ray_set = match kind {
+        "primary" => &f.primary,
+        "shadow" => &f.shadow,
+        _ => &f.diffuse,
+    };
+    for r in ray_set {
+        if kind == "shadow" {
+            f.bvh.occluded_counted(r, &mut c);
+        } else {
+            f.bvh.intersect_counted(r, &mut c);
+        }
+    }
+    println!(
+        "EMBREE_COUNTS calls={calls} rays={} hits={hits} ours_nodes={} ours_leaves={} ours_triangles={} ours_blocks={}",
+        c.rays, c.nodes, c.leaves, c.triangles, c.triangle_blocks
+    );
+    // Exit here: the library prints its totals from a static destructor at exit.
+    std::process::exit(0);
+}
+
+#[cfg(not(feature = "peer-embree"))]
+fn embree_counts(_: &mut Criterion) {
+    if embree_count_request().is_some() {
+        panic!("STEREOTRACE_BENCH_EMBREE_COUNTS needs --features peer-embree");
+    }
+}
+
+criterion_group!(benches, embree_counts, traversal, trees, attribution);
 criterion_main!(benches);

@@ -142,10 +142,15 @@ impl EmbreeScene {
     /// tests and conservative node tests, the like-for-like peer of our watertight tracer);
     /// without it, its fast default (Möller–Trumbore).
     pub fn new(tris: &[Tri], robust: bool) -> Self {
+        // Embree's device configuration string from `STEREOTRACE_BENCH_EMBREE_CONFIG` (for
+        // example `verbose=1`, which prints the ISA, builder and leaf format it picked).
+        let config = std::env::var("STEREOTRACE_BENCH_EMBREE_CONFIG")
+            .ok()
+            .map(|c| std::ffi::CString::new(c).expect("STEREOTRACE_BENCH_EMBREE_CONFIG without NUL bytes"));
         // SAFETY: each call gets the handles the previous ones returned (checked non-null)
         // and buffers of exactly the declared size, filled before the commit.
         unsafe {
-            let device = rtcNewDevice(std::ptr::null());
+            let device = rtcNewDevice(config.as_ref().map_or(std::ptr::null(), |c| c.as_ptr()));
             assert!(!device.is_null(), "rtcNewDevice failed");
             let scene = rtcNewScene(device);
             rtcSetSceneBuildQuality(scene, BUILD_QUALITY_HIGH);

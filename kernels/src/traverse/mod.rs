@@ -123,6 +123,9 @@ pub struct TraversalCounts {
     pub inner_hits: u64,
     /// Triangle tests.
     pub triangles: u64,
+    /// Triangle blocks tested: one SIMD test of up to eight of a node's leaf triangles each
+    /// (the unit Embree's counters count, in its blocks of up to four).
+    pub triangle_blocks: u64,
     /// Waiting children popped and skipped without reading their node.
     pub skipped: u64,
 }
@@ -135,6 +138,7 @@ impl std::ops::AddAssign for TraversalCounts {
         self.leaves += o.leaves;
         self.inner_hits += o.inner_hits;
         self.triangles += o.triangles;
+        self.triangle_blocks += o.triangle_blocks;
         self.skipped += o.skipped;
     }
 }

@@ -82,6 +82,7 @@ impl Counter for super::TraversalCounts {
     }
     fn triangles(&mut self, triangles: u32) {
         self.triangles += u64::from(triangles);
+        self.triangle_blocks += 1;
     }
     fn skipped(&mut self) {
         self.skipped += 1;
