@@ -91,6 +91,11 @@ impl Counter for super::TraversalCounts {
 
 /// What a single-ray search keeps: its far bound, and what a hit below it does.
 pub(crate) trait SingleSearch {
+    /// Whether the search wants the closest hit. Its far bound then shrinks with each hit, so
+    /// waiting children are visited nearest first and re-checked against it after a leaf hit.
+    /// An any-hit search ends at its first hit and its far bound never changes: it visits
+    /// children in slot order, with neither the sort nor the re-check (Embree's any-hit order).
+    const CLOSEST: bool;
     /// The current far bound (exclusive): triangles and boxes at or beyond it are skipped.
     fn tfar(&self) -> f32;
     /// Records a hit on the triangle in BVH slot `slot` (its `t` is below [`Self::tfar`]).
@@ -113,6 +118,8 @@ impl Best {
 }
 
 impl SingleSearch for Best {
+    const CLOSEST: bool = true;
+
     #[inline(always)]
     fn tfar(&self) -> f32 {
         self.hit.t
@@ -131,6 +138,8 @@ pub(crate) struct AnyHit {
 }
 
 impl SingleSearch for AnyHit {
+    const CLOSEST: bool = false;
+
     #[inline(always)]
     fn tfar(&self) -> f32 {
         self.tmax
@@ -288,7 +297,7 @@ impl TriangleBvh {
             if inner != 0 {
                 let tnear = tnear.to_array();
                 let tfar = search.tfar();
-                if leaves != 0 {
+                if S::CLOSEST && leaves != 0 {
                     // A leaf hit may have brought the far bound below some children.
                     inner &= tnear.iter().enumerate().fold(0, |m, (s, &t)| m | (u32::from(in_reach(t, tfar)) << s));
                 }
@@ -298,7 +307,11 @@ impl TriangleBvh {
                     continue;
                 }
                 if inner != 0 {
-                    idx = push_children_nearest_last(&mut stack, node, inner, &tnear);
+                    idx = if S::CLOSEST {
+                        push_children_nearest_last(&mut stack, node, inner, &tnear)
+                    } else {
+                        push_children_in_slot_order(&mut stack, node, inner, &tnear)
+                    };
                     continue;
                 }
             }
@@ -346,6 +359,26 @@ fn push_children_nearest_last(
         stack.push(*e);
     }
     sorted[n - 1].node
+}
+
+/// Pushes the children in `inner` (at least two) in slot order, all but the last slot's,
+/// which is returned to be visited at once: the any-hit order, without a sort.
+#[inline(always)]
+fn push_children_in_slot_order(
+    stack: &mut FixedStack<Entry, SINGLE_STACK>,
+    node: &WideNode,
+    mut inner: u32,
+    tnear: &[f32; LANES],
+) -> u32 {
+    loop {
+        let slot = inner.trailing_zeros();
+        inner &= inner - 1;
+        let child = inner_child_index(node.child_base, node.imask, slot);
+        if inner == 0 {
+            return child;
+        }
+        stack.push(Entry { node: child, tnear: tnear[slot as usize] });
+    }
 }
 
 /// Closest hit over a plain triangle list by brute force (the test oracle; `prim` is the index
