@@ -44,7 +44,8 @@ use criterion::{Criterion, SamplingMode, Throughput, criterion_group, criterion_
 use glam::Vec3;
 use obvhs::ray::{Ray as ORay, RayHit};
 use obvhs::triangle::Triangle as OTri;
-use stereotrace_kernels::bvh::{BuildQuality, BvhBuildParams, Ray, Tri, TriangleBvh};
+use stereotrace_kernels::bvh::wide::SlabOrigins;
+use stereotrace_kernels::bvh::{BuildQuality, BvhBuildParams, PreparedRay, Ray, Tri, TriangleBvh};
 use stereotrace_kernels::traverse::{PacketHits, RayPacket};
 
 #[cfg(feature = "peer-embree")]
@@ -104,6 +105,8 @@ struct Fixture {
     shadow_stream_8: Vec<Packet>,
     diffuse_stream: Vec<Ray>,
     diffuse_stream_8: Vec<Packet>,
+    /// The primary directions from outside the scene's bounds, going away: every ray misses.
+    miss: Vec<Ray>,
 }
 
 /// Pixel order of a tile of `tw × th` pixels.
@@ -261,6 +264,19 @@ impl Fixture {
             .collect();
         let shadow: Vec<Ray> =
             (0..HEIGHT).flat_map(|y| (0..WIDTH).map(move |x| (x, y))).filter_map(|(x, y)| shadow_ray(x, y)).collect();
+        // Rays that miss the scene's bounds: the primary directions from outside the bounds,
+        // going away (each point of such a ray is farther from the centre than any vertex).
+        // What a ray costs before any node below the root: its setup and one node test.
+        let (lo, hi) = tris.iter().flatten().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
+        let (centre, reach) = ((lo + hi) * 0.5, (hi - lo).length() + 1.0);
+        let miss: Vec<Ray> = primary
+            .iter()
+            .map(|r| {
+                let d = r.dir.normalize();
+                Ray::segment(centre + d * reach, d, 0.0, f32::INFINITY)
+            })
+            .collect();
+        assert_eq!(trace_single(&bvh, &miss), 0, "rays that leave the bounds hit nothing");
         let (shadow_stream, diffuse_stream) = (stream_order(&shadow), stream_order(&diffuse));
         let primary_at = |x: usize, y: usize| Some(cam.ray(x, y));
         let (o8, o42) = (tile_pixels(8, 1), tile_pixels(4, 2));
@@ -276,6 +292,7 @@ impl Fixture {
             diffuse_stream,
             diffuse,
             primary,
+            miss,
             otris,
             #[cfg(feature = "peer-embree")]
             embree: embree::EmbreeScene::new(&tris, std::env::var_os("EMBREE_ROBUST").is_some_and(|v| v == "1")),
@@ -437,6 +454,18 @@ fn on_two_threads<T: Sync>(items: &[T], trace: impl Fn(&[T]) -> u32 + Sync) -> u
     two_threads().install(|| items.par_chunks(CHUNK).map(&trace).sum())
 }
 
+/// What every single ray computes before the root node: [`PreparedRay::new`] and its
+/// [`SlabOrigins`] (a sum of their fields, so that none is optimised away).
+fn ray_setup(bvh: &TriangleBvh, rays: &[Ray]) -> f32 {
+    rays.iter()
+        .filter_map(PreparedRay::new)
+        .map(|r| {
+            let o = SlabOrigins::new(&r, bvh.bounds());
+            o.near[0] + o.far[2] + r.inv.x + r.shear[1] + r.pad.z
+        })
+        .sum()
+}
+
 fn trace_single(bvh: &TriangleBvh, rays: &[Ray]) -> u32 {
     rays.iter().map(|r| bvh.intersect(r).is_some() as u32).sum()
 }
@@ -530,6 +559,18 @@ fn bench_scene(c: &mut Criterion, name: &str, available: bool, fixture: &dyn Fn(
     g.bench_function("obvhs_single", |b| b.iter(|| obvhs_single(f(), black_box(&f().diffuse))));
     #[cfg(feature = "peer-embree")]
     g.bench_function("embree_single", |b| b.iter(|| f().embree.intersect(black_box(&f().diffuse))));
+    g.finish();
+
+    // Rays that miss everything: the fixed cost of a ray (setup and the root's test).
+    let mut g = c.benchmark_group(format!("traversal/{name}/miss"));
+    g.sampling_mode(SamplingMode::Flat).sample_size(10);
+    g.throughput(Throughput::Elements(f().miss.len() as u64));
+    g.bench_function("single", |b| b.iter(|| trace_single(&f().bvh, black_box(&f().miss))));
+    #[cfg(feature = "peer-embree")]
+    g.bench_function("embree_single", |b| b.iter(|| f().embree.intersect(black_box(&f().miss))));
+    // The part of that before the root's test: validation, reciprocals, the triangle test's
+    // shear and the slab origins.
+    g.bench_function("setup", |b| b.iter(|| ray_setup(&f().bvh, black_box(&f().miss))));
     g.finish();
 
     // The same rays on two threads: each kind's best layout of ours (8×1 packets for primary
