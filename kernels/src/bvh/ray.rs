@@ -127,9 +127,13 @@ impl PreparedRay {
     #[inline]
     pub fn new(ray: &Ray) -> Option<Self> {
         let mut r = Self::for_triangles(ray)?;
-        let inv = ray.dir.to_array().map(safe_rcp);
-        r.inv = Vec3A::from_array(inv);
-        r.pad = Vec3A::from_array(inv.map(|i| NODE_PAD * i.abs()));
+        // `safe_rcp` on all three components with one vector division (the same bits: both
+        // divisions round correctly, and the clamped lanes take the same signed constant).
+        let d = Vec3A::from(ray.dir);
+        let clamped = d.abs().cmplt(Vec3A::splat(RCP_CLAMP));
+        r.inv = Vec3A::select(clamped, Vec3A::splat(1.0 / RCP_CLAMP).copysign(d), Vec3A::ONE / d);
+        r.pad = NODE_PAD * r.inv.abs();
+        let inv = r.inv.to_array();
         r.oct_inv = (if inv[0] < 0.0 { 0 } else { 4 })
             | (if inv[1] < 0.0 { 0 } else { 2 })
             | (if inv[2] < 0.0 { 0 } else { 1 });
@@ -166,7 +170,8 @@ impl PreparedRay {
             pad: Vec3A::ZERO,
             oct_inv: 0,
             k: [kx, ky, kz],
-            shear: [d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]],
+            // One vector division, the same bits as three scalar ones.
+            shear: (Vec3A::new(d[kx], d[ky], 1.0) / Vec3A::splat(d[kz])).to_array(),
             origin_k: [o[kx], o[ky], o[kz]],
             tmin: ray.tmin,
             tmax: ray.tmax,
@@ -178,5 +183,66 @@ impl PreparedRay {
     #[inline]
     pub fn class(&self) -> u32 {
         self.oct_inv | ((self.k[2] as u32) << 3)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+    use proptest::prelude::*;
+
+    use super::super::wide::SlabOrigins;
+    use super::*;
+
+    /// A direction component: ordinary values, and the edges of the reciprocal's clamp
+    /// (signed zeros, values just either side of `RCP_CLAMP`, the largest allowed).
+    fn component() -> impl Strategy<Value = f32> {
+        prop_oneof![
+            -1.0e3f32..1.0e3,
+            Just(0.0),
+            Just(-0.0),
+            Just(RCP_CLAMP),
+            Just(-RCP_CLAMP),
+            Just(f32::from_bits(RCP_CLAMP.to_bits() - 1)),
+            Just(-f32::from_bits(RCP_CLAMP.to_bits() + 1)),
+            Just(MAX_DIR),
+            Just(-1.0e-30),
+        ]
+    }
+
+    proptest! {
+        /// The ray setup's vector arithmetic against the scalar formulas it replaced, bit for
+        /// bit: the reciprocals, their pads, the octant, the shear, and the slab origins.
+        #[test]
+        fn ray_setup_equals_the_scalar_formulas(
+            d in (component(), component(), component()),
+            o in (-1.0e4f32..1.0e4, -1.0e4f32..1.0e4, -1.0e4f32..1.0e4),
+            lo in (-1.0e4f32..0.0, -1.0e4f32..0.0, -1.0e4f32..0.0),
+            size in (0.0f32..1.0e4, 0.0f32..1.0e4, 0.0f32..1.0e4),
+        ) {
+            let ray = Ray::segment(Vec3::new(o.0, o.1, o.2), Vec3::new(d.0, d.1, d.2), 0.0, f32::INFINITY);
+            let Some(r) = PreparedRay::new(&ray) else {
+                prop_assert!(!ray.is_valid());
+                return Ok(());
+            };
+            let (d, o) = (ray.dir.to_array(), ray.origin.to_array());
+            let inv = d.map(safe_rcp);
+            prop_assert_eq!(r.inv.to_array().map(f32::to_bits), inv.map(f32::to_bits));
+            prop_assert_eq!(r.pad.to_array().map(f32::to_bits), inv.map(|i| (NODE_PAD * i.abs()).to_bits()));
+            let oct = (if inv[0] < 0.0 { 0 } else { 4 }) | (if inv[1] < 0.0 { 0 } else { 2 }) | (if inv[2] < 0.0 { 0 } else { 1 });
+            prop_assert_eq!(r.oct_inv, oct);
+            let [kx, ky, kz] = r.k;
+            let shear = [d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]];
+            prop_assert_eq!(r.shear.map(f32::to_bits), shear.map(f32::to_bits));
+
+            let bounds = [[lo.0, lo.1, lo.2], [lo.0 + size.0, lo.1 + size.1, lo.2 + size.2]];
+            let reach = (0..3).fold(0.0f32, |m, k| {
+                m.max((bounds[0][k] - o[k]).abs()).max((bounds[1][k] - o[k]).abs()).max(o[k].abs())
+            });
+            let shift = reach * crate::bvh::wide::POSITION_PAD;
+            let slab = SlabOrigins::new(&r, &bounds);
+            prop_assert_eq!(slab.near.map(f32::to_bits), [0, 1, 2].map(|k| (o[k] + shift.copysign(inv[k])).to_bits()));
+            prop_assert_eq!(slab.far.map(f32::to_bits), [0, 1, 2].map(|k| (o[k] - shift.copysign(inv[k])).to_bits()));
+        }
     }
 }

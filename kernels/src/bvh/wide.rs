@@ -75,14 +75,13 @@ impl SlabOrigins {
     /// coordinates (the largest offset the triangle test works with, and at least 2⁷ ulps of
     /// the origin, so adding it to the origin cannot round it away).
     pub fn new(r: &PreparedRay, bounds: &[[f32; 3]; 2]) -> Self {
-        let (o, inv) = (r.origin.to_array(), r.inv.to_array());
-        let reach = (0..3)
-            .fold(0.0f32, |m, k| m.max((bounds[0][k] - o[k]).abs()).max((bounds[1][k] - o[k]).abs()).max(o[k].abs()));
-        let shift = reach * POSITION_PAD;
-        Self {
-            near: [0, 1, 2].map(|k| o[k] + shift.copysign(inv[k])),
-            far: [0, 1, 2].map(|k| o[k] - shift.copysign(inv[k])),
-        }
+        // In vectors of three: every value is finite, so the order of the maxima and the
+        // vector `max` give the same bits as a scalar fold.
+        let o = r.origin;
+        let (lo, hi) = (glam::Vec3A::from_array(bounds[0]) - o, glam::Vec3A::from_array(bounds[1]) - o);
+        let reach = lo.abs().max(hi.abs()).max(o.abs()).max_element();
+        let shift = glam::Vec3A::splat(reach * POSITION_PAD).copysign(r.inv);
+        Self { near: (o + shift).to_array(), far: (o - shift).to_array() }
     }
 }
 
