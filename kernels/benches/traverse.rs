@@ -267,7 +267,7 @@ impl Fixture {
         // Rays that miss the scene's bounds: the primary directions from outside the bounds,
         // going away (each point of such a ray is farther from the centre than any vertex).
         // What a ray costs before any node below the root: its setup and one node test.
-        let (lo, hi) = tris.iter().flatten().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
+        let (lo, hi) = (Vec3::from_array(bvh.bounds()[0]), Vec3::from_array(bvh.bounds()[1]));
         let (centre, reach) = ((lo + hi) * 0.5, (hi - lo).length() + 1.0);
         let miss: Vec<Ray> = primary
             .iter()

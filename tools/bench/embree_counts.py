@@ -9,9 +9,9 @@ per row with `STEREOTRACE_BENCH_EMBREE_COUNTS=scene/kind/shape` (the bench trace
 set once, prints our counts for the same rays and exits) and with that library first on the
 loader's path, then divides Embree's totals by the rays traced.
 
-    python3 tools/bench/embree_counts.py --embree-lib DIR [--robust] [--scenes cornell,atrium] [--fit]
+    python3 tools/bench/embree_counts.py --embree-lib DIR [--robust] [--scenes cornell,atrium] [--times]
 
-With `--fit`, the rows are also timed: the medians of the bench's own last run of `single`
+With `--times`, the rows are also timed: the medians of the bench's own last run of `single`
 and `embree_single` (criterion's `target/criterion/traversal_{scene}_{kind}/`, or
 `--criterion DIR`; run the bench on the same scenes first, with Embree in the same mode) are
 divided by the rays, and each row's gap is split into nodes read per ray (ours ÷ Embree's)
@@ -43,7 +43,7 @@ def embree_totals(text, section):
     start = next((i for i, l in enumerate(lines) if l.strip().startswith(f"#{section}_travs")), None)
     if start is None:
         return None
-    totals = {"travs": float(re.search(r"=\s*([-\d.e+]+)M", lines[start]).group(1)) * 1e6}
+    totals = {}
     for line in lines[start + 1:]:
         m = re.match(r"\s+#(nodes|leaves|prims|prim_hits)\s*=\s*([-\d.e+]+)M", line)
         if m:
@@ -66,16 +66,16 @@ def run_row(args, scene, kind, shape):
     out = subprocess.run(cmd, capture_output=True, text=True, env=env)
     if out.returncode != 0:
         sys.exit(f"{scene}/{kind}/{shape}: the bench failed:\n{out.stderr[-2000:]}")
-    ours = re.search(r"EMBREE_COUNTS calls=(\d+) rays=(\d+) hits=(\d+) ours_nodes=(\d+) ours_leaves=(\d+) "
+    ours = re.search(r"EMBREE_COUNTS calls=(\d+) rays=\d+ hits=\d+ ours_nodes=(\d+) ours_leaves=(\d+) "
                      r"ours_triangles=(\d+) ours_blocks=(\d+)", out.stdout)
     if ours is None:
         sys.exit(f"{scene}/{kind}/{shape}: no EMBREE_COUNTS line in the bench's output:\n{out.stdout[-2000:]}")
-    calls, rays, hits, nodes, leaves, tris, blocks = (int(g) for g in ours.groups())
+    calls, *ours = (int(g) for g in ours.groups())
     embree = embree_totals(out.stdout, "shadow" if kind == "shadow" else "normal")
     if embree is None:
         sys.exit(f"{scene}/{kind}/{shape}: Embree printed no counters: is {args.embree_lib} a build "
                  "with EMBREE_STAT_COUNTERS=ON?")
-    return calls, rays, (nodes, leaves, tris, blocks), embree
+    return calls, ours, embree
 
 
 def main():
@@ -86,8 +86,8 @@ def main():
     ap.add_argument("--bench-bin", help="a built traversal bench binary to run instead of `cargo bench` "
                     "(an earlier build, to count what it did)")
     ap.add_argument("--criterion", default=os.path.join("target", "criterion"),
-                    help="criterion's output folder of the timed run (for --fit)")
-    ap.add_argument("--fit", action="store_true", help="split each row's time ratio into nodes per ray "
+                    help="criterion's output folder of the timed run (for --times)")
+    ap.add_argument("--times", action="store_true", help="split each row's time ratio into nodes per ray "
                     "and time per node")
     args = ap.parse_args()
     singles = []
@@ -99,14 +99,14 @@ def main():
     print("|---|---|--:|--:|--:|--:|--:|--:|--:|--:|")
     for scene in args.scenes.split(","):
         for kind, shape in ROWS:
-            calls, _rays, ours, embree = run_row(args, scene, kind, shape)
+            calls, ours, embree = run_row(args, scene, kind, shape)
             ours = [v / calls for v in ours]
             embree = {k: v / calls for k, v in embree.items()}
-            singles.append((scene, kind, calls, ours, [embree["nodes"], embree["prims"]]))
+            singles.append((scene, kind, calls, ours[0], embree["nodes"]))
             print(f"| {scene} | {kind} | {embree['nodes']:.2f} | {embree['leaves']:.2f} | {embree['prims']:.2f} | "
                   + " | ".join(f"{v:.2f}" for v in ours) + f" | {ours[0] / embree['nodes']:.2f} |", flush=True)
-    if args.fit:
-        fit(singles, args.criterion)
+    if args.times:
+        split_times(singles, args.criterion)
 
 
 def median_ns(criterion, scene, kind, row):
@@ -116,10 +116,10 @@ def median_ns(criterion, scene, kind, row):
         with open(path) as f:
             return json.load(f)["median"]["point_estimate"]
     except OSError:
-        sys.exit(f"--fit: {path} not found: run the traversal bench on {scene} first")
+        sys.exit(f"--times: {path} not found: run the traversal bench on {scene} first")
 
 
-def fit(singles, criterion):
+def split_times(singles, criterion):
     """Splits each row's speed gap into the work per ray (nodes read, ours ÷ Embree's) and the
     time per node read with everything it brings (its leaves' triangle blocks, the stack, the
     ray's setup shared out). A least-squares split into a cost per node and per block does not
@@ -130,10 +130,10 @@ def fit(singles, criterion):
     print("| scene | rays | ours ns per ray | Embree ns per ray | speed, ours ÷ Embree | nodes, ours ÷ Embree "
           "| time per node read, ours ÷ Embree |")
     print("|---|---|--:|--:|--:|--:|--:|")
-    for scene, kind, calls, ours, embree in singles:
+    for scene, kind, calls, ours_nodes, embree_nodes in singles:
         t_ours = median_ns(criterion, scene, kind, "single") / calls
         t_embree = median_ns(criterion, scene, kind, "embree_single") / calls
-        nodes = ours[0] / embree[0]
+        nodes = ours_nodes / embree_nodes
         print(f"| {scene} | {kind} | {t_ours:.1f} | {t_embree:.1f} | {t_embree / t_ours:.2f} | {nodes:.2f} | "
               f"{t_ours / t_embree / nodes:.2f} |")
 
