@@ -469,6 +469,7 @@ pub unsafe extern "C" fn stereotrace_ema(
             reason: required(reason, "reason")?.view("reason", &mut b)?,
             has_new: has_new.as_ref().map(|p| p.view("has_new", &mut b)).transpose()?,
             confidence: confidence.as_ref().map(|p| p.view("confidence", &mut b)).transpose()?,
+            pixel_mask: None,
         };
         let state = EmaState {
             accum: required(accum, "accum")?.view(["accum.r", "accum.g", "accum.b"], &mut b)?,

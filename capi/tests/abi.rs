@@ -220,7 +220,13 @@ fn ema_and_ssim_through_the_c_abi_are_the_kernels() {
     };
     assert_eq!(status, StStatus::Ok);
     let mut direct = right.frame.colour.clone();
-    let input = EmaInput { new: left.frame.colour.view(), reason: reason.view(), has_new: None, confidence: None };
+    let input = EmaInput {
+        new: left.frame.colour.view(),
+        reason: reason.view(),
+        has_new: None,
+        confidence: None,
+        pixel_mask: None,
+    };
     let want = accumulate::ema(&input, EmaState { accum: direct.view_mut(), history_len: None }, &EmaParams::default())
         .unwrap();
     assert_eq!(via_c, direct);

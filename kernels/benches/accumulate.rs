@@ -14,6 +14,8 @@ use stereotrace_kernels::accumulate::{self, BlendParams, EmaInput, EmaParams, Em
 use stereotrace_kernels::clamp::{self, ClampInput, ClampParams};
 use stereotrace_kernels::frame::PlaneBuf;
 use stereotrace_kernels::gradient::{self, GradientInput};
+use stereotrace_kernels::isa::Isa;
+use stereotrace_kernels::reproject::Reason;
 use stereotrace_kernels::synth::Rng;
 
 fn ema_and_blend(c: &mut Criterion) {
@@ -40,6 +42,7 @@ fn ema_and_blend(c: &mut Criterion) {
                                 reason: reason.view(),
                                 has_new: None,
                                 confidence: None,
+                                pixel_mask: None,
                             };
                             let state = EmaState { accum: acc.view_mut(), history_len: ramp.then(|| len.view_mut()) };
                             let r = if simd {
@@ -53,6 +56,35 @@ fn ema_and_blend(c: &mut Criterion) {
                 });
             }
         }
+    }
+    // The paper-order left eye's EMA: only the pixels its stereo reprojection discarded (the
+    // pixel mask), the rest already restarted by the stereo pass. Beside `simd/plain`, it is
+    // what the fused restart saves.
+    let mut stereo = common::Outputs::new(e);
+    let (target, source) = (f.left.compact(), f.right.compact());
+    common::run_reprojection(&target, &source, &f.right, &f.params, &mut stereo, Some(Isa::active()), None);
+    let discarded = stereo.reason.as_slice().iter().map(|&r| u8::from(r != Reason::Reprojected as u8)).collect();
+    let mask = PlaneBuf::from_vec(discarded, e).unwrap();
+    let share = mask.as_slice().iter().filter(|&&m| m != 0).count() as f64 / e.pixels() as f64;
+    println!("ema/simd-masked: the stereo-discarded mask holds {:.1} % of the pixels", 100.0 * share);
+    for threads in [1, 2] {
+        let pool = pool(threads);
+        let params = EmaParams::default();
+        group.bench_function(BenchmarkId::new("simd-masked/plain", threads), |b| {
+            b.iter(|| {
+                pool.install(|| {
+                    let input = EmaInput {
+                        new: f.left.colour.view(),
+                        reason: reason.view(),
+                        has_new: None,
+                        confidence: None,
+                        pixel_mask: Some(mask.view()),
+                    };
+                    let state = EmaState { accum: acc.view_mut(), history_len: None };
+                    black_box(accumulate::ema(&input, state, &params).expect("valid input"))
+                })
+            })
+        });
     }
     group.finish();
 

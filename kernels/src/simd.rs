@@ -74,6 +74,21 @@ pub fn clamp_finite(v: F32s) -> F32s {
     v.simd_lt(-max).select(-max, v)
 }
 
+/// Flushes a value below `f32::MIN_POSITIVE` in magnitude (a subnormal, or −0) to +0; NaN
+/// and everything else pass through. Kernels that write a history flush it: an EMA decaying
+/// towards 0 would otherwise walk through subnormals, which are slow on x86, and
+/// flush-to-zero cannot be relied on.
+#[inline(always)]
+pub fn flush_subnormal1(v: f32) -> f32 {
+    if v.abs() < f32::MIN_POSITIVE { 0.0 } else { v }
+}
+
+/// SIMD twin of [`flush_subnormal1`].
+#[inline(always)]
+pub fn flush_subnormal(v: F32s) -> F32s {
+    v.abs().simd_lt(F32s::splat(f32::MIN_POSITIVE)).select(F32s::ZERO, v)
+}
+
 /// Loads `LANES` consecutive elements starting at `i`. Panics if fewer remain.
 #[inline(always)]
 pub fn load(slice: &[f32], i: usize) -> F32s {

@@ -35,6 +35,13 @@ fn ema_simd_equals_scalar_on_edge_values() {
         let confidence =
             PlaneBuf::from_vec((0..e.pixels()).map(|_| [0.0, 1.0, rng.next_f32(), 1e-30][rng.below(4)]).collect(), e)
                 .unwrap();
+        // A pixel mask in two cases of five: sparse (as the paper-order left eye's), dense, or
+        // in runs of eight, so that whole groups are skipped and partial ones selected.
+        let density = [0.05, 0.9, 0.5][case % 3];
+        let in_mask =
+            |i: usize, rng: &mut Rng| if case % 2 == 0 { (i / 8).is_multiple_of(3) } else { rng.next_f32() < density };
+        let pixel_mask =
+            PlaneBuf::from_vec((0..e.pixels()).map(|i| u8::from(in_mask(i, &mut rng))).collect(), e).unwrap();
         let params =
             EmaParams { alpha: [0.2, 1.0, 0.05, 1e-6][case % 4], ramp: case % 2 == 0, band_rows: 1 + rng.below(3) };
         let input = EmaInput {
@@ -42,6 +49,7 @@ fn ema_simd_equals_scalar_on_edge_values() {
             reason: reason.view(),
             has_new: (case % 3 != 0).then(|| has_new.view()),
             confidence: (case % 4 < 2).then(|| confidence.view()),
+            pixel_mask: (case % 5 < 2).then(|| pixel_mask.view()),
         };
         let run = |simd: bool| {
             let (mut acc, mut n) = (history.clone(), len.clone());
@@ -59,8 +67,25 @@ fn ema_simd_equals_scalar_on_edge_values() {
         for (a, b) in [(aa.r(), ab.r()), (aa.g(), ab.g()), (aa.b(), ab.b()), (&na, &nb)] {
             assert_same_planes("ema", a, b);
         }
-        // Nothing non-finite enters the history unless it was already there.
+        if input.pixel_mask.is_some() {
+            // Outside the mask nothing moved; inside it, the unmasked EMA's bits.
+            let (mut whole, mut whole_len) = (history.clone(), len.clone());
+            let unmasked = EmaInput { pixel_mask: None, ..input };
+            let state = EmaState { accum: whole.view_mut(), history_len: Some(whole_len.view_mut()) };
+            accumulate::ema_scalar(&unmasked, state, &params).unwrap();
+            for i in 0..e.pixels() {
+                let (colour, n) = if pixel_mask.as_slice()[i] == 0 { (&history, &len) } else { (&whole, &whole_len) };
+                for (out, want) in [(ab.r(), colour.r()), (ab.g(), colour.g()), (ab.b(), colour.b()), (&nb, n)] {
+                    assert_eq!(out.as_slice()[i].to_bits(), want.as_slice()[i].to_bits(), "case {case}: pixel {i}");
+                }
+            }
+        }
+        // Nothing non-finite enters the history unless it was already there, and what the
+        // EMA wrote is flushed (a pixel outside the mask keeps whatever it held).
         for (i, v) in aa.r().as_slice().iter().enumerate() {
+            if input.pixel_mask.is_some() && pixel_mask.as_slice()[i] == 0 {
+                continue;
+            }
             if history.r().as_slice()[i].is_finite() {
                 assert!(v.is_finite(), "{v}");
             }
@@ -80,7 +105,13 @@ fn history_confidence_scales_the_historys_weight() {
         let mut acc = RgbBuf::new(e, 1.0);
         let mut len = PlaneBuf::new(e, 4.0);
         let conf = PlaneBuf::new(e, c);
-        let input = EmaInput { new: new.view(), reason: reason.view(), has_new: None, confidence: Some(conf.view()) };
+        let input = EmaInput {
+            new: new.view(),
+            reason: reason.view(),
+            has_new: None,
+            confidence: Some(conf.view()),
+            pixel_mask: None,
+        };
         let params = EmaParams { alpha: 0.2, ramp, band_rows: 4 };
         accumulate::ema(&input, EmaState { accum: acc.view_mut(), history_len: Some(len.view_mut()) }, &params)
             .unwrap();
@@ -95,7 +126,8 @@ fn history_confidence_scales_the_historys_weight() {
     let plain = {
         let mut acc = RgbBuf::new(e, 1.0);
         let mut len = PlaneBuf::new(e, 4.0);
-        let input = EmaInput { new: new.view(), reason: reason.view(), has_new: None, confidence: None };
+        let input =
+            EmaInput { new: new.view(), reason: reason.view(), has_new: None, confidence: None, pixel_mask: None };
         let params = EmaParams { alpha: 0.2, ramp: true, band_rows: 4 };
         accumulate::ema(&input, EmaState { accum: acc.view_mut(), history_len: Some(len.view_mut()) }, &params)
             .unwrap();
@@ -106,7 +138,13 @@ fn history_confidence_scales_the_historys_weight() {
     for bad in [-0.01, 1.01, f32::NAN] {
         let mut acc = RgbBuf::new(e, 1.0);
         let conf = PlaneBuf::from_vec((0..e.pixels()).map(|i| if i == 25 { bad } else { 0.5 }).collect(), e).unwrap();
-        let input = EmaInput { new: new.view(), reason: reason.view(), has_new: None, confidence: Some(conf.view()) };
+        let input = EmaInput {
+            new: new.view(),
+            reason: reason.view(),
+            has_new: None,
+            confidence: Some(conf.view()),
+            pixel_mask: None,
+        };
         let err = accumulate::ema(&input, EmaState { accum: acc.view_mut(), history_len: None }, &EmaParams::default())
             .unwrap_err();
         assert!(
@@ -118,7 +156,7 @@ fn history_confidence_scales_the_historys_weight() {
 }
 
 fn ema_step(acc: &mut RgbBuf, new: &RgbBuf, reason: &PlaneBuf<u8>, params: &EmaParams) -> AccumulateStats {
-    let input = EmaInput { new: new.view(), reason: reason.view(), has_new: None, confidence: None };
+    let input = EmaInput { new: new.view(), reason: reason.view(), has_new: None, confidence: None, pixel_mask: None };
     accumulate::ema(&input, EmaState { accum: acc.view_mut(), history_len: None }, params).unwrap()
 }
 
@@ -171,7 +209,7 @@ fn non_finite_samples_fall_back_to_history_or_become_holes() {
     reason.as_mut_slice()[2] = Reason::OutOfFrame as u8;
     let mut acc = RgbBuf::new(e, 5.0);
     let mut len = PlaneBuf::new(e, 3.0f32);
-    let input = EmaInput { new: new.view(), reason: reason.view(), has_new: None, confidence: None };
+    let input = EmaInput { new: new.view(), reason: reason.view(), has_new: None, confidence: None, pixel_mask: None };
     let stats = accumulate::ema(
         &input,
         EmaState { accum: acc.view_mut(), history_len: Some(len.view_mut()) },

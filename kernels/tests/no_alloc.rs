@@ -74,7 +74,13 @@ fn second_frame_allocates_nothing() {
             weight: None,
         };
         reproject::reproject(&input, out, &params).unwrap();
-        let ema_in = EmaInput { new: left.colour.view(), reason: reason.view(), has_new: None, confidence: None };
+        let ema_in = EmaInput {
+            new: left.colour.view(),
+            reason: reason.view(),
+            has_new: None,
+            confidence: None,
+            pixel_mask: None,
+        };
         let state = EmaState { accum: history.view_mut(), history_len: Some(len_out.view_mut()) };
         accumulate::ema(&ema_in, state, &EmaParams { ramp: true, ..EmaParams::default() }).unwrap();
         // Scalar references share the schedule, so they must not allocate either.

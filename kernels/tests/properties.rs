@@ -59,7 +59,7 @@ fn run_ema(
     simd: bool,
 ) -> (RgbBuf, PlaneBuf) {
     let (mut acc, mut n) = (history.clone(), len.clone());
-    let input = EmaInput { new: new.view(), reason: reason.view(), has_new: None, confidence: None };
+    let input = EmaInput { new: new.view(), reason: reason.view(), has_new: None, confidence: None, pixel_mask: None };
     let state = EmaState { accum: acc.view_mut(), history_len: Some(n.view_mut()) };
     let r = if simd { accumulate::ema(&input, state, params) } else { accumulate::ema_scalar(&input, state, params) };
     r.expect("valid input");

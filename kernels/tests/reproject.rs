@@ -274,6 +274,42 @@ fn outputs_are_finite_and_weights_in_unit_range_for_finite_sources() {
     }
 }
 
+/// Reprojected values are flushed as the EMA's are: a source of `f32::MIN_POSITIVE` beside
+/// zeros interpolates to subnormals at every split footprint, and every body writes 0 there
+/// (the paper-order left eye's stereo samples are its restarted history as they are).
+#[test]
+fn reprojected_values_below_the_smallest_normal_are_flushed_to_zero() {
+    let e = extent(64, 9);
+    let (left, mut right) = stereo_room(e, 0.4);
+    let tiny = f32::MIN_POSITIVE;
+    for (i, v) in right.colour.r_mut().iter_mut().enumerate() {
+        *v = if i % 2 == 0 { tiny } else { 0.0 };
+    }
+    for (i, v) in right.colour.g_mut().iter_mut().enumerate() {
+        *v = if i % 3 == 0 { -tiny } else { tiny * 0.5 };
+    }
+    let extra = PlaneBuf::from_vec((0..e.pixels()).map(|i| if i % 2 == 1 { tiny } else { 0.0 }).collect(), e).unwrap();
+    let p = params(TapPolicy::Renormalize);
+    for (tc, sc) in [(left.compact(), right.compact())] {
+        for extra in [None, Some(extra.view())] {
+            let input = input_for(&tc, &sc, &right, extra);
+            assert_every_body_matches_scalar(&input, &p);
+            let r = run_reprojection(&input, &p, false).unwrap();
+            assert!(r.counts.get(Reason::Reprojected) > e.pixels() as u64 / 2, "{:?}", r.counts);
+            let mut planes = vec![r.colour.r(), r.colour.g(), r.colour.b()];
+            if extra.is_some() {
+                planes.push(&r.extra);
+            }
+            for plane in planes {
+                for &v in plane.as_slice() {
+                    assert!(v == 0.0 || v.abs() >= tiny, "a subnormal was written: {v:e}");
+                    assert!(v.to_bits() != (-0.0f32).to_bits(), "-0 was written");
+                }
+            }
+        }
+    }
+}
+
 #[test]
 fn identity_camera_copies_the_source_exactly() {
     for &(w, h) in &[(1, 1), (9, 4), (64, 36), (127, 33)] {

@@ -173,7 +173,8 @@ fn temporal_frames_are_reprojection_then_ema_on_the_same_buffers() {
         let counts = reproject::reproject(&input, out, &params(p.config())).unwrap();
         assert!(counts.get(Reason::Reprojected) > (W * H / 2) as u64, "{counts:?}");
         let new = samples(now, eye, 1);
-        let ema = EmaInput { new: new.view(), reason: reason.view(), has_new: None, confidence: None };
+        let ema =
+            EmaInput { new: new.view(), reason: reason.view(), has_new: None, confidence: None, pixel_mask: None };
         let alpha = EmaParams { alpha: p.config().alpha, ramp: false, band_rows: 16 };
         accumulate::ema(&ema, EmaState { accum: history.view_mut(), history_len: None }, &alpha).unwrap();
         assert_eq!(p.output(eye), &history, "{eye:?}");

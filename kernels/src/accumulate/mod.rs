@@ -75,6 +75,11 @@ pub struct EmaInput<'a> {
     /// `c·n` samples and `α' = α + (1 − α)·(1 − c)`: `c = 1` is the plain EMA, bit for bit,
     /// `c = 0` restarts from the new sample. NaN or values outside [0, 1] are refused.
     pub confidence: Option<Plane<'a, f32>>,
+    /// Optional: only pixels where it is non-zero are updated (absent: every pixel). The
+    /// others keep their accumulation and history length as they were and are not counted.
+    /// A caller that has already written most of the frame (the paper-order left eye, whose
+    /// stereo samples are its restarted history) then pays for the rest only.
+    pub pixel_mask: Option<Plane<'a, u8>>,
 }
 
 /// The accumulation buffers, updated in place.
@@ -120,6 +125,9 @@ fn check_ema(input: &EmaInput<'_>, state: &EmaState<'_>, params: &EmaParams) -> 
     same_extent("reason plane", e, input.reason.extent())?;
     if let Some(h) = &input.has_new {
         same_extent("new-sample mask", e, h.extent())?;
+    }
+    if let Some(m) = &input.pixel_mask {
+        same_extent("pixel mask", e, m.extent())?;
     }
     if let Some(c) = &input.confidence {
         same_extent("history confidence plane", e, c.extent())?;
@@ -193,7 +201,7 @@ pub fn ema_scalar(
 /// let mut history = RgbBuf::new(extent, 1.0); // the reprojected history
 /// let samples = RgbBuf::new(extent, 0.0); // this frame's samples
 /// let valid = PlaneBuf::new(extent, Reason::Reprojected as u8);
-/// let input = EmaInput { new: samples.view(), reason: valid.view(), has_new: None, confidence: None };
+/// let input = EmaInput { new: samples.view(), reason: valid.view(), has_new: None, confidence: None, pixel_mask: None };
 /// let state = EmaState { accum: history.view_mut(), history_len: None };
 /// accumulate::ema(&input, state, &EmaParams::default())?; // alpha 0.2
 /// assert_eq!(history.get(3, 2), [0.8; 3]);

@@ -4,7 +4,7 @@
 use super::{AccumulateStats, BlendParams, BlendWeights, EmaInput, EmaParams, EmaRow};
 use crate::frame::{Plane, RgbPlanes};
 use crate::reproject::Reason;
-use crate::simd::clamp_finite1;
+use crate::simd::{clamp_finite1, flush_subnormal1};
 
 /// `a + t·(b − a)`, with `t = 0` returning `a` and `t = 1` returning `b` exactly, clamped
 /// and flushed (see module docs). Where `b − a` overflows (values near ±`f32::MAX` of
@@ -27,8 +27,7 @@ pub fn lerp(a: f32, b: f32, t: f32) -> f32 {
 /// Clamp to the finite range and flush subnormals to zero (NaN passes through).
 #[inline(always)]
 pub(super) fn finish(v: f32) -> f32 {
-    let v = clamp_finite1(v);
-    if v.abs() < f32::MIN_POSITIVE { 0.0 } else { v }
+    flush_subnormal1(clamp_finite1(v))
 }
 
 /// The variance of an EMA's mean over `n` samples, as a multiple of one sample's:
@@ -116,6 +115,9 @@ pub(super) fn ema_scalar_at(
     len: Option<&mut [f32]>,
     stats: &mut AccumulateStats,
 ) {
+    if input.pixel_mask.as_ref().is_some_and(|m| m.row(y)[x] == 0) {
+        return;
+    }
     let history = [acc[0][x], acc[1][x], acc[2][x]];
     let n = len.as_ref().map_or(0.0, |l| l[x]);
     let valid = input.reason.row(y)[x] == Reason::Reprojected as u8;

@@ -5,7 +5,7 @@ use super::scalar::{blend_scalar_at, ema_scalar_at};
 use super::{AccumulateStats, BlendWeights, EmaInput, EmaParams, EmaRow};
 use crate::frame::{Plane, RgbPlanes};
 use crate::reproject::Reason;
-use crate::simd::{F32s, I32s, LANES, clamp_finite, load, store};
+use crate::simd::{F32s, I32s, LANES, clamp_finite, flush_subnormal, load, store};
 
 /// SIMD twin of [`super::lerp`].
 #[inline(always)]
@@ -20,12 +20,6 @@ pub fn lerp_simd(a: F32s, b: F32s, t: F32s) -> F32s {
 #[inline(always)]
 pub(super) fn finish_simd(v: F32s) -> F32s {
     flush_subnormal(clamp_finite(v))
-}
-
-/// The flushing half of [`finish_simd`] (what it does to a finite value).
-#[inline(always)]
-pub(super) fn flush_subnormal(v: F32s) -> F32s {
-    v.abs().simd_lt(F32s::splat(f32::MIN_POSITIVE)).select(F32s::ZERO, v)
 }
 
 /// All-ones lanes where the byte equals `value` (the first `LANES` bytes).
@@ -52,6 +46,7 @@ pub(super) fn ema_row<'r>(
     let reason = input.reason.row(y);
     let has_new = input.has_new.as_ref().map(|m| m.row(y));
     let confidence = input.confidence.as_ref().map(|c| c.row(y));
+    let pixel_mask = input.pixel_mask.as_ref().map(|m| m.row(y));
     let new = input.new.channels().map(|p| p.row(y));
     // Every row has the extent's width; stated once so that the loop's loads and stores
     // need no bounds checks.
@@ -60,12 +55,24 @@ pub(super) fn ema_row<'r>(
             && (0..3).all(|c| acc[c].len() == width && new[c].len() == width)
             && has_new.is_none_or(|m| m.len() == width)
             && confidence.is_none_or(|c| c.len() == width)
+            && pixel_mask.is_none_or(|m| m.len() == width)
             && len.as_deref().is_none_or(|l| l.len() == width)
     );
     let mut x = 0;
+    let all = F32s::splat(f32::from_bits(u32::MAX));
     while x + LANES <= width {
+        // Lanes outside the pixel mask are left as they were: a group with none inside is
+        // skipped whole (the masked caller's common case), the others select per lane.
+        let active = match pixel_mask {
+            Some(m) if u64::from_ne_bytes(m[x..x + LANES].try_into().expect("LANES bytes")) == 0 => {
+                x += LANES;
+                continue;
+            }
+            Some(m) => !byte_mask_eq(&m[x..x + LANES], 0),
+            None => all,
+        };
         let valid = byte_mask_eq(&reason[x..x + LANES], Reason::Reprojected as u8);
-        let sampled = has_new.map_or(F32s::splat(f32::from_bits(u32::MAX)), |m| !byte_mask_eq(&m[x..x + LANES], 0));
+        let sampled = has_new.map_or(all, |m| !byte_mask_eq(&m[x..x + LANES], 0));
         let new_v = [load(new[0], x), load(new[1], x), load(new[2], x)];
         let hist = [load(acc[0], x), load(acc[1], x), load(acc[2], x)];
         let c = confidence.map_or(F32s::ONE, |c| load(c, x));
@@ -88,7 +95,7 @@ pub(super) fn ema_row<'r>(
         let d = [new_v[0] - hist[0], new_v[1] - hist[1], new_v[2] - hist[2]];
         let zero = F32s::ZERO;
         let poison = (new_v[0] * zero + new_v[1] * zero + new_v[2] * zero) + (d[0] * zero + d[1] * zero + d[2] * zero);
-        if (valid & sampled & poison.simd_eq(zero)).all() {
+        if (active & valid & sampled & poison.simd_eq(zero)).all() {
             let one = alpha.simd_eq(F32s::ONE);
             for c in 0..3 {
                 let v = one.select(new_v[c], hist[c] + alpha * d[c]);
@@ -102,22 +109,27 @@ pub(super) fn ema_row<'r>(
         }
         let finite = new_v[0].is_finite() & new_v[1].is_finite() & new_v[2].is_finite();
         let use_new = sampled & finite;
-        let blend = use_new & valid;
-        let reset = use_new & !valid;
-        let hole = !use_new & !valid;
+        let blend = active & use_new & valid;
+        let reset = active & use_new & !valid;
+        let hole = active & !use_new & !valid;
+        let kept = active & !use_new & valid;
         for c in 0..3 {
             let mixed = lerp_simd(hist[c], new_v[c], alpha);
-            let out =
-                blend.select(mixed, reset.select(finish_simd(new_v[c]), hole.select(F32s::ZERO, finish_simd(hist[c]))));
+            let out = blend.select(
+                mixed,
+                reset
+                    .select(finish_simd(new_v[c]), hole.select(F32s::ZERO, kept.select(finish_simd(hist[c]), hist[c]))),
+            );
             store(acc[c], x, out);
         }
         if let Some(l) = len.as_deref_mut() {
-            // Kept without a new sample: the stored length, not the confidence-weighted one.
-            let kept = load(l, x);
-            let n_out = blend.select(n + F32s::ONE, reset.select(F32s::ONE, hole.select(F32s::ZERO, kept)));
+            // Kept without a new sample (or outside the mask): the stored length, not the
+            // confidence-weighted one.
+            let stored = load(l, x);
+            let n_out = blend.select(n + F32s::ONE, reset.select(F32s::ONE, hole.select(F32s::ZERO, stored)));
             store(l, x, n_out);
         }
-        stats.non_finite += u64::from((sampled & !finite).to_bitmask().count_ones());
+        stats.non_finite += u64::from((active & sampled & !finite).to_bitmask().count_ones());
         stats.resets += u64::from(reset.to_bitmask().count_ones());
         stats.holes += u64::from(hole.to_bitmask().count_ones());
         x += LANES;

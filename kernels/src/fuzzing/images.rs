@@ -413,8 +413,10 @@ pub fn accumulate(data: &[u8]) {
     let mut reason = PlaneBuf::new(e, Reason::Reprojected as u8);
     // A history confidence plane in two inputs of three, edited like the others.
     let mut confidence = (bytes.u8() % 3 != 0).then(|| PlaneBuf::new(e, bytes.unit(0.0, 1.0)));
+    // A pixel mask in half the inputs (every pixel in it at first, edited like the others).
+    let mut pixel_mask = (bytes.u8() % 2 == 0).then(|| PlaneBuf::new(e, 1u8));
     while !bytes.is_empty() {
-        let which = bytes.u8() % 9;
+        let which = bytes.u8() % 10;
         let index = usize::from(u16::from_le_bytes([bytes.u8(), bytes.u8()])) % e.pixels();
         let value = bytes.f32();
         match which {
@@ -431,9 +433,14 @@ pub fn accumulate(data: &[u8]) {
                     c.as_mut_slice()[index] = if value.to_bits() % 16 == 0 { value } else { value.abs().fract() };
                 }
             }
-            _ => {
+            8 => {
                 let code = value.to_bits() as u8;
                 reason.as_mut_slice()[index] = if code < 250 { code % 6 } else { code };
+            }
+            _ => {
+                if let Some(m) = &mut pixel_mask {
+                    m.as_mut_slice()[index] = value.to_bits() as u8 % 3;
+                }
             }
         }
     }
@@ -447,6 +454,7 @@ pub fn accumulate(data: &[u8]) {
         reason: reason.view(),
         has_new: None,
         confidence: confidence.as_ref().map(|c| c.view()),
+        pixel_mask: pixel_mask.as_ref().map(|m| m.view()),
     };
     let run = |simd: bool| {
         let (mut acc, mut n) = (history.clone(), len.clone());
@@ -469,6 +477,14 @@ pub fn accumulate(data: &[u8]) {
             assert!(!(codes_defined && lengths_are_counts), "the EMA refused defined codes and counts: {e}");
             for (a, b) in [(acc.r(), history.r()), (acc.g(), history.g()), (acc.b(), history.b()), (&n, &len)] {
                 assert_bits("a refused EMA wrote", a, b);
+            }
+        }
+    }
+    if let (Some(mask), Ok(_)) = (&pixel_mask, &stats) {
+        // Outside the mask nothing moved.
+        for (i, _) in mask.as_slice().iter().enumerate().filter(|(_, m)| **m == 0) {
+            for (a, b) in [(acc.r(), history.r()), (acc.g(), history.g()), (acc.b(), history.b()), (&n, &len)] {
+                assert_eq!(a.as_slice()[i].to_bits(), b.as_slice()[i].to_bits(), "the EMA wrote outside its mask");
             }
         }
     }

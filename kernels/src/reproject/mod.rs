@@ -19,7 +19,10 @@
 //! 4. [`TapPolicy::Renormalize`] (default) keeps the accepted taps and divides by their total
 //!    weight; [`TapPolicy::Strict`] rejects the pixel when any participating tap failed.
 //!    A pixel with no accepted tap is discarded: its channels are written as 0 and its
-//!    weight as 0.
+//!    weight as 0. Written channels are clamped to the finite range and values below
+//!    `f32::MIN_POSITIVE` in magnitude flushed to 0, as the EMA's results are
+//!    ([`crate::accumulate`]), so a reprojected sample is already what an EMA restart from it
+//!    writes and a history never walks through subnormals.
 //! 5. Every pixel gets a [`Reason`]. Target-side reasons come first (background, invalid,
 //!    projection out of frame); a discarded pixel's reason is the most informative failure
 //!    among its taps: depth/position, then normal, then invalid, then out of frame.
@@ -297,7 +300,8 @@ impl Jitter {
 
 /// Where a reprojection writes.
 pub struct ReprojectOutput<'a> {
-    /// The reprojected samples (0 where discarded).
+    /// The reprojected samples (0 where discarded; finite, and flushed to 0 below
+    /// `f32::MIN_POSITIVE` in magnitude).
     pub colour: RgbPlanesMut<'a>,
     /// Must be present exactly when the input has an extra channel.
     pub extra: Option<PlaneMut<'a>>,

@@ -4,6 +4,7 @@
 use super::{MAX_CHANNELS, Prepared, Reason, ReasonCounts, RowOut, TapVerdict, len2, normals_agree, usable};
 use crate::bilinear::{Footprint, renormalise};
 use crate::gbuffer::SurfaceLayout;
+use crate::simd::flush_subnormal1;
 
 /// Writes the scalar reference result for pixel `(x, y)`.
 #[inline]
@@ -121,7 +122,7 @@ pub(super) fn reproject_pixel_prepared<L: SurfaceLayout>(
     let ok = any_accepted && !(p.strict && any_failed);
     if ok {
         let inv_total = 1.0 / total;
-        return (Reason::Reprojected, sum.map(|s| renormalise(s, inv_total)), total.min(1.0));
+        return (Reason::Reprojected, sum.map(|s| flush_subnormal1(renormalise(s, inv_total))), total.min(1.0));
     }
     let reason = if fail_geometry {
         Reason::DepthOrPosition

@@ -5,7 +5,7 @@ use super::scalar::write_pixel;
 use super::{Prepared, Reason, ReasonCounts, RowOut};
 use crate::bilinear::{Footprints, coherent_row, renormalise_simd};
 use crate::gbuffer::{SurfaceLayout, Surfels};
-use crate::simd::{F32s, LANES, TapCoords, store};
+use crate::simd::{F32s, LANES, TapCoords, flush_subnormal, store};
 
 /// One output row through the SIMD body (`C` channels), the tail through the scalar one.
 #[inline(always)]
@@ -316,7 +316,7 @@ fn reproject_lanes<L: SurfaceLayout, const C: usize>(
     let zero = F32s::ZERO;
     let inv_total = F32s::ONE / totals.total;
     Lanes {
-        channels: totals.sum.map(|s| ok.select(renormalise_simd(s, inv_total), zero)),
+        channels: totals.sum.map(|s| ok.select(flush_subnormal(renormalise_simd(s, inv_total)), zero)),
         weight: ok.select(totals.total.min(F32s::ONE), zero),
         reason,
         ok_bits: ok.to_bitmask(),

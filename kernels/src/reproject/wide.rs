@@ -299,12 +299,14 @@ pub(super) unsafe fn group<L: SurfaceLayout, const C: usize>(
         return false;
     }
     let inv_total = one / acc.total;
-    let max = splat(f32::MAX);
+    let (max, smallest) = (splat(f32::MAX), splat(f32::MIN_POSITIVE));
     for c in 0..C {
-        // `renormalise_simd`: the compare-and-select clamp to the finite range.
+        // `renormalise_simd`: the compare-and-select clamp to the finite range, then
+        // `flush_subnormal`.
         let v = acc.sum[c] * inv_total;
         let v = sel(cmp::<_CMP_GT_OQ>(v, max), max, v);
         let v = sel(cmp::<_CMP_LT_OQ>(v, -max), -max, v);
+        let v = sel(cmp::<_CMP_LT_OQ>(v.abs(), smallest), V::zero(), v);
         v.store(&mut row.channels[c][x..x + WIDE]);
     }
     if let Some(weight) = row.weight.as_deref_mut() {

@@ -26,7 +26,11 @@
 //! the paper-order `spatiotemporal` mode the left eye's history is reprojected only where
 //! its stereo reprojection was discarded: elsewhere the shown pixel is the stereo sample
 //! and the history restarts from it, so the temporal reprojection there would be unused
-//! (its reason is recorded as `Invalid` and not counted).
+//! (its reason is recorded as `Invalid` and not counted). With the paper's history rule
+//! (`History::Paper`) the restart costs nothing: the stereo reprojection writes its samples
+//! straight into the left history (the kernel flushes them as the EMA's restart would), and
+//! the left EMA runs only at the stereo-discarded pixels (its pixel mask). The result is the
+//! bits of the EMA over the whole eye; a test holds the two schedules to each other.
 //!
 //! # Refused frames
 //! A frame that fails anywhere (a source's G-buffers or samples, a camera, a kernel's check)
@@ -68,6 +72,8 @@ mod gradients;
 mod lent;
 mod plan;
 mod stats;
+#[cfg(test)]
+mod tests;
 
 use budget::BudgetPlanner;
 pub use config::{
@@ -232,6 +238,10 @@ pub struct Pipeline<S: FrameSource> {
     /// Whether the last frame's shown images are the filtered ones (a stereo frame with a
     /// filter; a mono frame shows its traced image).
     filtered_shown: bool,
+    /// Whether the paper-order left eye may restart its history in the stereo pass
+    /// ([`Pipeline::fuses_left_restart`]). Always on; the unit tests turn it off to hold the
+    /// fused schedule to the unfused one.
+    fuse_left_restart: bool,
 }
 
 const L: usize = Eye::Left as usize;
@@ -346,6 +356,7 @@ impl<S: FrameSource> Pipeline<S> {
             jitter: [0.0; 2],
             gbuffers_lent: false,
             filtered_shown: false,
+            fuse_left_restart: true,
         })
     }
 
@@ -651,6 +662,8 @@ impl<S: FrameSource> Pipeline<S> {
                 Step::Trace(eye) => self.trace_all(eye, &mut stats, start)?,
                 Step::StereoFillLeft(source) => self.stereo_fill_left(source, &mut stats, start, lent)?,
                 Step::StereoBlend(eye, source) => self.stereo_blend(eye, source, &mut stats, lent)?,
+                // Fused, the EMA reads the temporal reasons at the stereo-discarded pixels only.
+                Step::CombineLeftValidity if self.fuses_left_restart() => {}
                 Step::CombineLeftValidity => {
                     // Stereo-valid pixels show the reprojected right-eye accumulation as is;
                     // the rest accumulate their own path-traced samples with the left history.
@@ -725,6 +738,14 @@ impl<S: FrameSource> Pipeline<S> {
         self.config.mode == Mode::Spatiotemporal && self.config.order == Order::Paper
     }
 
+    /// Whether the left eye's stereo samples go straight into its history, and its EMA
+    /// runs only where stereo reprojection was discarded (see the module notes). Only with
+    /// the paper's history rule: the clamp and the temporal gradients read the whole
+    /// stereo-mode image.
+    fn fuses_left_restart(&self) -> bool {
+        self.fuse_left_restart && self.left_history_on_demand() && self.config.history == History::Paper
+    }
+
     fn reproject_params(&self) -> ReprojectParams {
         ReprojectParams { tolerances: self.config.tolerances, policy: self.config.policy, band_rows: 16 }
     }
@@ -785,6 +806,8 @@ impl<S: FrameSource> Pipeline<S> {
     ) -> Result<ReasonCounts, PipelineError> {
         let params = self.reproject_params();
         let layout = self.config.layout;
+        // The fused restart: the stereo samples are the left eye's new history.
+        let into_history = eye == Eye::Left && !for_blend && self.fuses_left_restart();
         let (target, other) = match eye {
             Eye::Left => {
                 let [l, r] = &mut self.eyes;
@@ -810,7 +833,7 @@ impl<S: FrameSource> Pipeline<S> {
             None => (planes_of(&target.cur.gbuffer), planes_of(&other.cur.gbuffer)),
         };
         let out = ReprojectOutput {
-            colour: target.cur.work.view_mut(),
+            colour: if into_history { target.cur.history.view_mut() } else { target.cur.work.view_mut() },
             extra: extra_out,
             reason: target.cur.stereo_reason.view_mut(),
             weight: None,
@@ -831,11 +854,24 @@ impl<S: FrameSource> Pipeline<S> {
         lent: Option<&Lent<'_>>,
     ) -> Result<(), PipelineError> {
         let t = Instant::now();
-        stats.stereo_reasons[L] = self.stereo_into(Eye::Left, source, false, lent)?;
+        let stereo = self.stereo_into(Eye::Left, source, false, lent)?;
+        stats.stereo_reasons[L] = stereo;
+        let fused = self.fuses_left_restart();
+        let track_len = self.config.tracks_history_length();
         // Wanted (traced, and the left history reprojected): where stereo was discarded.
         let s = &mut self.eyes[L];
         for (wanted, &stereo) in s.wanted.as_mut_slice().iter_mut().zip(s.cur.stereo_reason.as_slice()) {
             *wanted = u8::from(!is_reprojected(stereo));
+        }
+        if fused {
+            // The rest of the EMA's restart at the stereo-valid pixels: a history of one
+            // sample, and the restart counted as the EMA counts it.
+            if track_len {
+                for (len, &stereo) in s.cur.len.as_mut_slice().iter_mut().zip(s.cur.stereo_reason.as_slice()) {
+                    *len = if is_reprojected(stereo) { 1.0 } else { *len };
+                }
+            }
+            stats.accumulation[L].resets += stereo.get(Reason::Reprojected);
         }
         if self.left_history_on_demand() && self.config.mode.temporal() {
             stats.temporal_reasons[L] = self.reproject_history(Eye::Left, self.frames_done > 0, true, lent)?;
@@ -850,10 +886,12 @@ impl<S: FrameSource> Pipeline<S> {
             *urgent = u8::from(!(is_reprojected(stereo) || (temporal_valid && is_reprojected(temporal))));
         }
         self.trace_wanted(Eye::Left, Target::Work, stats, start)?;
-        // Where nothing was traced, the stereo sample (if valid) is the new sample.
-        let s = &mut self.eyes[L];
-        for (has, &stereo) in s.has_new.as_mut_slice().iter_mut().zip(s.cur.stereo_reason.as_slice()) {
-            *has |= u8::from(is_reprojected(stereo));
+        if !fused {
+            // Where nothing was traced, the stereo sample (if valid) is the new sample.
+            let s = &mut self.eyes[L];
+            for (has, &stereo) in s.has_new.as_mut_slice().iter_mut().zip(s.cur.stereo_reason.as_slice()) {
+                *has |= u8::from(is_reprojected(stereo));
+            }
         }
         Ok(())
     }
@@ -1018,12 +1056,17 @@ impl<S: FrameSource> Pipeline<S> {
         let t = Instant::now();
         let params = EmaParams { alpha: self.config.alpha, ramp: self.config.ramp, band_rows: 16 };
         let track_len = self.config.tracks_history_length();
+        let fused = source == Source::WorkCombined && self.fuses_left_restart();
         let s = &mut self.eyes[eye as usize];
         let (new, reason) = match source {
             Source::Traced => (s.cur.traced.view(), s.cur.temporal_reason.view()),
             Source::Work => (s.cur.work.view(), s.cur.temporal_reason.view()),
+            // Fused, only the stereo-discarded pixels, where the combination is the temporal
+            // reason.
+            Source::WorkCombined if fused => (s.cur.work.view(), s.cur.temporal_reason.view()),
             Source::WorkCombined => (s.cur.work.view(), s.ema_reason.view()),
         };
+        let pixel_mask = fused.then(|| s.wanted.view());
         // The gradients' confidence (the engine's already multiplied in), or the engine's.
         let confidence = match (gradients, &s.gradient) {
             (true, Some(g)) => Some(g.confidence.view()),
@@ -1035,7 +1078,7 @@ impl<S: FrameSource> Pipeline<S> {
             let clamp = clamp::clamp_history(&input, s.cur.history.view_mut(), &params)?;
             stats.history_clamped[eye as usize] += clamp.clamped;
         }
-        let input = EmaInput { new, reason, has_new: Some(s.has_new.view()), confidence };
+        let input = EmaInput { new, reason, has_new: Some(s.has_new.view()), confidence, pixel_mask };
         let state = EmaState { accum: s.cur.history.view_mut(), history_len: track_len.then(|| s.cur.len.view_mut()) };
         let acc = accumulate::ema(&input, state, &params)?;
         let total = &mut stats.accumulation[eye as usize];

@@ -17,7 +17,9 @@ pub enum Step {
     /// The eye's `work` = blend of its own image and the other eye's reprojected one.
     StereoBlend(Eye, StereoSource),
     /// The left eye's EMA validity: invalid where stereo reprojection succeeded (those
-    /// pixels restart from the stereo sample), the temporal reason elsewhere.
+    /// pixels restart from the stereo sample), the temporal reason elsewhere. With the
+    /// paper's history rule the restart is fused into the stereo step and this step has
+    /// nothing to do (the pipeline's module notes).
     CombineLeftValidity,
     /// EMA of the eye's reprojected history with new samples from the named image.
     Accumulate(Eye, Source),

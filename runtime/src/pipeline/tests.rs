@@ -1,0 +1,61 @@
+//! The pipeline's private schedules held to each other.
+
+use super::*;
+use crate::camera::StereoRig;
+use crate::render::Renderer;
+
+/// The paper-order left eye with its history restarted in the stereo pass and its EMA masked
+/// to the stereo-discarded pixels gives the bits of the EMA over the whole eye: outputs,
+/// histories, history lengths and every count, frame after frame of a moving camera, with
+/// the alpha ramp (history lengths tracked) and without.
+#[test]
+fn the_fused_left_restart_gives_the_whole_eye_emas_bits() {
+    let renderer = Renderer::new(crate::scene::resolve("cornell").unwrap()).unwrap();
+    // An odd width: the EMA's tail pixels go through its scalar reference.
+    let extent = Extent::new(61, 37).unwrap();
+    let tolerances = renderer.scene().tolerances.at_height(extent.height());
+    for ramp in [false, true] {
+        let mut config = PipelineConfig::paper(Mode::Spatiotemporal, 1, tolerances);
+        config.ramp = ramp;
+        let build = |fused: bool| {
+            let mut p = Pipeline::new(&renderer, config, StereoRig::default(), extent).unwrap();
+            p.fuse_left_restart = fused;
+            p
+        };
+        let (mut fused, mut unfused) = (build(true), build(false));
+        assert!(fused.fuses_left_restart() && !unfused.fuses_left_restart());
+        let mut stereo_valid = 0;
+        for frame in 0..8 {
+            let head = renderer.scene().camera.pose_back_and_forth(frame);
+            let a = fused.render_frame(frame, &head).unwrap();
+            let b = unfused.render_frame(frame, &head).unwrap();
+            let counts = |s: FrameStats| FrameStats { times: StageTimes::default(), raster: None, ..s };
+            assert_eq!(counts(a), counts(b), "ramp {ramp}, frame {frame}: statistics");
+            for eye in Eye::BOTH {
+                let what = format!("ramp {ramp}, frame {frame}, {eye:?}");
+                for (a, b) in fused.output(eye).planes().into_iter().zip(unfused.output(eye).planes()) {
+                    assert_same_bits(a, b, &format!("{what}: output"));
+                }
+                for (a, b) in fused.history(eye).planes().into_iter().zip(unfused.history(eye).planes()) {
+                    assert_same_bits(a, b, &format!("{what}: history"));
+                }
+                if ramp {
+                    let (a, b) = (&fused.eyes[eye as usize].cur.len, &unfused.eyes[eye as usize].cur.len);
+                    assert_same_bits(a, b, &format!("{what}: history length"));
+                }
+            }
+            stereo_valid += a.stereo_reasons[L].get(Reason::Reprojected);
+            assert!(a.accumulation[L].resets >= a.stereo_reasons[L].get(Reason::Reprojected));
+        }
+        // Not a vacuous comparison: most left pixels took the fused restart.
+        assert!(stereo_valid > 8 * extent.pixels() as u64 / 2, "{stereo_valid} stereo-valid pixels");
+    }
+}
+
+/// Panics at the first pixel whose bits differ, naming it.
+fn assert_same_bits(a: &PlaneBuf, b: &PlaneBuf, what: &str) {
+    let pairs = a.as_slice().iter().zip(b.as_slice());
+    if let Some((i, (x, y))) = pairs.enumerate().find(|(_, (x, y))| x.to_bits() != y.to_bits()) {
+        panic!("{what}: pixel {i} is {x:e} fused and {y:e} unfused");
+    }
+}
