@@ -8,11 +8,13 @@
 
 mod common;
 
+use std::hint::black_box;
+
 use common::{Fixture, Outputs, pool, run_reprojection};
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use stereotrace_kernels::frame::PlaneBuf;
 use stereotrace_kernels::isa::Isa;
-use stereotrace_kernels::reproject::ReprojectParams;
+use stereotrace_kernels::reproject::{self, Reason, ReprojectInput, ReprojectOutput, ReprojectParams};
 
 /// The bodies each group times: `simd` is the one the kernel takes on this CPU
 /// ([`Isa::active`]); on an AVX-512 CPU `simd-avx2` is the 8-lane body compiled for the
@@ -60,6 +62,55 @@ fn reprojection(c: &mut Criterion) {
         group.finish();
     }
 }
+/// The paper-order left eye's temporal reprojection, which runs only where its stereo
+/// reprojection was discarded: the pixel mask is the stereo call's discarded pixels (0.9 %
+/// of this room, along its silhouettes and borders), the pair the temporal one.
+fn masked_temporal(c: &mut Criterion) {
+    let f = Fixture::new();
+    let e = f.extent();
+    let mut stereo = Outputs::new(e);
+    let (left, right, prev) = (f.left.compact(), f.right.compact(), f.left_prev.compact());
+    run_reprojection(&left, &right, &f.right, &f.params, &mut stereo, Some(Isa::active()), None);
+    let discarded = stereo.reason.as_slice().iter().map(|&r| u8::from(r != Reason::Reprojected as u8)).collect();
+    let mask = PlaneBuf::from_vec(discarded, e).unwrap();
+    let mut out = Outputs::new(e);
+    let mut group = c.benchmark_group("reproject_temporal_masked");
+    group.throughput(Throughput::Elements(e.pixels() as u64));
+    for threads in [1, 2] {
+        let pool = pool(threads);
+        for (body, isa) in bodies() {
+            group.bench_function(BenchmarkId::new(format!("{body}/compact"), threads), |b| {
+                b.iter(|| {
+                    pool.install(|| {
+                        let input = ReprojectInput {
+                            target: &left,
+                            source: &prev,
+                            source_camera: &f.left_prev.surfaces.camera,
+                            colour: f.left_prev.colour.view(),
+                            extra: None,
+                            pixel_mask: Some(mask.view()),
+                            motion: None,
+                            jitter: None,
+                        };
+                        let o = ReprojectOutput {
+                            colour: out.colour.view_mut(),
+                            extra: None,
+                            reason: out.reason.view_mut(),
+                            weight: None,
+                        };
+                        let counts = match isa {
+                            Some(isa) => reproject::reproject_with(&input, o, &f.params, isa),
+                            None => reproject::reproject_scalar(&input, o, &f.params),
+                        };
+                        black_box(counts.expect("valid input"))
+                    })
+                })
+            });
+        }
+    }
+    group.finish();
+}
+
 /// Band height sweep for the stereo reprojection (SIMD, compact, 2 threads).
 fn band_rows(c: &mut Criterion) {
     let f = Fixture::new();
@@ -80,6 +131,6 @@ fn band_rows(c: &mut Criterion) {
 criterion_group! {
     name = benches;
     config = common::criterion();
-    targets = reprojection, band_rows, common::triad
+    targets = reprojection, masked_temporal, band_rows, common::triad
 }
 criterion_main!(benches);
