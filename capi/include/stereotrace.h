@@ -755,6 +755,27 @@ enum StStatus stereotrace_ema(const struct StContext *context,
                               const struct StEmaParams *params,
                               struct StAccumulateStats *stats);
 
+// [`stereotrace_ema`] on the pixels where `pixel_mask` (required) is non-zero only: the
+// others keep their `accum` and `history_len` as they were and are not counted in `stats`.
+// Inside the mask the result is [`stereotrace_ema`]'s, bit for bit. For a caller that has
+// already written most of the history, as a stereo pipeline whose left eye restarts its
+// history from the stereo reprojection of the right eye's: reproject straight into the left
+// history (`stereotrace_reproject` flushes its samples as the EMA's restart would), then
+// run this with the stereo-discarded pixels as the mask.
+//
+// # Safety
+// As [`stereotrace_reproject`].
+enum StStatus stereotrace_ema_masked(const struct StContext *context,
+                                     const struct StRgb *new_samples,
+                                     const struct StPlaneU8 *reason,
+                                     const struct StPlaneU8 *has_new,
+                                     const struct StPlaneF32 *confidence,
+                                     const struct StPlaneU8 *pixel_mask,
+                                     const struct StRgbMut *accum,
+                                     const struct StPlaneMutF32 *history_len,
+                                     const struct StEmaParams *params,
+                                     struct StAccumulateStats *stats);
+
 // The stereo blend in place: where `reason` is `ST_REASON_REPROJECTED`,
 // `reprojected = own + (1 - own_weight) * (reprojected - own)`; elsewhere `reprojected = own`.
 // `own_weight` is in [0, 1] (the paper: 0.5); `band_rows >= 1` (0 picks 16); `reason` holds

@@ -450,7 +450,85 @@ pub unsafe extern "C" fn stereotrace_ema(
     params: *const StEmaParams,
     stats: *mut StAccumulateStats,
 ) -> StStatus {
-    // SAFETY: the entry-point contract (`boundary.rs`): the pointers read are this
+    // SAFETY: forwarded; a null pixel mask is every pixel.
+    unsafe {
+        ema_call(
+            "stereotrace_ema",
+            EmaPointers { context, new_samples, reason, has_new, confidence, pixel_mask: std::ptr::null() },
+            accum,
+            history_len,
+            params,
+            stats,
+        )
+    }
+}
+
+/// [`stereotrace_ema`] on the pixels where `pixel_mask` (required) is non-zero only: the
+/// others keep their `accum` and `history_len` as they were and are not counted in `stats`.
+/// Inside the mask the result is [`stereotrace_ema`]'s, bit for bit. For a caller that has
+/// already written most of the history, as a stereo pipeline whose left eye restarts its
+/// history from the stereo reprojection of the right eye's: reproject straight into the left
+/// history (`stereotrace_reproject` flushes its samples as the EMA's restart would), then
+/// run this with the stereo-discarded pixels as the mask.
+///
+/// # Safety
+/// As [`stereotrace_reproject`].
+#[unsafe(no_mangle)]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn stereotrace_ema_masked(
+    context: *const StContext,
+    new_samples: *const StRgb,
+    reason: *const StPlaneU8,
+    has_new: *const StPlaneU8,
+    confidence: *const StPlaneF32,
+    pixel_mask: *const StPlaneU8,
+    accum: *const StRgbMut,
+    history_len: *const StPlaneMutF32,
+    params: *const StEmaParams,
+    stats: *mut StAccumulateStats,
+) -> StStatus {
+    if pixel_mask.is_null() {
+        // Refused before any other pointer is read; nothing is written.
+        return guard(|| Err(Failure::invalid("pixel_mask is required (stereotrace_ema takes every pixel)")));
+    }
+    // SAFETY: forwarded.
+    unsafe {
+        ema_call(
+            "stereotrace_ema_masked",
+            EmaPointers { context, new_samples, reason, has_new, confidence, pixel_mask },
+            accum,
+            history_len,
+            params,
+            stats,
+        )
+    }
+}
+
+/// The read-only pointers of an EMA call.
+struct EmaPointers {
+    context: *const StContext,
+    new_samples: *const StRgb,
+    reason: *const StPlaneU8,
+    has_new: *const StPlaneU8,
+    confidence: *const StPlaneF32,
+    pixel_mask: *const StPlaneU8,
+}
+
+/// The body of [`stereotrace_ema`] and [`stereotrace_ema_masked`] (`name` in the context's
+/// messages; a null `pixel_mask` is every pixel).
+///
+/// # Safety
+/// As [`stereotrace_reproject`], for the pointers given.
+unsafe fn ema_call(
+    name: &'static str,
+    inputs: EmaPointers,
+    accum: *const StRgbMut,
+    history_len: *const StPlaneMutF32,
+    params: *const StEmaParams,
+    stats: *mut StAccumulateStats,
+) -> StStatus {
+    let EmaPointers { context, new_samples, reason, has_new, confidence, pixel_mask } = inputs;
+    // SAFETY: the entry-point contract (`boundary.rs`): the pointers read are the calling
     // function's arguments, valid per its `# Safety`, null-checked first; planes via `views.rs`.
     guard(|| unsafe {
         let context = required(context, "context")?;
@@ -469,13 +547,13 @@ pub unsafe extern "C" fn stereotrace_ema(
             reason: required(reason, "reason")?.view("reason", &mut b)?,
             has_new: has_new.as_ref().map(|p| p.view("has_new", &mut b)).transpose()?,
             confidence: confidence.as_ref().map(|p| p.view("confidence", &mut b)).transpose()?,
-            pixel_mask: None,
+            pixel_mask: pixel_mask.as_ref().map(|p| p.view("pixel_mask", &mut b)).transpose()?,
         };
         let state = EmaState {
             accum: required(accum, "accum")?.view(["accum.r", "accum.g", "accum.b"], &mut b)?,
             history_len: history_len.as_ref().map(|p| p.view("history_len", &mut b)).transpose()?,
         };
-        let result = context.run("stereotrace_ema", || accumulate::ema(&input, state, &params))??;
+        let result = context.run(name, || accumulate::ema(&input, state, &params))??;
         if let Some(stats) = stats.as_mut() {
             *stats = result.into();
         }

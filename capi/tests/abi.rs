@@ -241,6 +241,62 @@ fn ema_and_ssim_through_the_c_abi_are_the_kernels() {
     unsafe { stereotrace_context_destroy(ctx) };
 }
 
+/// The masked EMA through the C ABI is the kernel's: inside the mask the plain EMA's bits,
+/// outside it the history as it was; a null mask is refused with nothing written.
+#[test]
+fn the_masked_ema_through_the_c_abi_is_the_kernels() {
+    let (left, right) = (eye(-0.03), eye(0.03));
+    let reason = PlaneBuf::from_vec((0..W * H).map(|i| (i % 6) as u8).collect(), extent()).unwrap();
+    let mask = PlaneBuf::from_vec((0..W * H).map(|i| u8::from(i % 7 < 2)).collect(), extent()).unwrap();
+    let ctx = context();
+    let plane_u8 = |p: &PlaneBuf<u8>| StPlaneU8 {
+        data: p.as_slice().as_ptr(),
+        width: W as u32,
+        height: H as u32,
+        stride: W as u32,
+    };
+    let (reason_c, mask_c) = (plane_u8(&reason), plane_u8(&mask));
+    let mut via_c = right.frame.colour.clone();
+    let mut stats = StAccumulateStats::default();
+    let (new_c, accum_c) = (rgb(&left.frame.colour), rgb_mut(&mut via_c));
+    let call = |mask: *const StPlaneU8, stats: &mut StAccumulateStats| unsafe {
+        stereotrace_ema_masked(
+            ctx,
+            &new_c,
+            &reason_c,
+            std::ptr::null(),
+            std::ptr::null(),
+            mask,
+            &accum_c,
+            std::ptr::null(),
+            std::ptr::null(),
+            stats,
+        )
+    };
+    assert_eq!(call(std::ptr::null(), &mut stats), StStatus::InvalidArgument);
+    assert_eq!(via_c, right.frame.colour, "a refused call wrote");
+    assert_eq!(call(&mask_c, &mut stats), StStatus::Ok);
+    let mut whole = right.frame.colour.clone();
+    let input = EmaInput {
+        new: left.frame.colour.view(),
+        reason: reason.view(),
+        has_new: None,
+        confidence: None,
+        pixel_mask: None,
+    };
+    accumulate::ema(&input, EmaState { accum: whole.view_mut(), history_len: None }, &EmaParams::default()).unwrap();
+    let (c, w, before) = (via_c.planes(), whole.planes(), right.frame.colour.planes());
+    for i in 0..W * H {
+        let want = if mask.as_slice()[i] != 0 { w } else { before };
+        for ch in 0..3 {
+            assert_eq!(c[ch].as_slice()[i].to_bits(), want[ch].as_slice()[i].to_bits(), "pixel {i}, channel {ch}");
+        }
+    }
+    let counted = stats.non_finite + stats.holes + stats.resets;
+    assert!(counted > 0 && counted <= mask.as_slice().iter().filter(|&&m| m != 0).count() as u64, "{stats:?}");
+    unsafe { stereotrace_context_destroy(ctx) };
+}
+
 #[test]
 fn refused_calls_write_nothing_and_say_why() {
     let (left, right) = (eye(-0.03), eye(0.03));
