@@ -219,16 +219,7 @@ fn ema_and_ssim_through_the_c_abi_are_the_kernels() {
         )
     };
     assert_eq!(status, StStatus::Ok);
-    let mut direct = right.frame.colour.clone();
-    let input = EmaInput {
-        new: left.frame.colour.view(),
-        reason: reason.view(),
-        has_new: None,
-        confidence: None,
-        pixel_mask: None,
-    };
-    let want = accumulate::ema(&input, EmaState { accum: direct.view_mut(), history_len: None }, &EmaParams::default())
-        .unwrap();
+    let (direct, want) = kernel_ema(&left.frame.colour, &right.frame.colour, &reason);
     assert_eq!(via_c, direct);
     assert_eq!((stats.non_finite, stats.holes, stats.resets), (want.non_finite, want.holes, want.resets));
 
@@ -239,6 +230,16 @@ fn ema_and_ssim_through_the_c_abi_are_the_kernels() {
     assert_eq!((result.ssim, result.rmse, result.voxels), (want.ssim, want.rmse, want.voxels));
     assert!(result.ssim < 1.0, "two different views are not identical");
     unsafe { stereotrace_context_destroy(ctx) };
+}
+
+/// The Rust kernel's EMA of `history` with `new` (every pixel, the default parameters): the
+/// accumulation and what it counted.
+fn kernel_ema(new: &RgbBuf, history: &RgbBuf, reason: &PlaneBuf<u8>) -> (RgbBuf, accumulate::AccumulateStats) {
+    let mut accum = history.clone();
+    let input = EmaInput { new: new.view(), reason: reason.view(), has_new: None, confidence: None, pixel_mask: None };
+    let stats = accumulate::ema(&input, EmaState { accum: accum.view_mut(), history_len: None }, &EmaParams::default())
+        .unwrap();
+    (accum, stats)
 }
 
 /// The masked EMA through the C ABI is the kernel's: inside the mask the plain EMA's bits,
@@ -276,15 +277,7 @@ fn the_masked_ema_through_the_c_abi_is_the_kernels() {
     assert_eq!(call(std::ptr::null(), &mut stats), StStatus::InvalidArgument);
     assert_eq!(via_c, right.frame.colour, "a refused call wrote");
     assert_eq!(call(&mask_c, &mut stats), StStatus::Ok);
-    let mut whole = right.frame.colour.clone();
-    let input = EmaInput {
-        new: left.frame.colour.view(),
-        reason: reason.view(),
-        has_new: None,
-        confidence: None,
-        pixel_mask: None,
-    };
-    accumulate::ema(&input, EmaState { accum: whole.view_mut(), history_len: None }, &EmaParams::default()).unwrap();
+    let (whole, _) = kernel_ema(&left.frame.colour, &right.frame.colour, &reason);
     let (c, w, before) = (via_c.planes(), whole.planes(), right.frame.colour.planes());
     for i in 0..W * H {
         let want = if mask.as_slice()[i] != 0 { w } else { before };

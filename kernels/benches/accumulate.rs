@@ -67,19 +67,20 @@ fn ema_and_blend(c: &mut Criterion) {
     let mask = PlaneBuf::from_vec(discarded, e).unwrap();
     let share = mask.as_slice().iter().filter(|&&m| m != 0).count() as f64 / e.pixels() as f64;
     println!("ema/simd-masked: the stereo-discarded mask holds {:.1} % of the pixels", 100.0 * share);
+    let whole_frame = EmaInput {
+        new: f.left.colour.view(),
+        reason: reason.view(),
+        has_new: None,
+        confidence: None,
+        pixel_mask: None,
+    };
     for threads in [1, 2] {
         let pool = pool(threads);
         let params = EmaParams::default();
         group.bench_function(BenchmarkId::new("simd-masked/plain", threads), |b| {
             b.iter(|| {
                 pool.install(|| {
-                    let input = EmaInput {
-                        new: f.left.colour.view(),
-                        reason: reason.view(),
-                        has_new: None,
-                        confidence: None,
-                        pixel_mask: Some(mask.view()),
-                    };
+                    let input = EmaInput { pixel_mask: Some(mask.view()), ..whole_frame };
                     let state = EmaState { accum: acc.view_mut(), history_len: None };
                     black_box(accumulate::ema(&input, state, &params).expect("valid input"))
                 })

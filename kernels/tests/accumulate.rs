@@ -105,13 +105,7 @@ fn history_confidence_scales_the_historys_weight() {
         let mut acc = RgbBuf::new(e, 1.0);
         let mut len = PlaneBuf::new(e, 4.0);
         let conf = PlaneBuf::new(e, c);
-        let input = EmaInput {
-            new: new.view(),
-            reason: reason.view(),
-            has_new: None,
-            confidence: Some(conf.view()),
-            pixel_mask: None,
-        };
+        let input = trusting(&new, &reason, &conf);
         let params = EmaParams { alpha: 0.2, ramp, band_rows: 4 };
         accumulate::ema(&input, EmaState { accum: acc.view_mut(), history_len: Some(len.view_mut()) }, &params)
             .unwrap();
@@ -138,13 +132,7 @@ fn history_confidence_scales_the_historys_weight() {
     for bad in [-0.01, 1.01, f32::NAN] {
         let mut acc = RgbBuf::new(e, 1.0);
         let conf = PlaneBuf::from_vec((0..e.pixels()).map(|i| if i == 25 { bad } else { 0.5 }).collect(), e).unwrap();
-        let input = EmaInput {
-            new: new.view(),
-            reason: reason.view(),
-            has_new: None,
-            confidence: Some(conf.view()),
-            pixel_mask: None,
-        };
+        let input = trusting(&new, &reason, &conf);
         let err = accumulate::ema(&input, EmaState { accum: acc.view_mut(), history_len: None }, &EmaParams::default())
             .unwrap_err();
         assert!(
@@ -152,6 +140,17 @@ fn history_confidence_scales_the_historys_weight() {
             "{err}"
         );
         assert!(acc.r().as_slice().iter().all(|&v| v == 1.0), "a refused call wrote");
+    }
+}
+
+/// EMA inputs of `new` with a history confidence plane (every pixel, every sample present).
+fn trusting<'a>(new: &'a RgbBuf, reason: &'a PlaneBuf<u8>, confidence: &'a PlaneBuf) -> EmaInput<'a> {
+    EmaInput {
+        new: new.view(),
+        reason: reason.view(),
+        has_new: None,
+        confidence: Some(confidence.view()),
+        pixel_mask: None,
     }
 }
 
