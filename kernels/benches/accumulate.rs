@@ -14,8 +14,6 @@ use stereotrace_kernels::accumulate::{self, BlendParams, EmaInput, EmaParams, Em
 use stereotrace_kernels::clamp::{self, ClampInput, ClampParams};
 use stereotrace_kernels::frame::PlaneBuf;
 use stereotrace_kernels::gradient::{self, GradientInput};
-use stereotrace_kernels::isa::Isa;
-use stereotrace_kernels::reproject::Reason;
 use stereotrace_kernels::synth::Rng;
 
 fn ema_and_blend(c: &mut Criterion) {
@@ -60,11 +58,7 @@ fn ema_and_blend(c: &mut Criterion) {
     // The paper-order left eye's EMA: only the pixels its stereo reprojection discarded (the
     // pixel mask), the rest already restarted by the stereo pass. Beside `simd/plain`, it is
     // what the fused restart saves.
-    let mut stereo = common::Outputs::new(e);
-    let (target, source) = (f.left.compact(), f.right.compact());
-    common::run_reprojection(&target, &source, &f.right, &f.params, &mut stereo, Some(Isa::active()), None);
-    let discarded = stereo.reason.as_slice().iter().map(|&r| u8::from(r != Reason::Reprojected as u8)).collect();
-    let mask = PlaneBuf::from_vec(discarded, e).unwrap();
+    let mask = f.stereo_discarded();
     let share = mask.as_slice().iter().filter(|&&m| m != 0).count() as f64 / e.pixels() as f64;
     println!("ema/simd-masked: the stereo-discarded mask holds {:.1} % of the pixels", 100.0 * share);
     let whole_frame = EmaInput {

@@ -8,13 +8,11 @@
 
 mod common;
 
-use std::hint::black_box;
-
-use common::{Fixture, Outputs, pool, run_reprojection};
+use common::{Fixture, Optional, Outputs, pool, run_reprojection};
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use stereotrace_kernels::frame::PlaneBuf;
 use stereotrace_kernels::isa::Isa;
-use stereotrace_kernels::reproject::{self, Reason, ReprojectInput, ReprojectOutput, ReprojectParams};
+use stereotrace_kernels::reproject::ReprojectParams;
 
 /// The bodies each group times: `simd` is the one the kernel takes on this CPU
 /// ([`Isa::active`]); on an AVX-512 CPU `simd-avx2` is the 8-lane body compiled for the
@@ -41,11 +39,15 @@ fn reprojection(c: &mut Criterion) {
             for (body, isa) in bodies() {
                 group.bench_function(BenchmarkId::new(format!("{body}/compact"), threads), |b| {
                     let (t, s) = (target.compact(), source.compact());
-                    b.iter(|| pool.install(|| run_reprojection(&t, &s, source, &f.params, &mut out, isa, None)))
+                    b.iter(|| {
+                        pool.install(|| run_reprojection(&t, &s, source, &f.params, &mut out, isa, Optional::default()))
+                    })
                 });
                 group.bench_function(BenchmarkId::new(format!("{body}/full"), threads), |b| {
                     let (t, s) = (target.gbuffer(), source.gbuffer());
-                    b.iter(|| pool.install(|| run_reprojection(&t, &s, source, &f.params, &mut out, isa, None)))
+                    b.iter(|| {
+                        pool.install(|| run_reprojection(&t, &s, source, &f.params, &mut out, isa, Optional::default()))
+                    })
                 });
                 if group_name == "reproject_temporal" {
                     // Zero motion vectors: the same result, so this prices reading them.
@@ -53,7 +55,17 @@ fn reprojection(c: &mut Criterion) {
                     group.bench_function(BenchmarkId::new(format!("{body}/compact+motion"), threads), |b| {
                         let (t, s) = (target.compact(), source.compact());
                         b.iter(|| {
-                            pool.install(|| run_reprojection(&t, &s, source, &f.params, &mut out, isa, Some(&still)))
+                            pool.install(|| {
+                                run_reprojection(
+                                    &t,
+                                    &s,
+                                    source,
+                                    &f.params,
+                                    &mut out,
+                                    isa,
+                                    Optional { motion: Some(&still), ..Optional::default() },
+                                )
+                            })
                         })
                     });
                 }
@@ -67,43 +79,18 @@ fn reprojection(c: &mut Criterion) {
 /// of this room, along its silhouettes and borders), the pair the temporal one.
 fn masked_temporal(c: &mut Criterion) {
     let f = Fixture::new();
-    let e = f.extent();
-    let mut stereo = Outputs::new(e);
-    let (left, right, prev) = (f.left.compact(), f.right.compact(), f.left_prev.compact());
-    run_reprojection(&left, &right, &f.right, &f.params, &mut stereo, Some(Isa::active()), None);
-    let discarded = stereo.reason.as_slice().iter().map(|&r| u8::from(r != Reason::Reprojected as u8)).collect();
-    let mask = PlaneBuf::from_vec(discarded, e).unwrap();
-    let mut out = Outputs::new(e);
+    let mask = f.stereo_discarded();
+    let (left, prev) = (f.left.compact(), f.left_prev.compact());
+    let mut out = Outputs::new(f.extent());
     let mut group = c.benchmark_group("reproject_temporal_masked");
-    group.throughput(Throughput::Elements(e.pixels() as u64));
+    group.throughput(Throughput::Elements(f.extent().pixels() as u64));
     for threads in [1, 2] {
         let pool = pool(threads);
         for (body, isa) in bodies() {
             group.bench_function(BenchmarkId::new(format!("{body}/compact"), threads), |b| {
+                let optional = Optional { pixel_mask: Some(&mask), ..Optional::default() };
                 b.iter(|| {
-                    pool.install(|| {
-                        let input = ReprojectInput {
-                            target: &left,
-                            source: &prev,
-                            source_camera: &f.left_prev.surfaces.camera,
-                            colour: f.left_prev.colour.view(),
-                            extra: None,
-                            pixel_mask: Some(mask.view()),
-                            motion: None,
-                            jitter: None,
-                        };
-                        let o = ReprojectOutput {
-                            colour: out.colour.view_mut(),
-                            extra: None,
-                            reason: out.reason.view_mut(),
-                            weight: None,
-                        };
-                        let counts = match isa {
-                            Some(isa) => reproject::reproject_with(&input, o, &f.params, isa),
-                            None => reproject::reproject_scalar(&input, o, &f.params),
-                        };
-                        black_box(counts.expect("valid input"))
-                    })
+                    pool.install(|| run_reprojection(&left, &prev, &f.left_prev, &f.params, &mut out, isa, optional))
                 })
             });
         }
@@ -122,7 +109,11 @@ fn band_rows(c: &mut Criterion) {
         let params = ReprojectParams { band_rows: rows, ..f.params };
         group.bench_function(BenchmarkId::from_parameter(rows), |b| {
             let (t, s) = (f.left.compact(), f.right.compact());
-            b.iter(|| pool.install(|| run_reprojection(&t, &s, &f.right, &params, &mut out, Some(Isa::active()), None)))
+            b.iter(|| {
+                pool.install(|| {
+                    run_reprojection(&t, &s, &f.right, &params, &mut out, Some(Isa::active()), Optional::default())
+                })
+            })
         });
     }
     group.finish();

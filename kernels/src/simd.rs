@@ -74,6 +74,15 @@ pub fn clamp_finite(v: F32s) -> F32s {
     v.simd_lt(-max).select(-max, v)
 }
 
+/// Whether any of the first `LANES` bytes of a per-pixel mask is non-zero: one 8-byte load
+/// and compare, where a lane mask folds each byte (a masked kernel skips a group without
+/// wanted pixels on it).
+#[inline(always)]
+pub(crate) fn any_nonzero(mask: &[u8]) -> bool {
+    const { assert!(LANES == 8) };
+    u64::from_ne_bytes(mask[..LANES].try_into().expect("8 mask bytes")) != 0
+}
+
 /// Flushes a value below `f32::MIN_POSITIVE` in magnitude (a subnormal, or −0) to +0; NaN
 /// and everything else pass through. Kernels that write a history flush it: an EMA decaying
 /// towards 0 would otherwise walk through subnormals, which are slow on x86, and

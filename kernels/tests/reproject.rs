@@ -290,21 +290,20 @@ fn reprojected_values_below_the_smallest_normal_are_flushed_to_zero() {
     }
     let extra = PlaneBuf::from_vec((0..e.pixels()).map(|i| if i % 2 == 1 { tiny } else { 0.0 }).collect(), e).unwrap();
     let p = params(TapPolicy::Renormalize);
-    for (tc, sc) in [(left.compact(), right.compact())] {
-        for extra in [None, Some(extra.view())] {
-            let input = input_for(&tc, &sc, &right, extra);
-            assert_every_body_matches_scalar(&input, &p);
-            let r = run_reprojection(&input, &p, false).unwrap();
-            assert!(r.counts.get(Reason::Reprojected) > e.pixels() as u64 / 2, "{:?}", r.counts);
-            let mut planes = vec![r.colour.r(), r.colour.g(), r.colour.b()];
-            if extra.is_some() {
-                planes.push(&r.extra);
-            }
-            for plane in planes {
-                for &v in plane.as_slice() {
-                    assert!(v == 0.0 || v.abs() >= tiny, "a subnormal was written: {v:e}");
-                    assert!(v.to_bits() != (-0.0f32).to_bits(), "-0 was written");
-                }
+    let (tc, sc) = (left.compact(), right.compact());
+    for extra in [None, Some(extra.view())] {
+        let input = input_for(&tc, &sc, &right, extra);
+        assert_every_body_matches_scalar(&input, &p);
+        let r = run_reprojection(&input, &p, false).unwrap();
+        assert!(r.counts.get(Reason::Reprojected) > e.pixels() as u64 / 2, "{:?}", r.counts);
+        let mut planes = vec![r.colour.r(), r.colour.g(), r.colour.b()];
+        if extra.is_some() {
+            planes.push(&r.extra);
+        }
+        for plane in planes {
+            for &v in plane.as_slice() {
+                assert!(v == 0.0 || v.abs() >= tiny, "a subnormal was written: {v:e}");
+                assert!(v.to_bits() != (-0.0f32).to_bits(), "-0 was written");
             }
         }
     }

@@ -13,7 +13,7 @@ use rayon::ThreadPool;
 use stereotrace_kernels::frame::{Extent, PlaneBuf, RgbBuf};
 use stereotrace_kernels::gbuffer::SurfaceLayout;
 use stereotrace_kernels::isa::Isa;
-use stereotrace_kernels::reproject::{self, ReprojectInput, ReprojectOutput, ReprojectParams, Tolerances};
+use stereotrace_kernels::reproject::{self, Reason, ReprojectInput, ReprojectOutput, ReprojectParams, Tolerances};
 use stereotrace_kernels::synth::{AnalyticScene, SynthFrame, camera_at};
 
 pub const WIDTH: usize = 1280;
@@ -68,6 +68,25 @@ impl Fixture {
     pub fn extent(&self) -> Extent {
         self.left.extent()
     }
+
+    /// 1 where the right eye's stereo reprojection into the left eye is discarded (0.9 % of
+    /// the room): the pixels the paper-order left eye traces, reprojects its history for and
+    /// accumulates.
+    pub fn stereo_discarded(&self) -> PlaneBuf<u8> {
+        let mut stereo = Outputs::new(self.extent());
+        let (target, source) = (self.left.compact(), self.right.compact());
+        run_reprojection(
+            &target,
+            &source,
+            &self.right,
+            &self.params,
+            &mut stereo,
+            Some(Isa::active()),
+            Optional::default(),
+        );
+        let discarded = stereo.reason.as_slice().iter().map(|&r| u8::from(r != Reason::Reprojected as u8)).collect();
+        PlaneBuf::from_vec(discarded, self.extent()).unwrap()
+    }
 }
 
 pub struct Outputs {
@@ -81,6 +100,15 @@ impl Outputs {
     }
 }
 
+/// The optional inputs of a reprojection a bench may add (none by default).
+#[derive(Clone, Copy, Default)]
+pub struct Optional<'a> {
+    /// Motion planes of the target's surfaces.
+    pub motion: Option<&'a [PlaneBuf; 3]>,
+    /// Only the pixels where it is non-zero are reprojected.
+    pub pixel_mask: Option<&'a PlaneBuf<u8>>,
+}
+
 pub fn run_reprojection<L: SurfaceLayout>(
     target: &L,
     source: &L,
@@ -88,7 +116,7 @@ pub fn run_reprojection<L: SurfaceLayout>(
     params: &ReprojectParams,
     out: &mut Outputs,
     body: Option<Isa>,
-    motion: Option<&[PlaneBuf; 3]>,
+    optional: Optional<'_>,
 ) {
     let input = ReprojectInput {
         target,
@@ -96,8 +124,8 @@ pub fn run_reprojection<L: SurfaceLayout>(
         source_camera: &source_frame.surfaces.camera,
         colour: source_frame.colour.view(),
         extra: None,
-        pixel_mask: None,
-        motion: motion.map(|m| m.each_ref().map(|p| p.view())),
+        pixel_mask: optional.pixel_mask.map(|m| m.view()),
+        motion: optional.motion.map(|m| m.each_ref().map(|p| p.view())),
         jitter: None,
     };
     let o = ReprojectOutput { colour: out.colour.view_mut(), extra: None, reason: out.reason.view_mut(), weight: None };

@@ -5,7 +5,7 @@ use super::scalar::{blend_scalar_at, ema_scalar_at};
 use super::{AccumulateStats, BlendWeights, EmaInput, EmaParams, EmaRow};
 use crate::frame::{Plane, RgbPlanes};
 use crate::reproject::Reason;
-use crate::simd::{F32s, I32s, LANES, clamp_finite, flush_subnormal, load, store};
+use crate::simd::{F32s, I32s, LANES, any_nonzero, clamp_finite, flush_subnormal, load, store};
 
 /// SIMD twin of [`super::lerp`].
 #[inline(always)]
@@ -64,7 +64,7 @@ pub(super) fn ema_row<'r>(
         // Lanes outside the pixel mask are left as they were: a group with none inside is
         // skipped whole (the masked caller's common case), the others select per lane.
         let active = match pixel_mask {
-            Some(m) if u64::from_ne_bytes(m[x..x + LANES].try_into().expect("LANES bytes")) == 0 => {
+            Some(m) if !any_nonzero(&m[x..x + LANES]) => {
                 x += LANES;
                 continue;
             }

@@ -5,7 +5,7 @@ use super::scalar::write_pixel;
 use super::{Prepared, Reason, ReasonCounts, RowOut};
 use crate::bilinear::{Footprints, coherent_row, renormalise_simd};
 use crate::gbuffer::{SurfaceLayout, Surfels};
-use crate::simd::{F32s, LANES, TapCoords, flush_subnormal, store};
+use crate::simd::{F32s, LANES, TapCoords, any_nonzero, flush_subnormal, store};
 
 /// One output row through the SIMD body (`C` channels), the tail through the scalar one.
 #[inline(always)]
@@ -51,7 +51,7 @@ pub(super) fn simd_row<L: SurfaceLayout, const C: usize, const AVX512: bool>(
                 // loading those of the group two ahead (the target's, and the source's
                 // around the same place, where a small motion puts the taps).
                 if let Some(ahead) = m.get(x + MASK_AHEAD..x + MASK_AHEAD + LANES)
-                    && any_wanted(ahead)
+                    && any_nonzero(ahead)
                 {
                     prefetch_group(p, x + MASK_AHEAD, y);
                 }
@@ -112,14 +112,6 @@ const MASK_AHEAD: usize = 2 * LANES;
 #[inline(always)]
 fn wanted_bits(mask: &[u8]) -> u32 {
     mask[..LANES].iter().enumerate().fold(0, |bits, (i, &v)| bits | (u32::from(v != 0) << i))
-}
-
-/// Whether any of the first `LANES` mask bytes is non-zero: one 8-byte load and compare,
-/// where [`wanted_bits`] folds each byte (only the group ahead needs no bits).
-#[inline(always)]
-fn any_wanted(mask: &[u8]) -> bool {
-    const { assert!(LANES == 8) };
-    u64::from_ne_bytes(mask[..LANES].try_into().expect("8 mask bytes")) != 0
 }
 
 /// Prefetches what the group at `(x, y)` will read: the target's planes, and the source's
