@@ -31,6 +31,9 @@
 //! straight into the left history (the kernel flushes them as the EMA's restart would), and
 //! the left EMA runs only at the stereo-discarded pixels (its pixel mask). The result is the
 //! bits of the EMA over the whole eye; a test holds the two schedules to each other.
+//! Likewise every other EMA of an eye's own samples skips the pixels whose history it would
+//! keep as reprojected (no new sample, a valid reprojection): under a budget, nearly all of
+//! them. The reprojection has already written those pixels as the EMA would keep them.
 //!
 //! # Refused frames
 //! A frame that fails anywhere (a source's G-buffers or samples, a camera, a kernel's check)
@@ -242,6 +245,9 @@ pub struct Pipeline<S: FrameSource> {
     /// ([`Pipeline::fuses_left_restart`]). Always on; the unit tests turn it off to hold the
     /// fused schedule to the unfused one.
     fuse_left_restart: bool,
+    /// Whether an EMA skips the pixels whose history is kept as reprojected
+    /// ([`Pipeline::skips_kept_history`]). Always on; the unit tests turn it off.
+    skip_kept_history: bool,
 }
 
 const L: usize = Eye::Left as usize;
@@ -357,6 +363,7 @@ impl<S: FrameSource> Pipeline<S> {
             gbuffers_lent: false,
             filtered_shown: false,
             fuse_left_restart: true,
+            skip_kept_history: true,
         })
     }
 
@@ -746,6 +753,19 @@ impl<S: FrameSource> Pipeline<S> {
         self.fuse_left_restart && self.left_history_on_demand() && self.config.history == History::Paper
     }
 
+    /// Whether an EMA of the eye's own samples (`source` [`Source::Traced`] or
+    /// [`Source::Work`]) runs only where it changes something: at the pixels with a new
+    /// sample or without a reprojected history. Elsewhere it would keep the history as the
+    /// reprojection wrote it (clamped to the finite range and flushed, so the EMA's `finish`
+    /// gives the same bits) and the length as reprojected: under a budget, nearly every
+    /// pixel. Only with the paper's history rule: the clamp rewrites reprojected histories
+    /// first.
+    fn skips_kept_history(&self, source: Source) -> bool {
+        self.skip_kept_history
+            && self.config.history == History::Paper
+            && matches!(source, Source::Traced | Source::Work)
+    }
+
     fn reproject_params(&self) -> ReprojectParams {
         ReprojectParams { tolerances: self.config.tolerances, policy: self.config.policy, band_rows: 16 }
     }
@@ -1057,6 +1077,7 @@ impl<S: FrameSource> Pipeline<S> {
         let params = EmaParams { alpha: self.config.alpha, ramp: self.config.ramp, band_rows: 16 };
         let track_len = self.config.tracks_history_length();
         let fused = source == Source::WorkCombined && self.fuses_left_restart();
+        let skip_kept = self.skips_kept_history(source);
         let s = &mut self.eyes[eye as usize];
         let (new, reason) = match source {
             Source::Traced => (s.cur.traced.view(), s.cur.temporal_reason.view()),
@@ -1066,7 +1087,14 @@ impl<S: FrameSource> Pipeline<S> {
             Source::WorkCombined if fused => (s.cur.work.view(), s.cur.temporal_reason.view()),
             Source::WorkCombined => (s.cur.work.view(), s.ema_reason.view()),
         };
-        let pixel_mask = fused.then(|| s.wanted.view());
+        let pixel_mask = if fused {
+            Some(s.wanted.view())
+        } else if skip_kept && kept_history_mask(&mut s.urgent, &s.has_new, &reason) {
+            // `urgent` is free once the eye is traced.
+            Some(s.urgent.view())
+        } else {
+            None
+        };
         // The gradients' confidence (the engine's already multiplied in), or the engine's.
         let confidence = match (gradients, &s.gradient) {
             (true, Some(g)) => Some(g.confidence.view()),
@@ -1088,4 +1116,21 @@ impl<S: FrameSource> Pipeline<S> {
         stats.times.accumulation += t.elapsed();
         Ok(())
     }
+}
+
+/// Writes into `mask` the pixels an EMA must visit: those with a new sample (`has_new`) or
+/// without a reprojected history (`reason`). Returns whether any pixel may be skipped (a
+/// frame that traced every pixel runs the unmasked EMA).
+fn kept_history_mask(mask: &mut PlaneBuf<u8>, has_new: &PlaneBuf<u8>, reason: &Plane<'_, u8>) -> bool {
+    let reprojected = Reason::Reprojected as u8;
+    let mut visited = 0usize;
+    for (y, row) in mask.as_mut_slice().chunks_exact_mut(reason.width()).enumerate() {
+        let start = y * reason.width();
+        let has_new = &has_new.as_slice()[start..start + row.len()];
+        for ((m, &h), &r) in row.iter_mut().zip(has_new).zip(reason.row(y)) {
+            *m = h | u8::from(r != reprojected);
+            visited += usize::from(*m != 0);
+        }
+    }
+    visited < mask.as_slice().len()
 }

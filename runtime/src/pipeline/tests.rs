@@ -52,6 +52,72 @@ fn the_fused_left_restart_gives_the_whole_eye_emas_bits() {
     }
 }
 
+/// An EMA that skips the pixels whose history it would keep as reprojected gives the bits
+/// of the EMA over the whole eye, in every mode with an EMA of an eye's own samples, with
+/// and without the ramp. Under a budget too small for anything but the urgent pixels
+/// (deterministic: only they are traced) most pixels are skipped; without one every pixel
+/// is traced and the EMA runs unmasked.
+#[test]
+fn skipping_kept_histories_gives_the_whole_eye_emas_bits() {
+    let renderer = Renderer::new(crate::scene::resolve("cornell").unwrap()).unwrap();
+    let extent = Extent::new(61, 37).unwrap();
+    let tolerances = renderer.scene().tolerances.at_height(extent.height());
+    let schedules = [
+        (Mode::Temporal, Order::Paper),
+        (Mode::Spatiotemporal, Order::Paper),
+        (Mode::Spatiotemporal, Order::StereoFirst),
+        (Mode::SpatiotemporalBlend, Order::Paper),
+        (Mode::SpatiotemporalBlend, Order::StereoFirst),
+    ];
+    for (mode, order) in schedules {
+        for (ramp, budget) in [(false, true), (true, true), (false, false)] {
+            let mut config = PipelineConfig::paper(mode, 1, tolerances);
+            (config.ramp, config.order) = (ramp, order);
+            config.budget = budget.then(|| std::time::Duration::from_nanos(1));
+            let build = |skip: bool| {
+                let mut p = Pipeline::new(&renderer, config, StereoRig::default(), extent).unwrap();
+                p.skip_kept_history = skip;
+                p
+            };
+            let (mut skipping, mut whole) = (build(true), build(false));
+            let mut kept = 0;
+            for frame in 0..6 {
+                let head = renderer.scene().camera.pose_back_and_forth(frame);
+                let a = skipping.render_frame(frame, &head).unwrap();
+                let b = whole.render_frame(frame, &head).unwrap();
+                let what = format!("{mode:?} {order:?}, ramp {ramp}, budget {budget}, frame {frame}");
+                let counts = |s: FrameStats| FrameStats { times: StageTimes::default(), raster: None, ..s };
+                assert_eq!(counts(a), counts(b), "{what}: statistics");
+                for eye in Eye::BOTH {
+                    let what = format!("{what}, {eye:?}");
+                    for (a, b) in skipping.output(eye).planes().into_iter().zip(whole.output(eye).planes()) {
+                        assert_same_bits(a, b, &format!("{what}: output"));
+                    }
+                    for (a, b) in skipping.history(eye).planes().into_iter().zip(whole.history(eye).planes()) {
+                        assert_same_bits(a, b, &format!("{what}: history"));
+                    }
+                    if ramp {
+                        let (a, b) = (&skipping.eyes[eye as usize].cur.len, &whole.eyes[eye as usize].cur.len);
+                        assert_same_bits(a, b, &format!("{what}: history length"));
+                    }
+                    let s = &skipping.eyes[eye as usize];
+                    kept += s
+                        .has_new
+                        .as_slice()
+                        .iter()
+                        .zip(s.cur.temporal_reason.as_slice())
+                        .filter(|&(&h, &r)| h == 0 && r == Reason::Reprojected as u8)
+                        .count();
+                }
+            }
+            // Not a vacuous comparison: under the budget most pixels kept their history.
+            if budget {
+                assert!(kept > 6 * extent.pixels() / 2, "{mode:?} {order:?}: {kept} kept pixels");
+            }
+        }
+    }
+}
+
 /// Panics at the first pixel whose bits differ, naming it.
 fn assert_same_bits(a: &PlaneBuf, b: &PlaneBuf, what: &str) {
     let pairs = a.as_slice().iter().zip(b.as_slice());
