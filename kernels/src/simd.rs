@@ -83,6 +83,27 @@ pub(crate) fn any_nonzero(mask: &[u8]) -> bool {
     u64::from_ne_bytes(mask[..LANES].try_into().expect("8 mask bytes")) != 0
 }
 
+/// How many of `mask`'s first bytes are zero: a masked kernel's empty stretch, found 32
+/// bytes at a time so that a sparse mask costs a few instructions per group of eight
+/// instead of a group's bookkeeping each.
+#[inline(always)]
+pub(crate) fn leading_zero_bytes(mask: &[u8]) -> usize {
+    const CHUNK: usize = 32;
+    let word = |b: &[u8]| u64::from_le_bytes(b.try_into().expect("8 mask bytes"));
+    let mut chunks = mask.chunks_exact(CHUNK);
+    let mut zeros = 0;
+    for chunk in &mut chunks {
+        let words = [word(&chunk[..8]), word(&chunk[8..16]), word(&chunk[16..24]), word(&chunk[24..])];
+        if words.iter().fold(0, |any, w| any | w) != 0 {
+            // Little-endian: the first non-zero byte is the lowest set bit's.
+            let (i, w) = words.iter().enumerate().find(|&(_, &w)| w != 0).expect("a non-zero word");
+            return zeros + 8 * i + w.trailing_zeros() as usize / 8;
+        }
+        zeros += CHUNK;
+    }
+    zeros + chunks.remainder().iter().take_while(|&&b| b == 0).count()
+}
+
 /// Flushes a value below `f32::MIN_POSITIVE` in magnitude (a subnormal, or −0) to +0; NaN
 /// and everything else pass through. Kernels that write a history flush it: an EMA decaying
 /// towards 0 would otherwise walk through subnormals, which are slow on x86, and
@@ -212,6 +233,23 @@ pub const fn compiled_with_avx2() -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Against counting byte by byte, for every position of the first non-zero byte in
+    /// masks of every length up to three chunks and some.
+    #[test]
+    fn leading_zero_bytes_counts_the_empty_stretch() {
+        for len in 0..100 {
+            for first in 0..=len {
+                let mut mask = vec![0u8; len];
+                if first < len {
+                    mask[first] = 1 + (first % 255) as u8;
+                    // Bytes after the first non-zero one do not matter.
+                    mask[first..].iter_mut().skip(1).step_by(3).for_each(|b| *b = 7);
+                }
+                assert_eq!(leading_zero_bytes(&mask), first, "length {len}, first non-zero byte {first}");
+            }
+        }
+    }
 
     #[test]
     fn mad_is_not_fused() {

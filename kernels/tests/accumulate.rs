@@ -25,7 +25,7 @@ fn random_reasons(e: Extent, rng: &mut Rng) -> PlaneBuf<u8> {
 fn ema_simd_equals_scalar_on_edge_values() {
     let mut rng = Rng::new(5);
     for case in 0..60 {
-        let e = extent([1, 7, 8, 9, 17, 40][case % 6], 1 + rng.below(5));
+        let e = extent([1, 7, 8, 9, 17, 40, 203][case % 7], 1 + rng.below(5));
         let new = random_rgb(e, &mut rng, 0.3);
         let history = random_rgb(e, &mut rng, 0.1);
         let len = PlaneBuf::from_vec((0..e.pixels()).map(|_| rng.below(40) as f32).collect(), e).unwrap();
@@ -228,7 +228,7 @@ fn non_finite_samples_fall_back_to_history_or_become_holes() {
 fn blend_simd_equals_scalar_and_is_a_50_50_mix_where_valid() {
     let mut rng = Rng::new(21);
     for case in 0..40 {
-        let e = extent([1, 7, 8, 9, 17, 40][case % 6], 1 + rng.below(5));
+        let e = extent([1, 7, 8, 9, 17, 40, 203][case % 7], 1 + rng.below(5));
         let own = random_rgb(e, &mut rng, 0.3);
         let other = random_rgb(e, &mut rng, 0.0);
         let reason = random_reasons(e, &mut rng);
@@ -263,7 +263,7 @@ fn random_lengths(e: Extent, rng: &mut Rng) -> PlaneBuf {
 fn variance_blend_simd_equals_scalar_on_edge_values() {
     let mut rng = Rng::new(31);
     for case in 0..60 {
-        let e = extent([1, 7, 8, 9, 17, 40][case % 6], 1 + rng.below(5));
+        let e = extent([1, 7, 8, 9, 17, 40, 203][case % 7], 1 + rng.below(5));
         let own = random_rgb(e, &mut rng, 0.3);
         let reprojected = random_rgb(e, &mut rng, 0.3);
         let reason = random_reasons(e, &mut rng);

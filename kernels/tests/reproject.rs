@@ -145,7 +145,7 @@ fn simd_equals_scalar_on_stereo_and_temporal_pairs_at_awkward_widths() {
 #[test]
 fn pixel_mask_reprojects_only_the_chosen_pixels() {
     let mut rng = Rng::new(0x6d61_736b);
-    for &(w, h) in &[(1, 1), (7, 3), (17, 5), (64, 9)] {
+    for &(w, h) in &[(1, 1), (7, 3), (17, 5), (64, 9), (203, 6)] {
         let e = extent(w, h);
         let (left, right) = stereo_room(e, 0.4);
         // Whole groups of 8 on, off and mixed, so every branch of the SIMD body runs.

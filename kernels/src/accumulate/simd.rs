@@ -5,7 +5,7 @@ use super::scalar::{blend_scalar_at, ema_scalar_at};
 use super::{AccumulateStats, BlendWeights, EmaInput, EmaParams, EmaRow};
 use crate::frame::{Plane, RgbPlanes};
 use crate::reproject::Reason;
-use crate::simd::{F32s, I32s, LANES, any_nonzero, clamp_finite, flush_subnormal, load, store};
+use crate::simd::{F32s, I32s, LANES, any_nonzero, clamp_finite, flush_subnormal, leading_zero_bytes, load, store};
 
 /// SIMD twin of [`super::lerp`].
 #[inline(always)]
@@ -65,7 +65,7 @@ pub(super) fn ema_row<'r>(
         // skipped whole (the masked caller's common case), the others select per lane.
         let active = match pixel_mask {
             Some(m) if !any_nonzero(&m[x..x + LANES]) => {
-                x += LANES;
+                x += leading_zero_bytes(&m[x..width - width % LANES]) / LANES * LANES;
                 continue;
             }
             Some(m) => !byte_mask_eq(&m[x..x + LANES], 0),

@@ -5,7 +5,7 @@ use super::scalar::write_pixel;
 use super::{Prepared, Reason, ReasonCounts, RowOut};
 use crate::bilinear::{Footprints, coherent_row, renormalise_simd};
 use crate::gbuffer::{SurfaceLayout, Surfels};
-use crate::simd::{F32s, LANES, TapCoords, any_nonzero, flush_subnormal, store};
+use crate::simd::{F32s, LANES, TapCoords, any_nonzero, flush_subnormal, leading_zero_bytes, store};
 
 /// One output row through the SIMD body (`C` channels), the tail through the scalar one.
 #[inline(always)]
@@ -46,6 +46,17 @@ pub(super) fn simd_row<L: SurfaceLayout, const C: usize, const AVX512: bool>(
         // Bit `i` set where lane `i` is to be reprojected.
         let wanted = match mask_row {
             None => ALL_LANES,
+            Some(m) if !any_nonzero(&m[x..x + LANES]) => {
+                // An empty stretch of the mask at once: its reasons, then the group with the
+                // next wanted pixel (or the row's tail).
+                let groups = leading_zero_bytes(&m[x..width - width % LANES]) / LANES;
+                row.reason[x..x + groups * LANES].fill(Reason::Invalid as u8);
+                x += groups * LANES;
+                if x + LANES <= width {
+                    prefetch_group(p, x, y);
+                }
+                continue;
+            }
             Some(m) => {
                 // A sparse mask leaves the planes uncached where it wants pixels: start
                 // loading those of the group two ahead (the target's, and the source's
@@ -58,11 +69,6 @@ pub(super) fn simd_row<L: SurfaceLayout, const C: usize, const AVX512: bool>(
                 wanted_bits(&m[x..x + LANES])
             }
         };
-        if wanted == 0 {
-            row.reason[x..x + LANES].fill(Reason::Invalid as u8);
-            x += LANES;
-            continue;
-        }
         let lanes = reproject_lanes::<L, C>(p, x, y, &mut cache);
         // Lanes outside the mask keep what the output held.
         let put = |dst: &mut [f32], v: F32s| {
