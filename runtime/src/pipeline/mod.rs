@@ -982,35 +982,27 @@ impl<S: FrameSource> Pipeline<S> {
             Target::Traced => &mut s.cur.traced,
             Target::Work => &mut s.cur.work,
         };
-        let wanted_count = s.wanted.as_slice().iter().filter(|&&w| w != 0).count() as u64;
-        stats.wanted_pixels[eye as usize] += wanted_count;
         let height = self.extent.height();
         match config.budget {
             None => {
                 let trace = self.source.trace(&s.camera, &request, PixelSelection::Mask(&s.wanted), 0..height, out)?;
                 stats.trace = stats.trace + trace;
                 s.has_new.as_mut_slice().copy_from_slice(s.wanted.as_slice());
+                let wanted_count = count_set(s.wanted.as_slice());
+                stats.wanted_pixels[eye as usize] += wanted_count;
                 stats.traced_pixels[eye as usize] += wanted_count;
             }
             Some(budget) => {
-                // Urgent pixels first (whole frame), then the others tile by tile.
-                for (has, (&w, &u)) in
-                    s.has_new.as_mut_slice().iter_mut().zip(s.wanted.as_slice().iter().zip(s.urgent.as_slice()))
-                {
-                    *has = w & u;
-                }
-                let urgent_count = s.has_new.as_slice().iter().filter(|&&h| h != 0).count() as u64;
+                // Urgent pixels first (whole frame, from `has_new`), then the others (the
+                // rest of `wanted`, in `urgent`, reused) tile by tile.
+                let (wanted_count, urgent_count) =
+                    split_urgent(s.wanted.as_slice(), s.urgent.as_mut_slice(), s.has_new.as_mut_slice());
+                stats.wanted_pixels[eye as usize] += wanted_count;
                 let urgent_start = Instant::now();
                 let trace = self.source.trace(&s.camera, &request, PixelSelection::Mask(&s.has_new), 0..height, out)?;
                 stats.times.urgent_tracing += urgent_start.elapsed();
                 stats.trace = stats.trace + trace;
                 stats.traced_pixels[eye as usize] += urgent_count;
-                // The rest: `wanted` minus `urgent`, as a mask in `urgent` (reused).
-                for (u, (&w, &h)) in
-                    s.urgent.as_mut_slice().iter_mut().zip(s.wanted.as_slice().iter().zip(s.has_new.as_slice()))
-                {
-                    *u = w & !h & 1;
-                }
                 let tile = config.tile_rows;
                 let mut y0 = 0;
                 while y0 < height && self.planner.fits(eye, start.elapsed(), tile, budget) {
@@ -1021,11 +1013,10 @@ impl<S: FrameSource> Pipeline<S> {
                     stats.trace = stats.trace + trace;
                     let w = self.extent.width();
                     let span = rows.start * w..rows.end * w;
-                    for (has, &u) in s.has_new.as_mut_slice()[span.clone()].iter_mut().zip(&s.urgent.as_slice()[span]) {
-                        if u != 0 {
-                            *has = 1;
-                            stats.traced_pixels[eye as usize] += 1;
-                        }
+                    let rest = &s.urgent.as_slice()[span.clone()];
+                    stats.traced_pixels[eye as usize] += count_set(rest);
+                    for (has, &u) in s.has_new.as_mut_slice()[span].iter_mut().zip(rest) {
+                        *has |= u;
                     }
                     self.planner.tile_done(eye, rows.len(), tile_start.elapsed());
                     y0 = rows.end;
@@ -1123,14 +1114,42 @@ impl<S: FrameSource> Pipeline<S> {
 /// frame that traced every pixel runs the unmasked EMA).
 fn kept_history_mask(mask: &mut PlaneBuf<u8>, has_new: &PlaneBuf<u8>, reason: &Plane<'_, u8>) -> bool {
     let reprojected = Reason::Reprojected as u8;
-    let mut visited = 0usize;
+    let mut visited = 0;
     for (y, row) in mask.as_mut_slice().chunks_exact_mut(reason.width()).enumerate() {
         let start = y * reason.width();
         let has_new = &has_new.as_slice()[start..start + row.len()];
+        let mut row_visited = 0u32;
         for ((m, &h), &r) in row.iter_mut().zip(has_new).zip(reason.row(y)) {
             *m = h | u8::from(r != reprojected);
-            visited += usize::from(*m != 0);
+            row_visited += u32::from(*m != 0);
         }
+        visited += row_visited as usize;
     }
     visited < mask.as_slice().len()
+}
+
+/// How many bytes of `mask` are set (counted in blocks of `u32`, which vectorise).
+fn count_set(mask: &[u8]) -> u64 {
+    mask.chunks(1 << 16).map(|block| u64::from(block.iter().map(|&m| u32::from(m != 0)).sum::<u32>())).sum()
+}
+
+/// One pass over an eye's 0/1 masks before tracing under a budget: `has_new` = the wanted
+/// urgent pixels (traced first, whatever the budget), `urgent` = the rest of `wanted` (traced
+/// tile by tile while time remains). Returns how many pixels are wanted, and how many of them
+/// urgent.
+fn split_urgent(wanted: &[u8], urgent: &mut [u8], has_new: &mut [u8]) -> (u64, u64) {
+    const BLOCK: usize = 1 << 16;
+    let (mut wanted_count, mut urgent_count) = (0, 0);
+    for ((w, u), h) in wanted.chunks(BLOCK).zip(urgent.chunks_mut(BLOCK)).zip(has_new.chunks_mut(BLOCK)) {
+        let (mut block_wanted, mut block_urgent) = (0u32, 0u32);
+        for ((&w, u), h) in w.iter().zip(u.iter_mut()).zip(h.iter_mut()) {
+            let first = w & *u;
+            (*h, *u) = (first, w & !first & 1);
+            block_wanted += u32::from(w != 0);
+            block_urgent += u32::from(first != 0);
+        }
+        wanted_count += u64::from(block_wanted);
+        urgent_count += u64::from(block_urgent);
+    }
+    (wanted_count, urgent_count)
 }

@@ -125,3 +125,23 @@ fn assert_same_bits(a: &PlaneBuf, b: &PlaneBuf, what: &str) {
         panic!("{what}: pixel {i} is {x:e} fused and {y:e} unfused");
     }
 }
+
+/// The budgeted trace's one-pass mask split gives what its three passes gave: `has_new` =
+/// wanted and urgent, `urgent` = wanted and not urgent, and the two counts; across blocks.
+#[test]
+fn the_urgent_split_matches_its_definition() {
+    let n = (1 << 16) * 2 + 77;
+    let bit = |i: usize, salt: usize| u8::from((i.wrapping_mul(2_654_435_761) >> salt) & 3 != 0);
+    let wanted: Vec<u8> = (0..n).map(|i| bit(i, 7)).collect();
+    let mut urgent: Vec<u8> = (0..n).map(|i| bit(i, 13)).collect();
+    let expected_has: Vec<u8> = wanted.iter().zip(&urgent).map(|(&w, &u)| w & u).collect();
+    let expected_rest: Vec<u8> = wanted.iter().zip(&expected_has).map(|(&w, &h)| w & !h & 1).collect();
+    let mut has_new = vec![9u8; n];
+    let (w, u) = split_urgent(&wanted, &mut urgent, &mut has_new);
+    assert_eq!(has_new, expected_has);
+    assert_eq!(urgent, expected_rest);
+    assert_eq!(w, wanted.iter().filter(|&&w| w != 0).count() as u64);
+    assert_eq!(u, expected_has.iter().filter(|&&h| h != 0).count() as u64);
+    assert!(u > 0 && u < w && w < n as u64);
+    assert_eq!(count_set(&expected_rest), expected_rest.iter().filter(|&&r| r != 0).count() as u64);
+}
