@@ -41,6 +41,11 @@ pub(super) struct GradientBuffers {
     reshaded: RgbBuf,
     /// The per-pixel history confidence the EMA reads.
     pub(super) confidence: PlaneBuf,
+    /// Per stratum: whether any of its pixels has a new sample this frame; then whether any
+    /// stratum of its 3×3 neighbourhood has (only those strata's gradients reach a pixel the
+    /// EMA blends: see [`Pipeline::temporal_gradients`]).
+    new_in_stratum: PlaneBuf<u8>,
+    needed: PlaneBuf<u8>,
 }
 
 impl GradientBuffers {
@@ -53,6 +58,8 @@ impl GradientBuffers {
             mask: PlaneBuf::try_new(extent, 0)?,
             reshaded: RgbBuf::try_new(extent, 0.0)?,
             confidence: PlaneBuf::try_new(extent, 1.0)?,
+            new_in_stratum: PlaneBuf::try_new(strata, 0)?,
+            needed: PlaneBuf::try_new(strata, 0)?,
         })
     }
 }
@@ -66,6 +73,42 @@ fn mark_chosen(mask: &mut PlaneBuf<u8>, chosen: &PlaneBuf<u32>, value: u8) -> u6
         count += 1;
     }
     count
+}
+
+/// Marks in `needed` the strata whose gradient can reach a pixel the EMA blends with its
+/// history (a new sample, `has_new`, and a reprojected history, `reason`): those with such a
+/// pixel in their 3×3 neighbourhood of strata, the kernel's reach (a pixel's confidence is
+/// its stratum's `λ`, summed over that neighbourhood). `new_in_stratum` is scratch of the
+/// strata's extent.
+pub(super) fn mark_needed(
+    has_new: &PlaneBuf<u8>,
+    reason: &PlaneBuf<u8>,
+    new_in_stratum: &mut PlaneBuf<u8>,
+    needed: &mut PlaneBuf<u8>,
+) {
+    let (w, h) = (has_new.extent().width(), has_new.extent().height());
+    let sw = new_in_stratum.extent().width();
+    new_in_stratum.as_mut_slice().par_chunks_mut(sw).enumerate().for_each(|(sy, row)| {
+        row.fill(0);
+        for y in sy * STRATUM..((sy + 1) * STRATUM).min(h) {
+            let pixels = &has_new.as_slice()[y * w..(y + 1) * w];
+            let reasons = &reason.as_slice()[y * w..(y + 1) * w];
+            for (flag, (new, reasons)) in row.iter_mut().zip(pixels.chunks(STRATUM).zip(reasons.chunks(STRATUM))) {
+                *flag |= new.iter().zip(reasons).fold(0, |any, (&n, &r)| any | (n & u8::from(is_reprojected(r))));
+            }
+        }
+    });
+    let sh = new_in_stratum.extent().height();
+    let new_in = &*new_in_stratum;
+    needed.as_mut_slice().par_chunks_mut(sw).enumerate().for_each(|(sy, row)| {
+        let rows = sy.saturating_sub(1)..(sy + 2).min(sh);
+        for (sx, flag) in row.iter_mut().enumerate() {
+            let columns = sx.saturating_sub(1)..(sx + 2).min(sw);
+            *flag = rows
+                .clone()
+                .fold(0, |any, ny| any | new_in.as_slice()[ny * sw..][columns.clone()].iter().fold(0, |a, &f| a | f));
+        }
+    });
 }
 
 /// Rec. 709 luminance (`kernels::colour::luminance`) of a texel.
@@ -177,9 +220,19 @@ impl<S: FrameSource> Pipeline<S> {
     /// Measures `eye`'s temporal gradients into its confidence plane, before its EMA.
     /// Returns whether it did: with `History::Paper`, on a frame without history, or for a
     /// scene that cannot change, it does nothing.
+    ///
+    /// The EMA reads the confidence only where it blends a new sample with a reprojected
+    /// history (`source` names the EMA's validity plane), and a pixel's confidence comes from
+    /// the 3×3 strata around its own, so only strata with such a pixel in that neighbourhood
+    /// choose and re-shade a gradient sample. Without a budget that is nearly every stratum
+    /// of the right eye; under one, where an eye traces a few percent of its pixels (most of
+    /// them without history), it leaves out most of the choosing (up to nine projections a
+    /// stratum, most of them failing on the last frame's untraced pixels) and of the
+    /// re-shading, and the images are the same bits.
     pub(super) fn temporal_gradients(
         &mut self,
         eye: Eye,
+        source: super::Source,
         stats: &mut super::FrameStats,
         lent: Option<&Lent<'_>>,
     ) -> Result<bool, PipelineError> {
@@ -202,8 +255,20 @@ impl<S: FrameSource> Pipeline<S> {
         // One gradient sample per stratum, the rows of strata in parallel; then the mask of
         // the pixels to re-shade, serially (they are the last frame's, anywhere).
         let choose = Chooser { frame, camera, last_camera, planes: &planes, reasons, traced_before, extent: e };
+        if self.gradients_where_needed {
+            // The EMA's validity plane (the gradients run only with their own history rule,
+            // so the left eye's restart is never fused).
+            let reason = if source == super::Source::WorkCombined { &s.ema_reason } else { &s.cur.temporal_reason };
+            mark_needed(&s.has_new, reason, &mut g.new_in_stratum, &mut g.needed);
+        } else {
+            g.needed.as_mut_slice().fill(1);
+        }
+        let needed = &g.needed;
         g.source_pixel.as_mut_slice().par_chunks_mut(strata.width()).enumerate().for_each(|(sy, row)| {
-            row.iter_mut().enumerate().for_each(|(sx, found)| *found = choose.in_stratum(sx, sy))
+            let needed = &needed.as_slice()[sy * strata.width()..(sy + 1) * strata.width()];
+            for (sx, (found, &need)) in row.iter_mut().zip(needed).enumerate() {
+                *found = if need != 0 { choose.in_stratum(sx, sy) } else { NONE };
+            }
         });
         let chosen = mark_chosen(&mut g.mask, &g.source_pixel, 1);
         let chose = t.elapsed();

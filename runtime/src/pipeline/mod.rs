@@ -248,6 +248,10 @@ pub struct Pipeline<S: FrameSource> {
     /// Whether an EMA skips the pixels whose history is kept as reprojected
     /// ([`Pipeline::skips_kept_history`]). Always on; the unit tests turn it off.
     skip_kept_history: bool,
+    /// Whether temporal gradients are measured only in the strata that can reach a pixel
+    /// with a new sample (`Pipeline::temporal_gradients`). Always on; the unit tests turn it
+    /// off.
+    gradients_where_needed: bool,
 }
 
 const L: usize = Eye::Left as usize;
@@ -364,6 +368,7 @@ impl<S: FrameSource> Pipeline<S> {
             filtered_shown: false,
             fuse_left_restart: true,
             skip_kept_history: true,
+            gradients_where_needed: true,
         })
     }
 
@@ -758,11 +763,11 @@ impl<S: FrameSource> Pipeline<S> {
     /// sample or without a reprojected history. Elsewhere it would keep the history as the
     /// reprojection wrote it (clamped to the finite range and flushed, so the EMA's `finish`
     /// gives the same bits) and the length as reprojected: under a budget, nearly every
-    /// pixel. Only with the paper's history rule: the clamp rewrites reprojected histories
-    /// first.
+    /// pixel. Not with the clamp, which rewrites reprojected histories first (the temporal
+    /// gradients' confidence changes only pixels with a new sample).
     fn skips_kept_history(&self, source: Source) -> bool {
         self.skip_kept_history
-            && self.config.history == History::Paper
+            && self.config.history != History::Clamp
             && matches!(source, Source::Traced | Source::Work)
     }
 
@@ -1063,7 +1068,7 @@ impl<S: FrameSource> Pipeline<S> {
         stats: &mut FrameStats,
         lent: Option<&Lent<'_>>,
     ) -> Result<(), PipelineError> {
-        let gradients = self.temporal_gradients(eye, stats, lent)?;
+        let gradients = self.temporal_gradients(eye, source, stats, lent)?;
         let t = Instant::now();
         let params = EmaParams { alpha: self.config.alpha, ramp: self.config.ramp, band_rows: 16 };
         let track_len = self.config.tracks_history_length();

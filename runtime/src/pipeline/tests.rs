@@ -118,6 +118,60 @@ fn skipping_kept_histories_gives_the_whole_eye_emas_bits() {
     }
 }
 
+/// Temporal gradients measured only where they can reach a pixel with a new sample, and
+/// EMAs that skip kept histories, give the images of the gradients measured everywhere and
+/// EMAs over whole eyes, under a budget that leaves most pixels untraced (and without one,
+/// where every stratum is needed): a moving light, so the gradients run and change the
+/// histories.
+#[test]
+fn gradients_where_needed_give_the_images_of_gradients_everywhere() {
+    let renderer = Renderer::new(crate::scene::resolve("atrium-moving-light").unwrap()).unwrap();
+    let extent = Extent::new(67, 41).unwrap();
+    let tolerances = renderer.scene().tolerances.at_height(extent.height());
+    for (mode, budget) in [(Mode::Spatiotemporal, true), (Mode::Temporal, true), (Mode::Spatiotemporal, false)] {
+        let mut config = PipelineConfig::paper(mode, 1, tolerances);
+        config.history = History::Gradient;
+        config.budget = budget.then(|| std::time::Duration::from_nanos(1));
+        let build = |economical: bool| {
+            let mut p = Pipeline::new(&renderer, config, StereoRig::default(), extent).unwrap();
+            (p.gradients_where_needed, p.skip_kept_history) = (economical, economical);
+            p
+        };
+        let (mut economical, mut everywhere) = (build(true), build(false));
+        let (mut fewer, mut changed) = (0, 0);
+        for frame in 0..6 {
+            let head = renderer.scene().camera.pose_back_and_forth(frame);
+            let a = economical.render_frame(frame, &head).unwrap();
+            let b = everywhere.render_frame(frame, &head).unwrap();
+            let what = format!("{mode:?}, budget {budget}, frame {frame}");
+            assert_eq!(a.accumulation, b.accumulation, "{what}: accumulation counts");
+            assert_eq!(a.traced_pixels, b.traced_pixels, "{what}: traced pixels");
+            for eye in Eye::BOTH {
+                let what = format!("{what}, {eye:?}");
+                for (a, b) in economical.output(eye).planes().into_iter().zip(everywhere.output(eye).planes()) {
+                    assert_same_bits(a, b, &format!("{what}: output"));
+                }
+                for (a, b) in economical.history(eye).planes().into_iter().zip(everywhere.history(eye).planes()) {
+                    assert_same_bits(a, b, &format!("{what}: history"));
+                }
+            }
+            let (ours, all) = (a.gradient_samples[1], b.gradient_samples[1]);
+            assert!(ours <= all, "{what}: {ours} gradient samples against {all}");
+            if !budget {
+                assert_eq!(a.gradient_samples, b.gradient_samples, "{what}: every stratum is needed");
+            }
+            fewer += all - ours;
+            changed += b.gradient_changed[1];
+        }
+        // Not vacuous: the light's change shortened histories, and under the budget most
+        // strata were left out.
+        assert!(changed > 0, "{mode:?}: no stratum saw the light change");
+        if budget {
+            assert!(fewer > 0, "{mode:?}: every stratum was needed under the budget");
+        }
+    }
+}
+
 /// Panics at the first pixel whose bits differ, naming it.
 fn assert_same_bits(a: &PlaneBuf, b: &PlaneBuf, what: &str) {
     let pairs = a.as_slice().iter().zip(b.as_slice());
@@ -144,4 +198,65 @@ fn the_urgent_split_matches_its_definition() {
     assert_eq!(u, expected_has.iter().filter(|&&h| h != 0).count() as u64);
     assert!(u > 0 && u < w && w < n as u64);
     assert_eq!(count_set(&expected_rest), expected_rest.iter().filter(|&&r| r != 0).count() as u64);
+}
+
+/// The strata `mark_needed` keeps are all a pixel the EMA blends (a new sample and a
+/// reprojected history) depends on: confidences from the pairs of the needed strata alone
+/// equal those from every stratum's pairs at each such pixel (and differ elsewhere, so
+/// leaving strata out was not a no-op). Sparse clusters
+/// of new samples, as a budget leaves them, on a frame whose width and height are not
+/// multiples of the stratum.
+#[test]
+fn the_needed_strata_are_all_a_new_sample_reads() {
+    use crate::kernels::synth::Rng;
+    let mut rng = Rng::new(0x6e65_6564);
+    let e = Extent::new(97, 52).unwrap();
+    let strata = gradient::strata_extent(e);
+    let mut has_new = PlaneBuf::new(e, 0u8);
+    for _ in 0..12 {
+        let (x, y) = (rng.below(e.width()), rng.below(e.height()));
+        has_new.as_mut_slice()[y * e.width() + x] = 1;
+    }
+    // A reprojected history at most pixels: only those with one read the confidence.
+    let reasons: Vec<u8> = (0..e.pixels())
+        .map(|_| if rng.below(4) == 0 { Reason::DepthOrPosition } else { Reason::Reprojected } as u8)
+        .collect();
+    let reason = PlaneBuf::from_vec(reasons, e).unwrap();
+    let (mut scratch, mut needed) = (PlaneBuf::new(strata, 0u8), PlaneBuf::new(strata, 0u8));
+    gradients::mark_needed(&has_new, &reason, &mut scratch, &mut needed);
+    let pair = |rng: &mut Rng| if rng.below(6) == 0 { f32::NAN } else { 4.0 * rng.next_f32() };
+    let old = PlaneBuf::from_vec((0..strata.pixels()).map(|_| pair(&mut rng)).collect(), strata).unwrap();
+    let new = PlaneBuf::from_vec((0..strata.pixels()).map(|_| pair(&mut rng)).collect(), strata).unwrap();
+    let keep = |p: &PlaneBuf| {
+        let kept = p.as_slice().iter().zip(needed.as_slice()).map(|(&v, &n)| if n != 0 { v } else { f32::NAN });
+        PlaneBuf::from_vec(kept.collect(), strata).unwrap()
+    };
+    let (old_needed, new_needed) = (keep(&old), keep(&new));
+    let confidence = |old: &PlaneBuf, new: &PlaneBuf| {
+        let mut out = PlaneBuf::new(e, 0.0);
+        let input = GradientInput { old: old.view(), new: new.view(), prior: None, gain: 1.0 };
+        gradient::history_confidence(&input, out.view_mut()).unwrap();
+        out
+    };
+    let (all, only_needed) = (confidence(&old, &new), confidence(&old_needed, &new_needed));
+    let mut differ = 0;
+    let blended = has_new.as_slice().iter().zip(reason.as_slice()).map(|(&n, &r)| n != 0 && is_reprojected(r));
+    let mut checked = 0;
+    for (i, ((&a, &b), blended)) in all.as_slice().iter().zip(only_needed.as_slice()).zip(blended).enumerate() {
+        if blended {
+            checked += 1;
+            assert_eq!(
+                a.to_bits(),
+                b.to_bits(),
+                "pixel {i} has a new sample: {a} from every stratum, {b} from the needed"
+            );
+        } else {
+            differ += usize::from(a.to_bits() != b.to_bits());
+        }
+    }
+    let kept = needed.as_slice().iter().filter(|&&n| n != 0).count();
+    assert!(
+        differ > 0 && checked > 0 && kept < strata.pixels() / 2,
+        "{differ} pixels differ, {checked} checked, {kept} strata kept"
+    );
 }
