@@ -64,3 +64,29 @@ where
     let bands = height.div_ceil(rows);
     (0..bands).into_par_iter().map(|b| band(b * rows..((b + 1) * rows).min(height))).reduce(R::default, combine)
 }
+
+/// The first row of `0..height` for which `row_ok` is false, or `None`. The rows are checked
+/// in parallel on the caller's current rayon pool: a kernel's whole-plane boundary check is a
+/// pass over memory the kernel then reads again on every thread, so it runs as wide as the
+/// kernel. The first bad row, not any, so the error names the same pixel every time.
+pub(crate) fn first_bad_row(height: usize, row_ok: impl Fn(usize) -> bool + Sync) -> Option<usize> {
+    (0..height).into_par_iter().with_min_len(16).find_first(|&y| !row_ok(y))
+}
+
+#[cfg(test)]
+mod first_bad_row_tests {
+    use super::first_bad_row;
+
+    /// The first bad row whatever the others and the pool's split: an error names the same
+    /// pixel every time.
+    #[test]
+    fn finds_the_first_bad_row() {
+        for height in [0, 1, 15, 16, 17, 720] {
+            assert_eq!(first_bad_row(height, |_| true), None, "height {height}");
+            for first in (0..height).step_by(7) {
+                let found = first_bad_row(height, |y| y < first || (y - first) % 5 == 3 && y != first);
+                assert_eq!(found, Some(first), "height {height}");
+            }
+        }
+    }
+}

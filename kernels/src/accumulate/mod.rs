@@ -30,7 +30,7 @@
 mod scalar;
 mod simd;
 
-use crate::bands::{SharedRows, for_each_band};
+use crate::bands::{SharedRows, first_bad_row, for_each_band};
 use crate::frame::{FrameError, Plane, PlaneMut, RgbPlanes, RgbPlanesMut, same_extent};
 use crate::reproject::check_reason_plane;
 use crate::simd::F32s;
@@ -143,37 +143,33 @@ fn check_ema(input: &EmaInput<'_>, state: &EmaState<'_>, params: &EmaParams) -> 
 /// Refuses a confidence outside [0, 1] (or NaN) in the plane called `what`, naming the
 /// first such pixel.
 pub(crate) fn check_unit_interval(what: &'static str, plane: &Plane<'_>) -> Result<(), FrameError> {
-    for y in 0..plane.height() {
-        let row = plane.row(y);
-        let unit = |v: f32| (0.0..=1.0).contains(&v);
-        if !row.iter().fold(true, |ok, &v| ok & unit(v)) {
-            let x = row.iter().position(|&v| !unit(v)).expect("a bad confidence is in the row");
-            return Err(FrameError::ValueOutOfRange { what, x, y, value: f64::from(row[x]), allowed: "in [0, 1]" });
-        }
-    }
-    Ok(())
+    let unit = |v: f32| (0.0..=1.0).contains(&v);
+    // Folded without an early exit so the pass vectorises.
+    let Some(y) = first_bad_row(plane.height(), |y| plane.row(y).iter().fold(true, |ok, &v| ok & unit(v))) else {
+        return Ok(());
+    };
+    let row = plane.row(y);
+    let x = row.iter().position(|&v| !unit(v)).expect("a bad confidence is in the row");
+    Err(FrameError::ValueOutOfRange { what, x, y, value: f64::from(row[x]), allowed: "in [0, 1]" })
 }
 
 /// Refuses a history length that is not a count: negative, NaN or infinite (the ramp's
 /// `1/(n + 1)` would give a negative, infinite or NaN weight). Lengths are finite and ≥ 0.
 fn check_history_len(len: &Plane<'_>) -> Result<(), FrameError> {
-    for y in 0..len.height() {
-        let row = len.row(y);
-        // False for NaN, negatives and +inf; folded without an early exit so the pass
-        // vectorises.
-        let count = |v: f32| (0.0..=f32::MAX).contains(&v);
-        if !row.iter().fold(true, |ok, &v| ok & count(v)) {
-            let x = row.iter().position(|&v| !count(v)).expect("a bad length is in the row");
-            return Err(FrameError::ValueOutOfRange {
-                what: "history length plane",
-                x,
-                y,
-                value: f64::from(row[x]),
-                allowed: "a finite sample count >= 0",
-            });
-        }
-    }
-    Ok(())
+    // False for NaN, negatives and +inf; folded without an early exit so the pass vectorises.
+    let count = |v: f32| (0.0..=f32::MAX).contains(&v);
+    let Some(y) = first_bad_row(len.height(), |y| len.row(y).iter().fold(true, |ok, &v| ok & count(v))) else {
+        return Ok(());
+    };
+    let row = len.row(y);
+    let x = row.iter().position(|&v| !count(v)).expect("a bad length is in the row");
+    Err(FrameError::ValueOutOfRange {
+        what: "history length plane",
+        x,
+        y,
+        value: f64::from(row[x]),
+        allowed: "a finite sample count >= 0",
+    })
 }
 
 /// Scalar reference EMA step.

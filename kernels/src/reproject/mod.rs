@@ -94,20 +94,19 @@ pub const REASON_COUNT: usize = 6;
 /// undefined code as one of its own (discarded), silently. One pass of byte maxima per row
 /// (vectorised), so the check costs a small fraction of the kernel that reads the plane.
 pub fn check_reason_plane(what: &'static str, reasons: &Plane<'_, u8>) -> Result<(), FrameError> {
-    for y in 0..reasons.height() {
-        let row = reasons.row(y);
-        if row.iter().fold(0u8, |m, &c| m.max(c)) as usize >= REASON_COUNT {
-            let x = row.iter().position(|&c| c as usize >= REASON_COUNT).expect("the maximum is in the row");
-            return Err(FrameError::ValueOutOfRange {
-                what,
-                x,
-                y,
-                value: f64::from(row[x]),
-                allowed: "a reason code 0 ..= 5 (Reprojected .. Invalid)",
-            });
-        }
-    }
-    Ok(())
+    let row_ok = |y: usize| (reasons.row(y).iter().fold(0u8, |m, &c| m.max(c)) as usize) < REASON_COUNT;
+    let Some(y) = crate::bands::first_bad_row(reasons.height(), row_ok) else {
+        return Ok(());
+    };
+    let row = reasons.row(y);
+    let x = row.iter().position(|&c| c as usize >= REASON_COUNT).expect("the maximum is in the row");
+    Err(FrameError::ValueOutOfRange {
+        what,
+        x,
+        y,
+        value: f64::from(row[x]),
+        allowed: "a reason code 0 ..= 5 (Reprojected .. Invalid)",
+    })
 }
 
 impl Reason {
