@@ -31,19 +31,7 @@ fn the_fused_left_restart_gives_the_whole_eye_emas_bits() {
             let b = unfused.render_frame(frame, &head).unwrap();
             let counts = |s: FrameStats| FrameStats { times: StageTimes::default(), raster: None, ..s };
             assert_eq!(counts(a), counts(b), "ramp {ramp}, frame {frame}: statistics");
-            for eye in Eye::BOTH {
-                let what = format!("ramp {ramp}, frame {frame}, {eye:?}");
-                for (a, b) in fused.output(eye).planes().into_iter().zip(unfused.output(eye).planes()) {
-                    assert_same_bits(a, b, &format!("{what}: output"));
-                }
-                for (a, b) in fused.history(eye).planes().into_iter().zip(unfused.history(eye).planes()) {
-                    assert_same_bits(a, b, &format!("{what}: history"));
-                }
-                if ramp {
-                    let (a, b) = (&fused.eyes[eye as usize].cur.len, &unfused.eyes[eye as usize].cur.len);
-                    assert_same_bits(a, b, &format!("{what}: history length"));
-                }
-            }
+            assert_same_images(&fused, &unfused, ramp, &format!("ramp {ramp}, frame {frame}"));
             stereo_valid += a.stereo_reasons[L].get(Reason::Reprojected);
             assert!(a.accumulation[L].resets >= a.stereo_reasons[L].get(Reason::Reprojected));
         }
@@ -88,18 +76,8 @@ fn skipping_kept_histories_gives_the_whole_eye_emas_bits() {
                 let what = format!("{mode:?} {order:?}, ramp {ramp}, budget {budget}, frame {frame}");
                 let counts = |s: FrameStats| FrameStats { times: StageTimes::default(), raster: None, ..s };
                 assert_eq!(counts(a), counts(b), "{what}: statistics");
+                assert_same_images(&skipping, &whole, ramp, &what);
                 for eye in Eye::BOTH {
-                    let what = format!("{what}, {eye:?}");
-                    for (a, b) in skipping.output(eye).planes().into_iter().zip(whole.output(eye).planes()) {
-                        assert_same_bits(a, b, &format!("{what}: output"));
-                    }
-                    for (a, b) in skipping.history(eye).planes().into_iter().zip(whole.history(eye).planes()) {
-                        assert_same_bits(a, b, &format!("{what}: history"));
-                    }
-                    if ramp {
-                        let (a, b) = (&skipping.eyes[eye as usize].cur.len, &whole.eyes[eye as usize].cur.len);
-                        assert_same_bits(a, b, &format!("{what}: history length"));
-                    }
                     let s = &skipping.eyes[eye as usize];
                     kept += s
                         .has_new
@@ -146,15 +124,7 @@ fn gradients_where_needed_give_the_images_of_gradients_everywhere() {
             let what = format!("{mode:?}, budget {budget}, frame {frame}");
             assert_eq!(a.accumulation, b.accumulation, "{what}: accumulation counts");
             assert_eq!(a.traced_pixels, b.traced_pixels, "{what}: traced pixels");
-            for eye in Eye::BOTH {
-                let what = format!("{what}, {eye:?}");
-                for (a, b) in economical.output(eye).planes().into_iter().zip(everywhere.output(eye).planes()) {
-                    assert_same_bits(a, b, &format!("{what}: output"));
-                }
-                for (a, b) in economical.history(eye).planes().into_iter().zip(everywhere.history(eye).planes()) {
-                    assert_same_bits(a, b, &format!("{what}: history"));
-                }
-            }
+            assert_same_images(&economical, &everywhere, false, &what);
             let (ours, all) = (a.gradient_samples[1], b.gradient_samples[1]);
             assert!(ours <= all, "{what}: {ours} gradient samples against {all}");
             if !budget {
@@ -168,6 +138,27 @@ fn gradients_where_needed_give_the_images_of_gradients_everywhere() {
         assert!(changed > 0, "{mode:?}: no stratum saw the light change");
         if budget {
             assert!(fewer > 0, "{mode:?}: every stratum was needed under the budget");
+        }
+    }
+}
+
+/// Panics unless both pipelines' outputs and histories (and with `lengths`, history lengths)
+/// are the same bits in both eyes.
+fn assert_same_images<S: FrameSource>(a: &Pipeline<S>, b: &Pipeline<S>, lengths: bool, what: &str) {
+    for eye in Eye::BOTH {
+        let what = format!("{what}, {eye:?}");
+        for (x, y) in a.output(eye).planes().into_iter().zip(b.output(eye).planes()) {
+            assert_same_bits(x, y, &format!("{what}: output"));
+        }
+        for (x, y) in a.history(eye).planes().into_iter().zip(b.history(eye).planes()) {
+            assert_same_bits(x, y, &format!("{what}: history"));
+        }
+        if lengths {
+            assert_same_bits(
+                &a.eyes[eye as usize].cur.len,
+                &b.eyes[eye as usize].cur.len,
+                &format!("{what}: history length"),
+            );
         }
     }
 }
