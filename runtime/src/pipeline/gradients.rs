@@ -252,7 +252,7 @@ impl<S: FrameSource> Pipeline<S> {
         let (camera, last_camera) = (s.cur.gbuffer.camera, s.last_camera);
         let (traced_before, reasons) = (s.prev.traced_mask.view(), s.cur.temporal_reason.view());
         let strata = g.source_pixel.extent();
-        // One gradient sample per stratum, the rows of strata in parallel; then the mask of
+        // One gradient sample per needed stratum, the rows of strata in parallel; then the mask of
         // the pixels to re-shade, serially (they are the last frame's, anywhere).
         let choose = Chooser { frame, camera, last_camera, planes: &planes, reasons, traced_before, extent: e };
         if self.gradients_where_needed {

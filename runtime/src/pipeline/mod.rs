@@ -249,8 +249,8 @@ pub struct Pipeline<S: FrameSource> {
     /// ([`Pipeline::skips_kept_history`]). Always on; the unit tests turn it off.
     skip_kept_history: bool,
     /// Whether temporal gradients are measured only in the strata that can reach a pixel
-    /// with a new sample (`Pipeline::temporal_gradients`). Always on; the unit tests turn it
-    /// off.
+    /// the EMA blends: a new sample on a reprojected history (`Pipeline::temporal_gradients`).
+    /// Always on; the unit tests turn it off.
     gradients_where_needed: bool,
 }
 
