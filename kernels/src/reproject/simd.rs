@@ -4,6 +4,7 @@
 use super::scalar::write_pixel;
 use super::{Prepared, Reason, ReasonCounts, RowOut};
 use crate::bilinear::{Footprints, coherent_row, renormalise_simd};
+use crate::frame::Plane;
 use crate::gbuffer::{SurfaceLayout, Surfels};
 use crate::simd::{F32s, LANES, TapCoords, any_nonzero, flush_subnormal, leading_zero_bytes, store};
 
@@ -28,6 +29,13 @@ pub(super) fn simd_row<L: SurfaceLayout, const C: usize, const AVX512: bool>(
     // (refusals come in runs: edges, skies, disocclusions).
     #[cfg(target_arch = "x86_64")]
     let mut wide_from = 0;
+    // Prefetches of the wanted groups, running a few groups ahead of the walk.
+    let mut ahead = p.pixel_mask.as_ref().map(|m| WantedAhead::new(m, y));
+    if let Some(ahead) = &mut ahead {
+        for _ in 0..WANTED_AHEAD_GROUPS {
+            ahead.advance(p, row);
+        }
+    }
     let mut x = 0;
     while x + LANES <= width {
         #[cfg(target_arch = "x86_64")]
@@ -52,19 +60,12 @@ pub(super) fn simd_row<L: SurfaceLayout, const C: usize, const AVX512: bool>(
                 let groups = leading_zero_bytes(&m[x..width - width % LANES]) / LANES;
                 row.reason[x..x + groups * LANES].fill(Reason::Invalid as u8);
                 x += groups * LANES;
-                if x + LANES <= width {
-                    prefetch_group(p, x, y);
-                }
                 continue;
             }
             Some(m) => {
-                // A sparse mask leaves the planes uncached where it wants pixels: start
-                // loading those of the group two ahead (the target's, and the source's
-                // around the same place, where a small motion puts the taps).
-                if let Some(ahead) = m.get(x + MASK_AHEAD..x + MASK_AHEAD + LANES)
-                    && any_nonzero(ahead)
-                {
-                    prefetch_group(p, x + MASK_AHEAD, y);
+                // One wanted group reached: one more prefetched ahead.
+                if let Some(ahead) = &mut ahead {
+                    ahead.advance(p, row);
                 }
                 wanted_bits(&m[x..x + LANES])
             }
@@ -111,8 +112,53 @@ pub(super) fn simd_row<L: SurfaceLayout, const C: usize, const AVX512: bool>(
     counts
 }
 
-/// How far ahead (pixels) a masked row prefetches the planes of a wanted group.
-const MASK_AHEAD: usize = 2 * LANES;
+/// How many wanted groups a masked walk prefetches ahead of the one it reprojects.
+const WANTED_AHEAD_GROUPS: usize = 4;
+
+/// A cursor over a sparse pixel mask that prefetches the planes of the groups it wants, some
+/// wanted groups before the walk reaches them. Those planes are uncached (nothing near them
+/// was read this frame) and scattered along silhouettes, a pattern the hardware prefetcher
+/// cannot foresee but the mask names in advance. The cursor runs from row `y` into row
+/// `y + 1`, so a row's first wanted groups were prefetched by the row before.
+struct WantedAhead<'m> {
+    rows: [&'m [u8]; 2],
+    y: usize,
+    /// Which of `rows` the cursor is in.
+    row: usize,
+    /// The first column (a group's) not yet searched.
+    x: usize,
+}
+
+impl<'m> WantedAhead<'m> {
+    fn new(mask: &Plane<'m, u8>, y: usize) -> Self {
+        let next = if y + 1 < mask.height() { mask.row(y + 1) } else { &[] };
+        Self { rows: [mask.row(y), next], y, row: 0, x: 0 }
+    }
+
+    /// Prefetches the next wanted group after the cursor, if the two rows hold one (their
+    /// scalar tails are left out: the walk reads those a pixel at a time).
+    #[inline(always)]
+    fn advance<L: SurfaceLayout>(&mut self, p: &Prepared<'_, L>, out: &RowOut<'_>) {
+        while self.row < 2 {
+            let mask = self.rows[self.row];
+            let end = mask.len() - mask.len() % LANES;
+            if self.x < end {
+                let group = self.x + leading_zero_bytes(&mask[self.x..end]) / LANES * LANES;
+                if group < end {
+                    prefetch_group(p, group, self.y + self.row);
+                    if self.row == 0 {
+                        // The output lines it will write (a group writes only some lanes,
+                        // so each line is read first).
+                        out.channels[..p.channel_count].iter().for_each(|c| crate::simd::prefetch(&c[group]));
+                    }
+                    self.x = group + LANES;
+                    return;
+                }
+            }
+            (self.row, self.x) = (self.row + 1, 0);
+        }
+    }
+}
 
 /// Bit `i` set where `mask[i]` is non-zero (the first `LANES` bytes).
 #[inline(always)]
