@@ -241,6 +241,7 @@ impl<S: FrameSource> Pipeline<S> {
         }
         let t = Instant::now();
         let in_work = self.samples_in_work(eye);
+        let fused = source == super::Source::WorkCombined && self.fuses_left_restart();
         let e = self.extent;
         let frame = stats.frame;
         let s = &mut self.eyes[eye as usize];
@@ -256,9 +257,7 @@ impl<S: FrameSource> Pipeline<S> {
         // the pixels to re-shade, serially (they are the last frame's, anywhere).
         let choose = Chooser { frame, camera, last_camera, planes: &planes, reasons, traced_before, extent: e };
         if self.gradients_where_needed {
-            // The EMA's validity plane (the gradients run only with their own history rule,
-            // so the left eye's restart is never fused).
-            let reason = if source == super::Source::WorkCombined { &s.ema_reason } else { &s.cur.temporal_reason };
+            let reason = super::ema_validity(&s.ema_reason, &s.cur.temporal_reason, source, fused);
             mark_needed(&s.has_new, reason, &mut g.new_in_stratum, &mut g.needed);
         } else {
             g.needed.as_mut_slice().fill(1);

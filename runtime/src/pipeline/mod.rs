@@ -1075,14 +1075,11 @@ impl<S: FrameSource> Pipeline<S> {
         let fused = source == Source::WorkCombined && self.fuses_left_restart();
         let skip_kept = self.skips_kept_history(source);
         let s = &mut self.eyes[eye as usize];
-        let (new, reason) = match source {
-            Source::Traced => (s.cur.traced.view(), s.cur.temporal_reason.view()),
-            Source::Work => (s.cur.work.view(), s.cur.temporal_reason.view()),
-            // Fused, only the stereo-discarded pixels, where the combination is the temporal
-            // reason.
-            Source::WorkCombined if fused => (s.cur.work.view(), s.cur.temporal_reason.view()),
-            Source::WorkCombined => (s.cur.work.view(), s.ema_reason.view()),
+        let new = match source {
+            Source::Traced => s.cur.traced.view(),
+            Source::Work | Source::WorkCombined => s.cur.work.view(),
         };
+        let reason = ema_validity(&s.ema_reason, &s.cur.temporal_reason, source, fused).view();
         let pixel_mask = if fused {
             Some(s.wanted.view())
         } else if skip_kept && kept_history_mask(&mut s.urgent, &s.has_new, &reason) {
@@ -1111,6 +1108,24 @@ impl<S: FrameSource> Pipeline<S> {
         total.resets += acc.resets;
         stats.times.accumulation += t.elapsed();
         Ok(())
+    }
+}
+
+/// The validity plane an EMA of `source` reads (`ema_reason` and `temporal_reason` are the
+/// eye's): the temporal reasons, except for the paper order's left eye (`WorkCombined`),
+/// whose plane [`Step::CombineLeftValidity`] combined. With the left eye's restart `fused`
+/// into the stereo pass, that EMA visits only the stereo-discarded pixels, where the
+/// combination is the temporal reason. The EMA and the gradients' choice of strata both
+/// take it from here, so they read the same plane.
+fn ema_validity<'p>(
+    ema_reason: &'p PlaneBuf<u8>,
+    temporal_reason: &'p PlaneBuf<u8>,
+    source: Source,
+    fused: bool,
+) -> &'p PlaneBuf<u8> {
+    match source {
+        Source::WorkCombined if !fused => ema_reason,
+        Source::Traced | Source::Work | Source::WorkCombined => temporal_reason,
     }
 }
 
