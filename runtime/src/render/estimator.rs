@@ -4,7 +4,8 @@
 
 use glam::Vec3;
 
-use crate::kernels::bvh::{Hit, PreparedRay, Ray, TriHit, intersect_triangle};
+use crate::kernels::bvh::{Hit, PreparedRay, Ray, TriHit, intersect_triangles_lanes};
+use crate::kernels::simd::LANES;
 use crate::scene::MaterialKind;
 
 use super::bsdf::{self, ShadingPoint};
@@ -76,9 +77,8 @@ impl Renderer {
             return None;
         }
         let prepared = PreparedRay::new(&Ray { tmax, ..*ray })?;
-        let triangles = lights.moving_triangles();
-        let (index, hit) = nearest_moving(triangles, &prepared, tmax)?;
-        Some(Surface::moving(triangles, index, hit.t, hit.uv()))
+        let (index, hit) = nearest_moving(lights, &prepared, tmax)?;
+        Some(Surface::moving(lights.moving_triangles(), index, hit.t, hit.uv()))
     }
 
     /// Shading information where a ray along `dir` meets `surface`, or `None` for a moving
@@ -298,19 +298,104 @@ impl Renderer {
     }
 }
 
-/// The nearest of `triangles` along `ray` nearer than `limit`: its index and the hit. The
-/// one loop behind moving geometry's ray hits and its motion vectors.
+/// The nearest of the frame's moving triangles along `ray` nearer than `limit`: its index
+/// and the hit. The one search behind moving geometry's ray hits and its motion vectors. It
+/// tests eight triangles at a time ([`FrameLights::moving_blocks`]); each lane's test equals
+/// the scalar one bit for bit, and a block keeps its lowest lane on equal `t`, so the
+/// answer is [`nearest_moving_scalar`]'s, the reference one triangle at a time.
 #[inline]
-pub(super) fn nearest_moving(triangles: &[MovingTriangle], ray: &PreparedRay, limit: f32) -> Option<(u32, TriHit)> {
+pub(super) fn nearest_moving(lights: &FrameLights, ray: &PreparedRay, limit: f32) -> Option<(u32, TriHit)> {
+    let count = lights.moving_triangles().len();
+    let mut nearest = None;
+    let mut limit = limit;
+    for (b, block) in lights.moving_blocks().iter().enumerate() {
+        let lanes = (count - b * LANES).min(LANES);
+        // A later block must be strictly nearer, as a later triangle must in the reference.
+        if let Some((lane, hit)) = intersect_triangles_lanes(ray, block, (1 << lanes) - 1, limit) {
+            limit = hit.t;
+            nearest = Some(((b * LANES) as u32 + lane, hit));
+        }
+    }
+    nearest
+}
+
+/// The scalar reference of [`nearest_moving`]: each triangle in turn, a hit replacing the
+/// one kept only when strictly nearer.
+#[cfg(test)]
+fn nearest_moving_scalar(triangles: &[MovingTriangle], ray: &PreparedRay, limit: f32) -> Option<(u32, TriHit)> {
     let mut nearest = None;
     let mut limit = limit;
     for (index, tri) in triangles.iter().enumerate() {
-        let v = tri.v;
-        let verts = [v[0].x, v[0].y, v[0].z, v[1].x, v[1].y, v[1].z, v[2].x, v[2].y, v[2].z];
-        if let Some(hit) = intersect_triangle(ray, &verts, limit) {
+        if let Some(hit) = crate::kernels::bvh::intersect_triangle(ray, &super::lights::flatten(&tri.v), limit) {
             limit = hit.t;
             nearest = Some((index as u32, hit));
         }
     }
     nearest
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+
+    use super::*;
+    use crate::scene::light::icosphere;
+
+    /// A small seeded generator (xorshift), uniform in [0, 1).
+    struct Lcg(u64);
+
+    impl Lcg {
+        fn next(&mut self) -> f32 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 7;
+            self.0 ^= self.0 << 17;
+            (self.0 >> 40) as f32 / (1u64 << 24) as f32
+        }
+
+        fn vec(&mut self, scale: f32) -> Vec3 {
+            Vec3::new(self.next() - 0.5, self.next() - 0.5, self.next() - 0.5) * (2.0 * scale)
+        }
+    }
+
+    /// The blocked search against the one-at-a-time reference, on an icosphere light (80
+    /// triangles: ten full blocks) with duplicated triangles (equal `t`: the lower index must
+    /// win), a partial last block, and rays from everywhere: through the sphere, grazing it,
+    /// along its triangles' edges and vertices, with limits before and after the hits.
+    #[test]
+    fn blocked_moving_search_equals_the_scalar_reference() {
+        let mut rng = Lcg(0x9e37_79b9_7f4a_7c15);
+        let mut tris: Vec<[Vec3; 3]> = icosphere(1.0, 1);
+        // Duplicates of earlier triangles, one in another block and one in the same block.
+        tris.push(tris[3]);
+        tris.insert(9, tris[12]);
+        for _ in 0..5 {
+            let c = rng.vec(2.0);
+            tris.push([c, c + rng.vec(0.5), c + rng.vec(0.5)]);
+        }
+        assert_ne!(tris.len() % LANES, 0, "a partial last block");
+        let moving = |v: [Vec3; 3]| MovingTriangle { v, previous: v, radiance: Vec3::ONE, material: 0 };
+        let lights = FrameLights::with_moving_triangles(tris.iter().copied().map(moving).collect());
+        let (mut hits, mut rays) = (0, 0);
+        for i in 0..20_000 {
+            let origin = rng.vec(4.0);
+            // Aim at a random point near the sphere, or exactly at a vertex or an edge's middle.
+            let t = &tris[i % tris.len()];
+            let aim = match i % 4 {
+                0 => t[0],
+                1 => 0.5 * (t[0] + t[1]),
+                _ => rng.vec(1.3),
+            };
+            let Some(ray) = PreparedRay::new(&Ray::new(origin, aim - origin)) else { continue };
+            let limit = if i % 3 == 0 { 0.2 + 2.0 * rng.next() } else { f32::INFINITY };
+            let blocked = nearest_moving(&lights, &ray, limit);
+            let scalar = nearest_moving_scalar(lights.moving_triangles(), &ray, limit);
+            let bits = |h: Option<(u32, TriHit)>| {
+                h.map(|(index, hit)| (index, hit.t.to_bits(), hit.e.map(f32::to_bits), hit.det.to_bits()))
+            };
+            assert_eq!(bits(blocked), bits(scalar), "ray {i} from {origin} towards {aim}, limit {limit}");
+            hits += usize::from(scalar.is_some());
+            rays += 1;
+        }
+        assert!(hits > rays / 4 && hits < rays, "{hits} hits of {rays} rays: the rays must test both outcomes");
+    }
 }

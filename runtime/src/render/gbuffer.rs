@@ -53,7 +53,7 @@ impl Renderer {
             // The ray has unit view depth, so the pixel's surface lies at t = depth; a moving
             // triangle up to a rounding margin beyond it is the one the pixel sees.
             let limit = depth[i] * (1.0 + 1e-5) + f32::MIN_POSITIVE;
-            if let Some((index, hit)) = nearest_moving(triangles, &ray, limit) {
+            if let Some((index, hit)) = nearest_moving(lights, &ray, limit) {
                 let tri = &triangles[index as usize];
                 let (u, v) = hit.uv();
                 let moved = |k: usize| tri.v[k] - tri.previous[k];

@@ -13,6 +13,8 @@
 use glam::{Vec2, Vec3};
 
 use super::spawn::{ShadowTarget, barycentric_point};
+use crate::kernels::bvh::{TriVerts, TriangleLanes};
+use crate::kernels::simd::LANES;
 use crate::scene::light::sample_triangle;
 use crate::scene::sampling::luminance;
 use crate::scene::{Environment, MovingShape, Scene, SpotCone, SunLight};
@@ -89,6 +91,10 @@ pub struct FrameLights {
     cdf: Vec<f32>,
     pmf: Vec<f32>,
     moving_triangles: Vec<MovingTriangle>,
+    /// `moving_triangles` eight at a time in SIMD lanes (the last block padded), for
+    /// [`super::estimator::nearest_moving`]: an icosphere light is 80 triangles that every
+    /// ray towards it tests.
+    moving_blocks: Vec<TriangleLanes>,
     /// The distinct materials of `moving_triangles` (a handful), for finding the pixels that
     /// may see moving geometry without scanning every triangle per pixel.
     moving_materials: Vec<u32>,
@@ -160,6 +166,7 @@ impl FrameLights {
         if scene.lights.environment.is_some() {
             self.records.push(LightRecord::Environment);
         }
+        self.fill_moving_blocks();
         for t in &self.moving_triangles {
             if !self.moving_materials.contains(&t.material) {
                 self.moving_materials.push(t.material);
@@ -167,6 +174,27 @@ impl FrameLights {
         }
         self.moving_bound = bound(&self.moving_triangles);
         self.build_distribution(scene);
+    }
+
+    /// `moving_blocks` from `moving_triangles` (reusing the vector's capacity).
+    fn fill_moving_blocks(&mut self) {
+        self.moving_blocks.clear();
+        for chunk in self.moving_triangles.chunks(LANES) {
+            let mut verts: [TriVerts; LANES] = [[0.0; 9]; LANES];
+            for (dst, t) in verts.iter_mut().zip(chunk) {
+                *dst = flatten(&t.v);
+            }
+            self.moving_blocks.push(TriangleLanes::new(&verts[..chunk.len()]));
+        }
+    }
+
+    /// A table holding only `triangles` as moving geometry (for tests of the searches).
+    #[cfg(test)]
+    pub(super) fn with_moving_triangles(triangles: Vec<MovingTriangle>) -> Self {
+        let mut lights = Self { moving_triangles: triangles, ..Self::default() };
+        lights.fill_moving_blocks();
+        lights.moving_bound = bound(&lights.moving_triangles);
+        lights
     }
 
     fn push_triangle(&mut self, v: [Vec3; 3], radiance: Vec3) {
@@ -222,6 +250,11 @@ impl FrameLights {
     /// Triangles of moving area lights and moving objects at this frame.
     pub fn moving_triangles(&self) -> &[MovingTriangle] {
         &self.moving_triangles
+    }
+
+    /// [`FrameLights::moving_triangles`] in blocks of eight (the last one padded).
+    pub fn moving_blocks(&self) -> &[TriangleLanes] {
+        &self.moving_blocks
     }
 
     /// The distinct materials the moving triangles carry ([`MovingTriangle::material`]).
@@ -302,6 +335,11 @@ impl FrameLights {
             }
         }
     }
+}
+
+/// A triangle's vertices as the triangle tests take them.
+pub(super) fn flatten(v: &[Vec3; 3]) -> TriVerts {
+    [v[0].x, v[0].y, v[0].z, v[1].x, v[1].y, v[1].z, v[2].x, v[2].y, v[2].z]
 }
 
 fn bound(tris: &[MovingTriangle]) -> (Vec3, f32) {
