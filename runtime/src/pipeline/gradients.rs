@@ -89,27 +89,50 @@ pub(super) fn mark_needed(
     let (w, h) = (has_new.extent().width(), has_new.extent().height());
     let sw = new_in_stratum.extent().width();
     new_in_stratum.as_mut_slice().par_chunks_mut(sw).enumerate().for_each(|(sy, row)| {
-        row.fill(0);
-        for y in sy * STRATUM..((sy + 1) * STRATUM).min(h) {
-            let pixels = &has_new.as_slice()[y * w..(y + 1) * w];
-            let reasons = &reason.as_slice()[y * w..(y + 1) * w];
-            for (flag, (new, reasons)) in row.iter_mut().zip(pixels.chunks(STRATUM).zip(reasons.chunks(STRATUM))) {
-                *flag |= new.iter().zip(reasons).fold(0, |any, (&n, &r)| any | (n & u8::from(is_reprojected(r))));
+        let rows = sy * STRATUM..((sy + 1) * STRATUM).min(h);
+        // A stretch of the stratum row at a time: its pixel rows OR-ed column by column (a
+        // loop the compiler vectorises), then each stratum's three columns.
+        let mut blended = [0u8; BLENDED_CHUNK];
+        for (chunk, flags) in row.chunks_mut(BLENDED_CHUNK / STRATUM).enumerate() {
+            let x0 = chunk * BLENDED_CHUNK;
+            let columns = BLENDED_CHUNK.min(w - x0);
+            let blended = &mut blended[..columns];
+            blended.fill(0);
+            for y in rows.clone() {
+                let at = y * w + x0;
+                let pixels = &has_new.as_slice()[at..at + columns];
+                let reasons = &reason.as_slice()[at..at + columns];
+                for ((b, &n), &r) in blended.iter_mut().zip(pixels).zip(reasons) {
+                    *b |= n & u8::from(is_reprojected(r));
+                }
+            }
+            for (flag, stratum) in flags.iter_mut().zip(blended.chunks(STRATUM)) {
+                *flag = stratum.iter().fold(0, |any, &b| any | b);
             }
         }
     });
     let sh = new_in_stratum.extent().height();
-    let new_in = &*new_in_stratum;
+    let new_in = new_in_stratum.as_slice();
     needed.as_mut_slice().par_chunks_mut(sw).enumerate().for_each(|(sy, row)| {
-        let rows = sy.saturating_sub(1)..(sy + 2).min(sh);
-        for (sx, flag) in row.iter_mut().enumerate() {
-            let columns = sx.saturating_sub(1)..(sx + 2).min(sw);
-            *flag = rows
-                .clone()
-                .fold(0, |any, ny| any | new_in.as_slice()[ny * sw..][columns.clone()].iter().fold(0, |a, &f| a | f));
+        // The 3×3 neighbourhood as two passes of three: the rows above and below (vectorised),
+        // then each stratum's left and right neighbours in place.
+        row.copy_from_slice(&new_in[sy * sw..(sy + 1) * sw]);
+        for ny in [sy.wrapping_sub(1), sy + 1].into_iter().filter(|&ny| ny < sh) {
+            for (flag, &f) in row.iter_mut().zip(&new_in[ny * sw..(ny + 1) * sw]) {
+                *flag |= f;
+            }
+        }
+        let mut left = 0;
+        for sx in 0..sw {
+            let (own, right) = (row[sx], row.get(sx + 1).copied().unwrap_or(0));
+            row[sx] = left | own | right;
+            left = own;
         }
     });
 }
+
+/// Pixel columns [`mark_needed`] ORs at a time (a multiple of [`STRATUM`], on the stack).
+const BLENDED_CHUNK: usize = 96 * STRATUM;
 
 /// Rec. 709 luminance (`kernels::colour::luminance`) of a texel.
 fn luminance([r, g, b]: [f32; 3]) -> f32 {
@@ -312,5 +335,55 @@ impl<S: FrameSource> Pipeline<S> {
         stats.gradient_changed[eye as usize] += measured.changed;
         stats.times.gradients += chose + t.elapsed();
         Ok(true)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kernels::Extent;
+    use crate::kernels::reproject::Reason;
+    use crate::kernels::synth::Rng;
+
+    /// [`mark_needed`] by its definition, a stratum at a time: any pixel of the 3×3
+    /// neighbourhood of strata with a new sample and a reprojected history.
+    fn mark_needed_by_definition(has_new: &PlaneBuf<u8>, reason: &PlaneBuf<u8>, strata: Extent) -> Vec<u8> {
+        let (w, h) = (has_new.extent().width(), has_new.extent().height());
+        let blended =
+            |x: usize, y: usize| has_new.as_slice()[y * w + x] != 0 && is_reprojected(reason.as_slice()[y * w + x]);
+        let mut needed = vec![0; strata.pixels()];
+        for sy in 0..strata.height() {
+            for sx in 0..strata.width() {
+                let ys = (sy.saturating_sub(1) * STRATUM)..((sy + 2) * STRATUM).min(h);
+                let xs = (sx.saturating_sub(1) * STRATUM)..((sx + 2) * STRATUM).min(w);
+                let any = ys.flat_map(|y| xs.clone().map(move |x| (x, y))).any(|(x, y)| blended(x, y));
+                needed[sy * strata.width() + sx] = u8::from(any);
+            }
+        }
+        needed
+    }
+
+    /// Odd sizes (a partial last stratum each way), a frame wider than one stretch of
+    /// [`BLENDED_CHUNK`] columns with a partial last stretch, sparse and dense masks.
+    #[test]
+    fn the_needed_strata_match_their_definition() {
+        let mut rng = Rng::new(0x6d61_726b);
+        for (w, h) in [(1, 1), (2, 5), (3, 3), (7, 4), (97, 52), (290, 7), (577, 11), (1280, 9)] {
+            let e = Extent::new(w, h).unwrap();
+            let strata = gradient::strata_extent(e);
+            for density in [200, 30, 3] {
+                let has_new: Vec<u8> = (0..e.pixels()).map(|_| u8::from(rng.below(density) == 0)).collect();
+                let reasons: Vec<u8> = (0..e.pixels())
+                    .map(|_| if rng.below(3) == 0 { Reason::DepthOrPosition } else { Reason::Reprojected } as u8)
+                    .collect();
+                let (has_new, reason) =
+                    (PlaneBuf::from_vec(has_new, e).unwrap(), PlaneBuf::from_vec(reasons, e).unwrap());
+                // Scratch and output start dirty: every value must be written.
+                let (mut scratch, mut needed) = (PlaneBuf::new(strata, 7u8), PlaneBuf::new(strata, 9u8));
+                mark_needed(&has_new, &reason, &mut scratch, &mut needed);
+                let expected = mark_needed_by_definition(&has_new, &reason, strata);
+                assert_eq!(needed.as_slice(), &expected[..], "{w}×{h}, one new sample in {density}");
+            }
+        }
     }
 }
