@@ -751,11 +751,12 @@ impl<S: FrameSource> Pipeline<S> {
     }
 
     /// Whether the left eye's stereo samples go straight into its history, and its EMA
-    /// runs only where stereo reprojection was discarded (see the module notes). Only with
-    /// the paper's history rule: the clamp and the temporal gradients read the whole
-    /// stereo-mode image.
+    /// runs only where stereo reprojection was discarded (see the module notes). Not with
+    /// the clamp, which reads the whole stereo-mode image as new samples. The temporal
+    /// gradients read only the last frame's traced pixels of it, which the trace writes
+    /// either way, and their confidence only where the EMA blends.
     fn fuses_left_restart(&self) -> bool {
-        self.fuse_left_restart && self.left_history_on_demand() && self.config.history == History::Paper
+        self.fuse_left_restart && self.left_history_on_demand() && self.config.history != History::Clamp
     }
 
     /// Whether an EMA of the eye's own samples (`source` [`Source::Traced`] or

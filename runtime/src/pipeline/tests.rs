@@ -7,16 +7,24 @@ use crate::render::Renderer;
 /// The paper-order left eye with its history restarted in the stereo pass and its EMA masked
 /// to the stereo-discarded pixels gives the bits of the EMA over the whole eye: outputs,
 /// histories, history lengths and every count, frame after frame of a moving camera, with
-/// the alpha ramp (history lengths tracked) and without.
+/// the alpha ramp (history lengths tracked) and without, with the paper's history and with
+/// the temporal gradients (on a scene whose light moves, so they measure).
 #[test]
 fn the_fused_left_restart_gives_the_whole_eye_emas_bits() {
-    let renderer = Renderer::new(crate::scene::resolve("cornell").unwrap()).unwrap();
+    for (scene, history) in [("cornell", History::Paper), ("atrium-moving-light", History::Gradient)] {
+        fused_left_restart_gives_the_whole_eye_emas_bits(scene, history);
+    }
+}
+
+fn fused_left_restart_gives_the_whole_eye_emas_bits(scene: &str, history: History) {
+    let renderer = Renderer::new(crate::scene::resolve(scene).unwrap()).unwrap();
     // An odd width: the EMA's tail pixels go through its scalar reference.
     let extent = Extent::new(61, 37).unwrap();
     let tolerances = renderer.scene().tolerances.at_height(extent.height());
+    let mut gradient_samples = 0;
     for ramp in [false, true] {
         let mut config = PipelineConfig::paper(Mode::Spatiotemporal, 1, tolerances);
-        config.ramp = ramp;
+        (config.ramp, config.history) = (ramp, history);
         let build = |fused: bool| {
             let mut p = Pipeline::new(&renderer, config, StereoRig::default(), extent).unwrap();
             p.fuse_left_restart = fused;
@@ -33,11 +41,14 @@ fn the_fused_left_restart_gives_the_whole_eye_emas_bits() {
             assert_eq!(counts(a), counts(b), "ramp {ramp}, frame {frame}: statistics");
             assert_same_images(&fused, &unfused, ramp, &format!("ramp {ramp}, frame {frame}"));
             stereo_valid += a.stereo_reasons[L].get(Reason::Reprojected);
+            gradient_samples += a.gradient_samples[L];
             assert!(a.accumulation[L].resets >= a.stereo_reasons[L].get(Reason::Reprojected));
         }
         // Not a vacuous comparison: most left pixels took the fused restart.
-        assert!(stereo_valid > 8 * extent.pixels() as u64 / 2, "{stereo_valid} stereo-valid pixels");
+        assert!(stereo_valid > 8 * extent.pixels() as u64 / 2, "{scene}: {stereo_valid} stereo-valid pixels");
     }
+    // With the gradients, the left eye measured some.
+    assert_eq!(gradient_samples > 0, history == History::Gradient, "{scene}: {gradient_samples} gradient samples");
 }
 
 /// An EMA that skips the pixels whose history it would keep as reprojected gives the bits
