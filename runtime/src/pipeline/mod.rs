@@ -26,8 +26,9 @@
 //! the paper-order `spatiotemporal` mode the left eye's history is reprojected only where
 //! its stereo reprojection was discarded: elsewhere the shown pixel is the stereo sample
 //! and the history restarts from it, so the temporal reprojection there would be unused
-//! (its reason is recorded as `Invalid` and not counted). With the paper's history rule
-//! (`History::Paper`) the restart costs nothing: the stereo reprojection writes its samples
+//! (its reason is recorded as `Invalid` and not counted). With the paper's history rule or
+//! the temporal gradients (any `History` but the clamp, which reads the whole stereo-mode
+//! image as new samples) the restart costs nothing: the stereo reprojection writes its samples
 //! straight into the left history (the kernel flushes them as the EMA's restart would), and
 //! the left EMA runs only at the stereo-discarded pixels (its pixel mask). The result is the
 //! bits of the EMA over the whole eye; a test holds the two schedules to each other.
