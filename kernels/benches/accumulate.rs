@@ -91,6 +91,22 @@ fn ema_and_blend(c: &mut Criterion) {
         blend(&f.left.colour.view(), out.view_mut(), &reason.view(), &BlendParams::default()).expect("valid input")
     });
     group.finish();
+
+    // The variance-guided blend: the same pixels, weighed by the two eyes' history lengths
+    // (one eye's restarted at a sprinkle of disocclusions), the boundary checks of both
+    // length planes included.
+    let mut group = c.benchmark_group("blend_by_variance");
+    group.throughput(Throughput::Elements(e.pixels() as u64));
+    let own_len =
+        PlaneBuf::from_vec((0..e.pixels()).map(|_| if rng.next_f32() < 0.03 { 1.0 } else { 12.0 }).collect(), e)
+            .unwrap();
+    let other_len = PlaneBuf::new(e, 9.0f32);
+    let lengths = accumulate::BlendLengths { own: own_len.view(), other: other_len.view(), alpha: 0.2 };
+    simd_and_scalar(&mut group, |simd| {
+        let blend = if simd { accumulate::blend_by_variance } else { accumulate::blend_by_variance_scalar };
+        blend(&f.left.colour.view(), out.view_mut(), &reason.view(), &lengths, 16).expect("valid input")
+    });
+    group.finish();
 }
 
 /// The neighbourhood clamp of a 1280×720 history (the left eye's previous frame) into the

@@ -298,9 +298,12 @@ fn variance_blend_is_50_50_for_equal_lengths_and_leans_on_the_longer_history() {
     let own = random_rgb(e, &mut rng, 0.0);
     let reprojected = random_rgb(e, &mut rng, 0.0);
     let reason = PlaneBuf::new(e, Reason::Reprojected as u8);
-    for n in [0.0, 1.0, 3.5, 9.0, 1e9] {
+    // A tiny α lets a long history count as up to 2/α samples: the weights' sum must not
+    // overflow at the largest lengths.
+    for (n, alpha) in [(0.0, 0.2), (1.0, 0.2), (3.5, 0.2), (9.0, 0.2), (1e9, 0.2), (f32::MAX, 1e-38), (f32::MAX, 1e-45)]
+    {
         let len = PlaneBuf::new(e, n);
-        let lengths = accumulate::BlendLengths { own: len.view(), other: len.view(), alpha: 0.2 };
+        let lengths = accumulate::BlendLengths { own: len.view(), other: len.view(), alpha };
         let mut by_variance = reprojected.clone();
         accumulate::blend_by_variance(&own.view(), by_variance.view_mut(), &reason.view(), &lengths, 4).unwrap();
         let mut fixed = reprojected.clone();

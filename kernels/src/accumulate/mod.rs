@@ -34,7 +34,9 @@ use crate::bands::{SharedRows, first_bad_row, for_each_band};
 use crate::frame::{FrameError, Plane, PlaneMut, RgbPlanes, RgbPlanesMut, same_extent};
 use crate::reproject::check_reason_plane;
 use crate::simd::F32s;
-pub use scalar::{blend_pixel, ema_pixel, ema_pixel_trusting, lerp, mean_variance_factor, variance_blend_toward};
+pub use scalar::{
+    blend_pixel, effective_samples, ema_pixel, ema_pixel_trusting, lerp, mean_variance_factor, variance_blend_toward,
+};
 use scalar::{blend_scalar_at, ema_scalar_at};
 pub(crate) use simd::byte_mask_eq;
 pub use simd::lerp_simd;

@@ -33,23 +33,32 @@ pub(super) fn finish(v: f32) -> f32 {
 /// The variance of an EMA's mean over `n` samples, as a multiple of one sample's:
 /// `Σw²`, which is `1/n` while the samples are few and `α/(2 − α)` once the EMA's weights
 /// take over (the larger of the two: the exact sum lies between them and both limits). A
-/// length below 1 (a hole, a restart) counts as 1.
+/// length below 1 (a hole, a restart) counts as 1. It is `1 /` [`effective_samples`].
 #[inline(always)]
 pub fn mean_variance_factor(n: f32, alpha: f32) -> f32 {
+    1.0 / effective_samples(n, alpha)
+}
+
+/// The number of independent samples an EMA's mean over `n` samples is worth: `n` while
+/// the samples are few, at most `(2 − α)/α` once the EMA's weights take over, at least 1 (a
+/// hole, a restart). The inverse of [`mean_variance_factor`].
+#[inline(always)]
+pub fn effective_samples(n: f32, alpha: f32) -> f32 {
     let n = if n >= 1.0 { n } else { 1.0 };
-    let running_mean = 1.0 / n;
-    let steady = alpha / (2.0 - alpha);
-    if running_mean > steady { running_mean } else { steady }
+    let steady = (2.0 - alpha) / alpha;
+    if n < steady { n } else { steady }
 }
 
 /// The reprojection's weight in the variance-guided blend: inverse-variance weights
-/// `w_own = v_other / (v_own + v_other)`, so `t = v_own / (v_own + v_other)` with each
-/// eye's [`mean_variance_factor`] (a sample's own variance taken as the same in both eyes:
-/// one surface seen twice). Equal lengths give exactly ½.
+/// `w_own = v_other / (v_own + v_other)`, so `t = v_own / (v_own + v_other)`, which with
+/// each eye's variance `1 / m` ([`effective_samples`] `m`) is `m_other / (m_own + m_other)`:
+/// one division (a sample's own variance is taken as the same in both eyes: one surface
+/// seen twice). Both counts are halved first (exactly), so that their sum stays finite even
+/// for lengths near `f32::MAX` under a tiny `α`. Equal lengths give exactly ½.
 #[inline(always)]
 pub fn variance_blend_toward(own_len: f32, other_len: f32, alpha: f32) -> f32 {
-    let (own, other) = (mean_variance_factor(own_len, alpha), mean_variance_factor(other_len, alpha));
-    own / (own + other)
+    let (own, other) = (0.5 * effective_samples(own_len, alpha), 0.5 * effective_samples(other_len, alpha));
+    other / (own + other)
 }
 
 /// One pixel of the EMA (scalar reference) with a history confidence of 1. Returns the new

@@ -142,14 +142,14 @@ pub(super) fn ema_row<'r>(
 /// [`super::variance_blend_toward`] on eight lanes.
 #[inline(always)]
 pub(super) fn variance_blend_toward_simd(own_len: F32s, other_len: F32s, alpha: f32) -> F32s {
-    let steady = F32s::splat(alpha / (2.0 - alpha));
-    let factor = |n: F32s| {
+    let steady = F32s::splat((2.0 - alpha) / alpha);
+    let count = |n: F32s| {
         let n = n.simd_ge(F32s::ONE).select(n, F32s::ONE);
-        let running_mean = F32s::ONE / n;
-        running_mean.simd_gt(steady).select(running_mean, steady)
+        n.simd_lt(steady).select(n, steady)
     };
-    let (own, other) = (factor(own_len), factor(other_len));
-    own / (own + other)
+    let half = F32s::splat(0.5);
+    let (own, other) = (half * count(own_len), half * count(other_len));
+    other / (own + other)
 }
 
 /// One row of [`super::blend`] and [`super::blend_by_variance`] (the reprojection's weight
