@@ -339,22 +339,12 @@ mod tests {
     use glam::Vec3;
 
     use super::*;
+    use crate::kernels::synth::Rng;
     use crate::scene::light::icosphere;
 
-    /// A small seeded generator (xorshift), uniform in [0, 1).
-    struct Lcg(u64);
-
-    impl Lcg {
-        fn next(&mut self) -> f32 {
-            self.0 ^= self.0 << 13;
-            self.0 ^= self.0 >> 7;
-            self.0 ^= self.0 << 17;
-            (self.0 >> 40) as f32 / (1u64 << 24) as f32
-        }
-
-        fn vec(&mut self, scale: f32) -> Vec3 {
-            Vec3::new(self.next() - 0.5, self.next() - 0.5, self.next() - 0.5) * (2.0 * scale)
-        }
+    /// A point of the cube `[−scale, scale]³`.
+    fn point(rng: &mut Rng, scale: f32) -> Vec3 {
+        Vec3::new(rng.range(-scale, scale), rng.range(-scale, scale), rng.range(-scale, scale))
     }
 
     /// The blocked search against the one-at-a-time reference, on an icosphere light (80
@@ -363,30 +353,30 @@ mod tests {
     /// along its triangles' edges and vertices, with limits before and after the hits.
     #[test]
     fn blocked_moving_search_equals_the_scalar_reference() {
-        let mut rng = Lcg(0x9e37_79b9_7f4a_7c15);
+        let mut rng = Rng::new(0x9e37_79b9_7f4a_7c15);
         let mut tris: Vec<[Vec3; 3]> = icosphere(1.0, 1);
         // Duplicates of earlier triangles, one in another block and one in the same block.
         tris.push(tris[3]);
         tris.insert(9, tris[12]);
         for _ in 0..5 {
-            let c = rng.vec(2.0);
-            tris.push([c, c + rng.vec(0.5), c + rng.vec(0.5)]);
+            let c = point(&mut rng, 2.0);
+            tris.push([c, c + point(&mut rng, 0.5), c + point(&mut rng, 0.5)]);
         }
         assert_ne!(tris.len() % LANES, 0, "a partial last block");
         let moving = |v: [Vec3; 3]| MovingTriangle { v, previous: v, radiance: Vec3::ONE, material: 0 };
         let lights = FrameLights::with_moving_triangles(tris.iter().copied().map(moving).collect());
         let (mut hits, mut rays) = (0, 0);
         for i in 0..20_000 {
-            let origin = rng.vec(4.0);
+            let origin = point(&mut rng, 4.0);
             // Aim at a random point near the sphere, or exactly at a vertex or an edge's middle.
             let t = &tris[i % tris.len()];
             let aim = match i % 4 {
                 0 => t[0],
                 1 => 0.5 * (t[0] + t[1]),
-                _ => rng.vec(1.3),
+                _ => point(&mut rng, 1.3),
             };
             let Some(ray) = PreparedRay::new(&Ray::new(origin, aim - origin)) else { continue };
-            let limit = if i % 3 == 0 { 0.2 + 2.0 * rng.next() } else { f32::INFINITY };
+            let limit = if i % 3 == 0 { rng.range(0.2, 2.2) } else { f32::INFINITY };
             let blocked = nearest_moving(&lights, &ray, limit);
             let scalar = nearest_moving_scalar(lights.moving_triangles(), &ray, limit);
             let bits = |h: Option<(u32, TriHit)>| {
