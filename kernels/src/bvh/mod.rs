@@ -101,6 +101,7 @@ pub(crate) use ray::{NODE_PAD, RCP_CLAMP};
 pub(crate) use triangle::watertight_lanes;
 pub use triangle::{
     TriHit, TriVerts, TriangleLanes, gamma, intersect_triangle, intersect_triangle_line, intersect_triangles_lanes,
+    tri_verts,
 };
 use wide::{WideNode, wide_nodes};
 
@@ -291,13 +292,7 @@ impl TriangleBvh {
             }
         };
         let prim_ids = cwbvh.primitive_indices.clone();
-        let tris_bvh: Vec<TriVerts> = prim_ids
-            .iter()
-            .map(|&i| {
-                let [a, b, c] = tris[i as usize];
-                [a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z]
-            })
-            .collect();
+        let tris_bvh: Vec<TriVerts> = prim_ids.iter().map(|&i| tri_verts(&tris[i as usize])).collect();
         let stats = BuildStats {
             triangles: tris.len(),
             references: prim_ids.len(),
@@ -499,7 +494,7 @@ mod tests {
     #[test]
     fn watertight_single_triangle() {
         let t = tri([-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [0.0, 1.0, 0.0]);
-        let tv = [t[0].x, t[0].y, t[0].z, t[1].x, t[1].y, t[1].z, t[2].x, t[2].y, t[2].z];
+        let tv = tri_verts(&t);
         let r = PreparedRay::new(&Ray::new(Vec3::new(0.0, 0.0, 2.0), Vec3::new(0.0, 0.0, -1.0))).unwrap();
         let h = intersect_triangle(&r, &tv, f32::INFINITY).unwrap();
         assert_eq!(h.t, 2.0);
@@ -533,7 +528,7 @@ mod tests {
                     let a = centre + (Vec3::new(unit(), unit(), unit()) - 0.5) * [2.0, 1e-3, 0.0][case % 3];
                     let b = centre + (Vec3::new(unit(), unit(), unit()) - 0.5) * 2.0;
                     let c = if i % 4 == 3 { centre } else { centre + (Vec3::new(unit(), unit(), unit()) - 0.5) * 2.0 };
-                    [a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z]
+                    tri_verts(&[a, b, c])
                 })
                 .chain([[0.0; 9]; LANES])
                 .collect();

@@ -5,11 +5,18 @@
 
 use crate::simd::{F32s, LANES};
 
-use super::ray::PreparedRay;
+use super::ray::{PreparedRay, Tri};
 
 /// A triangle in BVH order: `v0, v1, v2` as nine floats (36 bytes, no padding) so that a
 /// node's leaf triangles are one contiguous run.
 pub type TriVerts = [f32; 9];
+
+/// `tri`'s vertices as the triangle tests take them.
+#[inline(always)]
+pub fn tri_verts(tri: &Tri) -> TriVerts {
+    let [a, b, c] = *tri;
+    [a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z]
+}
 
 /// Result of the watertight test before the barycentric division.
 #[derive(Clone, Copy, Debug, PartialEq)]

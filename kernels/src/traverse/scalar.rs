@@ -34,7 +34,7 @@ use super::{FixedStack, Search};
 use crate::bvh::wide::{SlabOrigins, WideNode, in_reach, wide_node_hits};
 use crate::bvh::{
     Hit, MAX_DEPTH, PreparedRay, Ray, Tri, TriHit, TriangleBvh, inner_child_index, intersect_triangle,
-    intersect_triangles_lanes,
+    intersect_triangles_lanes, tri_verts,
 };
 use crate::simd::LANES;
 
@@ -387,7 +387,7 @@ pub fn intersect_brute_force(tris: &[Tri], ray: &Ray) -> Option<Hit> {
     let r = PreparedRay::new(ray)?;
     let mut best: Option<(u32, TriHit)> = None;
     for (i, t) in tris.iter().enumerate() {
-        let tv = [t[0].x, t[0].y, t[0].z, t[1].x, t[1].y, t[1].z, t[2].x, t[2].y, t[2].z];
+        let tv = tri_verts(t);
         let tmax = best.map_or(r.tmax, |b| b.1.t);
         if let Some(h) = intersect_triangle(&r, &tv, tmax) {
             best = Some((i as u32, h));

@@ -578,7 +578,7 @@ mod tests {
         let mut r = rng(7);
         for case in 0..2000 {
             let v: Vec<Vec3> = (0..3).map(|_| Vec3::new(r() * 2.0 - 1.0, r() * 2.0 - 1.0, r() * 2.0 - 1.0)).collect();
-            let tri: TriVerts = [v[0].x, v[0].y, v[0].z, v[1].x, v[1].y, v[1].z, v[2].x, v[2].y, v[2].z];
+            let tri: TriVerts = crate::bvh::tri_verts(&[v[0], v[1], v[2]]);
             // One class per packet: a shared base direction with small perturbations, and every
             // other case aims lanes exactly at the vertices (axis-aligned rays).
             let base = Vec3::new(r() - 0.5, r() - 0.5, 1.0 + r());

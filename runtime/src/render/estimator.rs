@@ -326,7 +326,8 @@ fn nearest_moving_scalar(triangles: &[MovingTriangle], ray: &PreparedRay, limit:
     let mut nearest = None;
     let mut limit = limit;
     for (index, tri) in triangles.iter().enumerate() {
-        if let Some(hit) = crate::kernels::bvh::intersect_triangle(ray, &super::lights::flatten(&tri.v), limit) {
+        if let Some(hit) = crate::kernels::bvh::intersect_triangle(ray, &crate::kernels::bvh::tri_verts(&tri.v), limit)
+        {
             limit = hit.t;
             nearest = Some((index as u32, hit));
         }

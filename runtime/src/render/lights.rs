@@ -13,7 +13,7 @@
 use glam::{Vec2, Vec3};
 
 use super::spawn::{ShadowTarget, barycentric_point};
-use crate::kernels::bvh::{TriVerts, TriangleLanes};
+use crate::kernels::bvh::{TriVerts, TriangleLanes, tri_verts};
 use crate::kernels::simd::LANES;
 use crate::scene::light::sample_triangle;
 use crate::scene::sampling::luminance;
@@ -182,7 +182,7 @@ impl FrameLights {
         for chunk in self.moving_triangles.chunks(LANES) {
             let mut verts: [TriVerts; LANES] = [[0.0; 9]; LANES];
             for (dst, t) in verts.iter_mut().zip(chunk) {
-                *dst = flatten(&t.v);
+                *dst = tri_verts(&t.v);
             }
             self.moving_blocks.push(TriangleLanes::new(&verts[..chunk.len()]));
         }
@@ -335,11 +335,6 @@ impl FrameLights {
             }
         }
     }
-}
-
-/// A triangle's vertices as the triangle tests take them.
-pub(super) fn flatten(v: &[Vec3; 3]) -> TriVerts {
-    [v[0].x, v[0].y, v[0].z, v[1].x, v[1].y, v[1].z, v[2].x, v[2].y, v[2].z]
 }
 
 fn bound(tris: &[MovingTriangle]) -> (Vec3, f32) {

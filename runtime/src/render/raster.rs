@@ -29,7 +29,7 @@ use super::gbuffer::{GLanes, GRow, GTexel, for_each_gbuffer_row};
 use super::lights::FrameLights;
 use super::renderer::{RenderError, Renderer};
 use crate::kernels::CameraModel;
-use crate::kernels::bvh::{Hit, PreparedRay, Ray, TriVerts, intersect_triangle_line};
+use crate::kernels::bvh::{Hit, PreparedRay, Ray, TriVerts, intersect_triangle_line, tri_verts};
 use crate::kernels::gbuffer::GBufferBuf;
 use crate::kernels::gbuffer::{encode_normal, encode_normals};
 use crate::kernels::isa::Isa;
@@ -165,10 +165,7 @@ impl Renderer {
         crate::kernels::frame::same_extent("right G-buffer", left.extent(), right.extent())?;
         crate::kernels::frame::same_extent("raster buffers", left.extent(), raster.visibility[0].extent())?;
         raster.extra.clear();
-        raster.extra.extend(lights.moving_triangles().iter().map(|t| {
-            let [a, b, c] = t.v;
-            [a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z]
-        }));
+        raster.extra.extend(lights.moving_triangles().iter().map(|t| tri_verts(&t.v)));
         let tris = Triangles { main: bytemuck::cast_slice(&self.scene.mesh.positions), extra: &raster.extra };
         let masks = CutOuts { renderer: self, mesh_len: self.scene.mesh.len() as u32 };
         let [vl, vr] = &mut raster.visibility;
@@ -362,14 +359,13 @@ impl Renderer {
         }
         let mesh = &self.scene.mesh;
         let mesh_len = mesh.len() as u32;
-        let [a, b, c] = match mesh.positions.get(prim as usize) {
-            Some(tri) => *tri,
+        let verts = match mesh.positions.get(prim as usize) {
+            Some(tri) => tri_verts(tri),
             None => match lights.moving_triangles().get((prim - mesh_len) as usize) {
-                Some(tri) => tri.v,
+                Some(tri) => tri_verts(&tri.v),
                 None => return Visible::Undecided,
             },
         };
-        let verts: TriVerts = [a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z];
         let Some(hit) = PreparedRay::new(ray).and_then(|r| intersect_triangle_line(&r, &verts)) else {
             return Visible::Undecided;
         };
