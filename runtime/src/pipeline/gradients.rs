@@ -264,7 +264,7 @@ impl<S: FrameSource> Pipeline<S> {
         }
         let t = Instant::now();
         let in_work = self.samples_in_work(eye);
-        let fused = source == super::Source::WorkCombined && self.fuses_left_restart();
+        let fused = self.ema_is_fused(source);
         let e = self.extent;
         let frame = stats.frame;
         let s = &mut self.eyes[eye as usize];

@@ -760,6 +760,12 @@ impl<S: FrameSource> Pipeline<S> {
         self.fuse_left_restart && self.left_history_on_demand() && self.config.history != History::Clamp
     }
 
+    /// Whether the EMA of `source` is the left eye's fused one: it visits only the
+    /// stereo-discarded pixels, and reads [`ema_validity`]'s temporal reasons there.
+    fn ema_is_fused(&self, source: Source) -> bool {
+        source == Source::WorkCombined && self.fuses_left_restart()
+    }
+
     /// Whether an EMA of the eye's own samples (`source` [`Source::Traced`] or
     /// [`Source::Work`]) runs only where it changes something: at the pixels with a new
     /// sample or without a reprojected history. Elsewhere it would keep the history as the
@@ -1074,7 +1080,7 @@ impl<S: FrameSource> Pipeline<S> {
         let t = Instant::now();
         let params = EmaParams { alpha: self.config.alpha, ramp: self.config.ramp, band_rows: 16 };
         let track_len = self.config.tracks_history_length();
-        let fused = source == Source::WorkCombined && self.fuses_left_restart();
+        let fused = self.ema_is_fused(source);
         let skip_kept = self.skips_kept_history(source);
         let s = &mut self.eyes[eye as usize];
         let new = match source {
