@@ -143,6 +143,63 @@ fn history_confidence_scales_the_historys_weight() {
     }
 }
 
+/// With a pixel mask the EMA reads the confidence and the length only where the mask is set,
+/// and checks only those: a bad value outside the mask (in a group of eight that has masked
+/// pixels, or in an empty stretch) is accepted and left as it was, the same value at a masked
+/// pixel is refused by name, by both bodies, before anything is written.
+#[test]
+fn a_masked_ema_checks_the_values_it_reads() {
+    // 77 columns: groups of eight, stretches of 32 and a scalar tail of five.
+    let e = extent(77, 3);
+    let reason = PlaneBuf::new(e, Reason::Reprojected as u8);
+    let new = RgbBuf::new(e, 0.0);
+    // Set: pixel (9, 1), inside a group with unmasked lanes, and (75, 2), in the tail.
+    let masked = [77 + 9, 2 * 77 + 75];
+    let mask = PlaneBuf::from_vec((0..e.pixels()).map(|i| u8::from(masked.contains(&i))).collect(), e).unwrap();
+    type Ema = fn(&EmaInput<'_>, EmaState<'_>, &EmaParams) -> Result<AccumulateStats, stereotrace_kernels::FrameError>;
+    let bodies: [(&str, Ema); 2] = [("SIMD", accumulate::ema), ("scalar", accumulate::ema_scalar)];
+    for (body, ema) in bodies {
+        for (bad_at, refused) in
+            [(77 + 10, None), (2, None), (2 * 77 + 40, None), (77 + 9, Some("(9, 1)")), (2 * 77 + 75, Some("(75, 2)"))]
+        {
+            for (bad_confidence, bad_length) in [(f32::NAN, 4.0), (0.5, -1.0), (1.5, f32::INFINITY)] {
+                let conf = PlaneBuf::from_vec(
+                    (0..e.pixels()).map(|i| if i == bad_at { bad_confidence } else { 0.5 }).collect(),
+                    e,
+                )
+                .unwrap();
+                let lengths: Vec<f32> = (0..e.pixels()).map(|i| if i == bad_at { bad_length } else { 4.0 }).collect();
+                let mut len = PlaneBuf::from_vec(lengths.clone(), e).unwrap();
+                let mut acc = RgbBuf::new(e, 1.0);
+                let input = EmaInput { pixel_mask: Some(mask.view()), ..trusting(&new, &reason, &conf) };
+                let params = EmaParams { alpha: 0.2, ramp: true, band_rows: 2 };
+                let result =
+                    ema(&input, EmaState { accum: acc.view_mut(), history_len: Some(len.view_mut()) }, &params);
+                let what =
+                    format!("{body}, bad values at pixel {bad_at}: confidence {bad_confidence}, length {bad_length}");
+                match refused {
+                    None => {
+                        result.unwrap_or_else(|err| panic!("{what}: refused ({err})"));
+                        // Only the masked pixels moved; the bad length is as it was.
+                        for i in 0..e.pixels() {
+                            let kept = !masked.contains(&i);
+                            assert_eq!(kept, acc.r().as_slice()[i] == 1.0, "{what}: pixel {i}");
+                            if kept {
+                                assert_eq!(len.as_slice()[i].to_bits(), lengths[i].to_bits(), "{what}: pixel {i}");
+                            }
+                        }
+                    }
+                    Some(pixel) => {
+                        let err = result.expect_err(&what).to_string();
+                        assert!(err.contains(pixel), "{what}: {err}");
+                        assert!(acc.r().as_slice().iter().all(|&v| v == 1.0), "{what}: a refused call wrote");
+                    }
+                }
+            }
+        }
+    }
+}
+
 /// EMA inputs of `new` with a history confidence plane (every pixel, every sample present).
 fn trusting<'a>(new: &'a RgbBuf, reason: &'a PlaneBuf<u8>, confidence: &'a PlaneBuf) -> EmaInput<'a> {
     EmaInput {

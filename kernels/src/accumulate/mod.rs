@@ -75,10 +75,12 @@ pub struct EmaInput<'a> {
     /// everywhere), for what reprojection cannot see (a light that moved, an engine's own
     /// disocclusion test). Where the history is valid and a new sample arrives, it counts as
     /// `c·n` samples and `α' = α + (1 − α)·(1 − c)`: `c = 1` is the plain EMA, bit for bit,
-    /// `c = 0` restarts from the new sample. NaN or values outside [0, 1] are refused.
+    /// `c = 0` restarts from the new sample. NaN or values outside [0, 1] are refused (with a
+    /// pixel mask, where the mask is set: the only values read).
     pub confidence: Option<Plane<'a, f32>>,
     /// Optional: only pixels where it is non-zero are updated (absent: every pixel). The
-    /// others keep their accumulation and history length as they were and are not counted.
+    /// others keep their accumulation and history length as they were and are not counted;
+    /// their confidence and history length are neither read nor checked.
     /// A caller that has already written most of the frame (the paper-order left eye, whose
     /// stereo samples are its restarted history) then pays for the rest only.
     pub pixel_mask: Option<Plane<'a, u8>>,
@@ -89,7 +91,7 @@ pub struct EmaState<'a> {
     /// In: the reprojected history. Out: the new accumulation.
     pub accum: RgbPlanesMut<'a>,
     /// In: the reprojected history length in samples (finite and ≥ 0: anything else is
-    /// refused). Out: the updated length (0 for holes). Required when `ramp` is on.
+    /// refused, where [`EmaInput::pixel_mask`] is set if there is one). Out: the updated length (0 for holes). Required when `ramp` is on.
     pub history_len: Option<PlaneMut<'a>>,
 }
 
@@ -131,48 +133,96 @@ fn check_ema(input: &EmaInput<'_>, state: &EmaState<'_>, params: &EmaParams) -> 
     if let Some(m) = &input.pixel_mask {
         same_extent("pixel mask", e, m.extent())?;
     }
+    // With a pixel mask the EMA reads the confidence and the length only where the mask is
+    // set (the lanes of a group outside it are selected away), so only those values are
+    // checked: under a budget, a few percent of the frame instead of two whole planes.
+    let mask = input.pixel_mask.as_ref();
     if let Some(c) = &input.confidence {
         same_extent("history confidence plane", e, c.extent())?;
-        check_unit_interval("history confidence plane", c)?;
+        check_values(c, mask, unit_interval("history confidence plane"))?;
     }
     if let Some(n) = &state.history_len {
         same_extent("history length plane", e, n.extent())?;
-        check_history_len(&n.as_plane())?;
+        check_values(&n.as_plane(), mask, history_length())?;
     }
     check_reason_plane("reason plane", &input.reason)
+}
+
+/// What a checked plane's values must be (`ok`, inlined into the folds: a function pointer
+/// there costs a call per pixel), and how an error names them.
+#[derive(Clone, Copy)]
+struct ValueRule<F> {
+    what: &'static str,
+    allowed: &'static str,
+    ok: F,
+}
+
+/// A confidence: in [0, 1] (NaN fails).
+fn unit_interval(what: &'static str) -> ValueRule<impl Fn(f32) -> bool + Copy + Sync> {
+    ValueRule { what, allowed: "in [0, 1]", ok: |v: f32| (0.0..=1.0).contains(&v) }
+}
+
+/// A history length is a count: finite and ≥ 0. Negative, NaN or infinite lengths would give
+/// the ramp's `1/(n + 1)` a negative, infinite or NaN weight.
+fn history_length() -> ValueRule<impl Fn(f32) -> bool + Copy + Sync> {
+    ValueRule {
+        what: "history length plane",
+        allowed: "a finite sample count >= 0",
+        ok: |v: f32| (0.0..=f32::MAX).contains(&v),
+    }
 }
 
 /// Refuses a confidence outside [0, 1] (or NaN) in the plane called `what`, naming the
 /// first such pixel.
 pub(crate) fn check_unit_interval(what: &'static str, plane: &Plane<'_>) -> Result<(), FrameError> {
-    let unit = |v: f32| (0.0..=1.0).contains(&v);
-    // Folded without an early exit so the pass vectorises.
-    let Some(y) = first_bad_row(plane.height(), |y| plane.row(y).iter().fold(true, |ok, &v| ok & unit(v))) else {
-        return Ok(());
-    };
-    let row = plane.row(y);
-    let x = row.iter().position(|&v| !unit(v)).expect("a bad confidence is in the row");
-    Err(FrameError::ValueOutOfRange { what, x, y, value: f64::from(row[x]), allowed: "in [0, 1]" })
+    check_values(plane, None, unit_interval(what))
 }
 
-/// Refuses a history length that is not a count: negative, NaN or infinite (the ramp's
-/// `1/(n + 1)` would give a negative, infinite or NaN weight). Lengths are finite and ≥ 0.
 fn check_history_len(len: &Plane<'_>) -> Result<(), FrameError> {
-    // False for NaN, negatives and +inf; folded without an early exit so the pass vectorises.
-    let count = |v: f32| (0.0..=f32::MAX).contains(&v);
-    let Some(y) = first_bad_row(len.height(), |y| len.row(y).iter().fold(true, |ok, &v| ok & count(v))) else {
+    check_values(len, None, history_length())
+}
+
+/// Refuses a value of `plane` that breaks `rule`, naming the first such pixel; with a `mask`,
+/// only where it is non-zero.
+fn check_values<F: Fn(f32) -> bool + Copy + Sync>(
+    plane: &Plane<'_>,
+    mask: Option<&Plane<'_, u8>>,
+    rule: ValueRule<F>,
+) -> Result<(), FrameError> {
+    let ok = rule.ok;
+    let row_ok = |y: usize| match mask {
+        // Folded without an early exit so the pass vectorises.
+        None => plane.row(y).iter().fold(true, |all, &v| all & ok(v)),
+        Some(mask) => masked_row_ok(plane.row(y), mask.row(y), ok),
+    };
+    let Some(y) = first_bad_row(plane.height(), row_ok) else {
         return Ok(());
     };
-    let row = len.row(y);
-    let x = row.iter().position(|&v| !count(v)).expect("a bad length is in the row");
-    Err(FrameError::ValueOutOfRange {
-        what: "history length plane",
-        x,
-        y,
-        value: f64::from(row[x]),
-        allowed: "a finite sample count >= 0",
-    })
+    let (row, mask_row) = (plane.row(y), mask.map(|m| m.row(y)));
+    let checked = |x: usize| mask_row.is_none_or(|m| m[x] != 0);
+    let x = (0..row.len()).find(|&x| checked(x) && !ok(row[x])).expect("a bad value is in the row");
+    Err(FrameError::ValueOutOfRange { what: rule.what, x, y, value: f64::from(row[x]), allowed: rule.allowed })
 }
+
+/// Whether every value of `values` where `mask` is non-zero passes `ok`: the mask's empty
+/// stretches skipped, each stretch of [`MASKED_CHECK_STRETCH`] after a set byte folded whole.
+#[inline(always)]
+fn masked_row_ok(values: &[f32], mask: &[u8], ok: impl Fn(f32) -> bool) -> bool {
+    let mut x = 0;
+    while x < values.len() {
+        x += crate::simd::leading_zero_bytes(&mask[x..]);
+        let end = (x + MASKED_CHECK_STRETCH).min(values.len());
+        let stretch = values[x..end].iter().zip(&mask[x..end]);
+        if !stretch.fold(true, |all, (&v, &m)| all & ((m == 0) | ok(v))) {
+            return false;
+        }
+        x = end;
+    }
+    true
+}
+
+/// Pixels a masked check folds after each set byte it finds.
+const MASKED_CHECK_STRETCH: usize = 32;
 
 /// Scalar reference EMA step.
 pub fn ema_scalar(

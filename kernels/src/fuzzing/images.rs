@@ -399,8 +399,9 @@ pub fn bilinear(data: &[u8]) {
 
 /// Fuzzes the EMA and the stereo blend. Reason codes are mostly defined, sometimes not (about
 /// 2 %), and history lengths any f32: a call whose planes hold an undefined code (or, for the
-/// EMA, a length that is not a finite count) must be refused by both bodies alike, with the
-/// outputs untouched; any other call must give the same bits from both.
+/// EMA, a length that is not a finite count, or a confidence outside [0, 1], at a pixel it
+/// reads: with a pixel mask, only where the mask is set) must be refused by both bodies
+/// alike, with the outputs untouched; any other call must give the same bits from both.
 pub fn accumulate(data: &[u8]) {
     let mut bytes = Bytes(data);
     let e = extent_from(&mut bytes);
@@ -445,8 +446,12 @@ pub fn accumulate(data: &[u8]) {
         }
     }
     let codes_defined = reason.as_slice().iter().all(|&c| usize::from(c) < crate::reproject::REASON_COUNT);
-    let lengths_are_counts = len.as_slice().iter().all(|&v| (0.0..=f32::MAX).contains(&v))
-        && confidence.as_ref().is_none_or(|c| c.as_slice().iter().all(|v| (0.0..=1.0).contains(v)));
+    // With a pixel mask the EMA reads (and checks) lengths and confidences only where it is set.
+    let read = |i: usize| pixel_mask.as_ref().is_none_or(|m| m.as_slice()[i] != 0);
+    let lengths_are_counts = (0..e.pixels()).filter(|&i| read(i)).all(|i| {
+        (0.0..=f32::MAX).contains(&len.as_slice()[i])
+            && confidence.as_ref().is_none_or(|c| (0.0..=1.0).contains(&c.as_slice()[i]))
+    });
     let history_finite = history.planes().into_iter().all(all_finite);
     let params = EmaParams { alpha, ramp, band_rows: 2 };
     let input = EmaInput {
