@@ -465,10 +465,11 @@ pub unsafe extern "C" fn stereotrace_ema(
 
 /// [`stereotrace_ema`] on the pixels where `pixel_mask` (required) is non-zero only: the
 /// others keep their `accum` and `history_len` as they were and are not counted in `stats`,
-/// and their `confidence` and `history_len` are neither read nor checked. Inside the mask the result is [`stereotrace_ema`]'s, bit for bit. For a caller that has
-/// already written most of the history, as a stereo pipeline whose left eye restarts its
-/// history from the stereo reprojection of the right eye's: reproject straight into the left
-/// history (`stereotrace_reproject` flushes its samples as the EMA's restart would), then
+/// and their `confidence` and `history_len` are neither read nor checked. Inside the mask
+/// the result is [`stereotrace_ema`]'s, bit for bit. For a caller that has already written
+/// most of the history, as a stereo pipeline whose left eye restarts its history from the
+/// stereo reprojection of the right eye's: reproject straight into the left history
+/// (`stereotrace_reproject` flushes its samples as the EMA's restart would), then
 /// run this with the stereo-discarded pixels as the mask.
 ///
 /// # Safety

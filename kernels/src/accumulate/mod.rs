@@ -91,7 +91,8 @@ pub struct EmaState<'a> {
     /// In: the reprojected history. Out: the new accumulation.
     pub accum: RgbPlanesMut<'a>,
     /// In: the reprojected history length in samples (finite and ≥ 0: anything else is
-    /// refused, where [`EmaInput::pixel_mask`] is set if there is one). Out: the updated length (0 for holes). Required when `ramp` is on.
+    /// refused, where [`EmaInput::pixel_mask`] is set if there is one). Out: the updated
+    /// length (0 for holes). Required when `ramp` is on.
     pub history_len: Option<PlaneMut<'a>>,
 }
 
