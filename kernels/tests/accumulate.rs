@@ -17,8 +17,26 @@ fn assert_same_planes(what: &str, a: &PlaneBuf, b: &PlaneBuf) {
 }
 
 fn random_reasons(e: Extent, rng: &mut Rng) -> PlaneBuf<u8> {
-    PlaneBuf::from_vec((0..e.pixels()).map(|_| if rng.next_f32() < 0.7 { 0 } else { rng.below(6) as u8 }).collect(), e)
-        .unwrap()
+    random_reasons_with(e, rng, 0.7)
+}
+
+/// Reasons with a share `reprojected` (at least) of [`Reason::Reprojected`], the rest any code.
+fn random_reasons_with(e: Extent, rng: &mut Rng, reprojected: f32) -> PlaneBuf<u8> {
+    PlaneBuf::from_vec(
+        (0..e.pixels()).map(|_| if rng.next_f32() < reprojected { 0 } else { rng.below(6) as u8 }).collect(),
+        e,
+    )
+    .unwrap()
+}
+
+/// Odd cases are mostly clean (few edge values, nearly every pixel reprojected), so that the
+/// blend's all-clean fast path runs beside groups that fall back to the general one; even
+/// cases are dense with edge values.
+fn blend_inputs(case: usize, e: Extent, rng: &mut Rng) -> (RgbBuf, RgbBuf, PlaneBuf<u8>) {
+    let (edge_share, reprojected) = if case.is_multiple_of(2) { (0.3, 0.7) } else { (0.004, 0.985) };
+    let own = random_rgb(e, rng, edge_share);
+    let other = random_rgb(e, rng, edge_share);
+    (own, other, random_reasons_with(e, rng, reprojected))
 }
 
 #[test]
@@ -284,11 +302,9 @@ fn non_finite_samples_fall_back_to_history_or_become_holes() {
 #[test]
 fn blend_simd_equals_scalar_and_is_a_50_50_mix_where_valid() {
     let mut rng = Rng::new(21);
-    for case in 0..40 {
+    for case in 0..80 {
         let e = extent([1, 7, 8, 9, 17, 40, 203][case % 7], 1 + rng.below(5));
-        let own = random_rgb(e, &mut rng, 0.3);
-        let other = random_rgb(e, &mut rng, 0.0);
-        let reason = random_reasons(e, &mut rng);
+        let (own, other, reason) = blend_inputs(case, e, &mut rng);
         let params = BlendParams { own_weight: [0.5, 0.0, 1.0, 0.3][case % 4], band_rows: 2 };
         let run = |simd: bool| {
             let mut out = other.clone();
@@ -321,9 +337,7 @@ fn variance_blend_simd_equals_scalar_on_edge_values() {
     let mut rng = Rng::new(31);
     for case in 0..60 {
         let e = extent([1, 7, 8, 9, 17, 40, 203][case % 7], 1 + rng.below(5));
-        let own = random_rgb(e, &mut rng, 0.3);
-        let reprojected = random_rgb(e, &mut rng, 0.3);
-        let reason = random_reasons(e, &mut rng);
+        let (own, reprojected, reason) = blend_inputs(case, e, &mut rng);
         let (own_len, other_len) = (random_lengths(e, &mut rng), random_lengths(e, &mut rng));
         let lengths = accumulate::BlendLengths {
             own: own_len.view(),

@@ -166,14 +166,31 @@ pub(super) fn blend_row(
     let width = out[0].len();
     let reason_row = reason.row(y);
     let own_rows = own.channels().map(|p| p.row(y));
+    let all_reprojected = u64::from_ne_bytes([Reason::Reprojected as u8; LANES]);
     let mut x = 0;
     while x + LANES <= width {
-        let valid = byte_mask_eq(&reason_row[x..x + LANES], Reason::Reprojected as u8);
+        let reasons: [u8; LANES] = reason_row[x..x + LANES].try_into().expect("LANES bytes");
         let mine = own_rows.map(|p| load(p, x));
         let theirs = [0, 1, 2].map(|c| load(out[c], x));
+        let t = weights.toward_reprojected_simd(x, y);
+        // The common case, as in the EMA: all eight reprojected, and both images and their
+        // difference finite. Then `lerp` is `a + t·(b − a)` (or an end where t is 0 or 1)
+        // and there is nothing to count: the same bits with a third of the selects.
+        let d = [0, 1, 2].map(|c| theirs[c] - mine[c]);
+        let zero = F32s::ZERO;
+        let poison = (mine[0] * zero + mine[1] * zero + mine[2] * zero) + (d[0] * zero + d[1] * zero + d[2] * zero);
+        if u64::from_ne_bytes(reasons) == all_reprojected && poison.simd_eq(zero).all() {
+            let (at_own, at_theirs) = (t.simd_eq(zero), t.simd_eq(F32s::ONE));
+            for c in 0..3 {
+                let v = at_own.select(mine[c], at_theirs.select(theirs[c], mine[c] + t * d[c]));
+                store(out[c], x, finish_simd(v));
+            }
+            x += LANES;
+            continue;
+        }
+        let valid = byte_mask_eq(&reasons, Reason::Reprojected as u8);
         let finite = mine[0].is_finite() & mine[1].is_finite() & mine[2].is_finite();
         let hole = !finite & !valid;
-        let t = weights.toward_reprojected_simd(x, y);
         for c in 0..3 {
             let mixed = lerp_simd(mine[c], theirs[c], t);
             let v = finite
