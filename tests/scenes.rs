@@ -1016,13 +1016,8 @@ fn tobj_never_panics_on_garbage() {
         "v", "vt", "vn", "f", "o", "g", "usemtl", "mtllib", "s", "l", "1", "-1", "2/3", "1//2", "0", "-7", "1.5",
         "nan", "1e40", "wall", "board", "room.mtl", "/", "//", "#", "3/", "4/4/4/4",
     ];
-    let mut state = 0x1234_5678_9abc_def0u64;
-    let mut next = || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        state
-    };
+    let mut rng = stereotrace_kernels::synth::Rng::new(0x1234_5678_9abc_def0);
+    let mut next = || rng.next_u64();
     for case in 0..300 {
         let mut text = String::from("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\n");
         for _ in 0..(next() % 12) {

@@ -548,13 +548,8 @@ mod tests {
 
     #[test]
     fn octahedral_round_trip_is_within_a_hundredth_of_a_degree() {
-        let mut state = 0x1234_5678u32;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 17;
-            state ^= state << 5;
-            state as f32 / u32::MAX as f32 * 2.0 - 1.0
-        };
+        let mut rng = crate::synth::Rng::new(0x1234_5678);
+        let mut next = || rng.range(-1.0, 1.0);
         let mut worst: f64 = 0.0;
         for i in 0..20_000 {
             let n = match i {

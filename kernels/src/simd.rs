@@ -271,13 +271,8 @@ mod tests {
         let words: Vec<u32> = (0..stride * height).map(|i| (i as u32).wrapping_mul(2_654_435_761)).collect();
         let planes = [(width, height), (width - 5, height - 3)]
             .map(|(w, h)| (Plane::new(&floats, w, h, stride).unwrap(), Plane::new(&words, w, h, stride).unwrap()));
-        let mut state = 0x9E37_79B9_u32;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 17;
-            state ^= state << 5;
-            state
-        };
+        let mut rng = crate::synth::Rng::new(0x9E37_79B9);
+        let mut next = move || rng.next_u32();
         let specials = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -1.0, -0.0, 1e9, 36.0, 36.999, 10.0, 11.0];
         for round in 0..500 {
             let coordinate = |next: &mut dyn FnMut() -> u32| -> f32 {

@@ -286,13 +286,8 @@ fn a_million_tiny_triangles_in_one_pixel() {
     let mut tris = vec![tri([-50.0, -50.0, -3.0], [50.0, -50.0, -3.0], [0.0, 50.0, -3.0])];
     // 10⁶ triangles of 1e-3 px on a jittered grid across the pixel, at depths 1 to 2: a few
     // contain the pixel centre's ray, most fall between pixel centres.
-    let mut state = 0x9E37_79B9_7F4A_7C15u64;
-    let mut next = || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 40) as f32 / (1u64 << 24) as f32
-    };
+    let mut rng = stereotrace_kernels::synth::Rng::new(0x9E37_79B9_7F4A_7C15);
+    let mut next = || rng.next_f32();
     let (u, v) = (pixel.normalize(), Vec3::Y * size);
     for i in 0..1_000_000 {
         let depth = 1.0 + next();

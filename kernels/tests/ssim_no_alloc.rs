@@ -20,13 +20,8 @@ fn ssim_allocates_nothing() {
     // 1e5 level, the exact fallback), a NaN and a firefly.
     let mut a = RgbBuf::new(e, 0.0);
     let mut b = RgbBuf::new(e, 0.0);
-    let mut state = 0x1234_5678_u32;
-    let mut noise = || {
-        state ^= state << 13;
-        state ^= state >> 17;
-        state ^= state << 5;
-        state as f32 / u32::MAX as f32
-    };
+    let mut rng = stereotrace_kernels::synth::Rng::new(0x1234_5678);
+    let mut noise = || rng.next_f32();
     for y in 0..e.height() {
         for x in 0..e.width() {
             let level = [1e5f32, 0.02, 5.0, 1000.0][(x / 9 + y / 7) % 4];

@@ -124,13 +124,8 @@ mod tests {
 
     #[test]
     fn the_vector_body_matches_the_reference_on_seeded_random_values() {
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut rng = stereotrace_kernels::synth::Rng::new(0x2545_f491_4f6c_dd1d);
+        let mut next = || rng.next_f32();
         let values: Vec<f32> = (0..4099).map(|_| next().powi(3) * 20.0).collect();
         agree(&values, 1.0);
         agree(&values, 3.0);

@@ -562,13 +562,8 @@ mod tests {
     use glam::Vec3;
 
     fn rng(seed: u64) -> impl FnMut() -> f32 {
-        let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
-        move || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            (s >> 40) as f32 / (1u64 << 24) as f32
-        }
+        let mut rng = crate::synth::Rng::new(seed);
+        move || rng.next_f32()
     }
 
     /// The SIMD triangle test equals the scalar reference lane for lane, bit for bit,
