@@ -310,12 +310,16 @@ impl<S: FrameSource> Pipeline<S> {
         let t = Instant::now();
         let before = if in_work { &s.prev.work } else { &s.prev.traced };
         let reshaded = &g.reshaded;
+        // A stratum's pixel is the index `y·w + x` into both images' packed planes.
+        let (before, reshaded) = (before.view().channels(), reshaded.view().channels());
+        let (before, reshaded) = (before.map(|p| p.as_slice()), reshaded.map(|p| p.as_slice()));
+        let texel = |planes: &[&[f32]; 3], i: usize| [planes[0][i], planes[1][i], planes[2][i]];
         let pair = |pixel: u32| {
             if pixel == NONE {
                 return (f32::NAN, f32::NAN);
             }
-            let (x, y) = (pixel as usize % e.width(), pixel as usize / e.width());
-            (luminance(before.get(x, y)), luminance(reshaded.get(x, y)))
+            let i = pixel as usize;
+            (luminance(texel(&before, i)), luminance(texel(&reshaded, i)))
         };
         let w = strata.width();
         (
