@@ -697,6 +697,12 @@ impl RgbBuf {
         self.b.as_mut_slice()
     }
 
+    /// The values of the three channels, packed row by row (pixel `(x, y)` at `y·w + x`).
+    #[inline]
+    pub fn slices(&self) -> [&[f32]; 3] {
+        [self.r.as_slice(), self.g.as_slice(), self.b.as_slice()]
+    }
+
     /// The values of the three channels, packed row by row, to write in place.
     #[inline]
     pub fn slices_mut(&mut self) -> [&mut [f32]; 3] {

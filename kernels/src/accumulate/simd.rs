@@ -22,6 +22,16 @@ pub(super) fn finish_simd(v: F32s) -> F32s {
     flush_subnormal(clamp_finite(v))
 }
 
+/// All-ones lanes where the three channels of `value` and of the difference `d` are all
+/// finite: the EMA's and the blend's common case, where `lerp` is `a + t·d`. One product
+/// by zero per value, summed: NaN exactly where any of them is NaN or infinite.
+#[inline(always)]
+fn finite_with_difference(value: &[F32s; 3], d: &[F32s; 3]) -> F32s {
+    let zero = F32s::ZERO;
+    let poison = (value[0] * zero + value[1] * zero + value[2] * zero) + (d[0] * zero + d[1] * zero + d[2] * zero);
+    poison.simd_eq(zero)
+}
+
 /// All-ones lanes where the byte equals `value` (the first `LANES` bytes).
 #[inline(always)]
 pub(crate) fn byte_mask_eq(bytes: &[u8], value: u8) -> F32s {
@@ -93,9 +103,7 @@ pub(super) fn ema_row<'r>(
         // result still goes through `finish`: next to ±f32::MAX, `a + t·d` can round
         // past the largest finite value (found by the fuzzer), and the reference clamps.
         let d = [new_v[0] - hist[0], new_v[1] - hist[1], new_v[2] - hist[2]];
-        let zero = F32s::ZERO;
-        let poison = (new_v[0] * zero + new_v[1] * zero + new_v[2] * zero) + (d[0] * zero + d[1] * zero + d[2] * zero);
-        if (active & valid & sampled & poison.simd_eq(zero)).all() {
+        if (active & valid & sampled & finite_with_difference(&new_v, &d)).all() {
             let one = alpha.simd_eq(F32s::ONE);
             for c in 0..3 {
                 let v = one.select(new_v[c], hist[c] + alpha * d[c]);
@@ -177,10 +185,8 @@ pub(super) fn blend_row(
         // difference finite. Then `lerp` is `a + t·(b − a)` (or an end where t is 0 or 1)
         // and there is nothing to count: the same bits with a third of the selects.
         let d = [0, 1, 2].map(|c| theirs[c] - mine[c]);
-        let zero = F32s::ZERO;
-        let poison = (mine[0] * zero + mine[1] * zero + mine[2] * zero) + (d[0] * zero + d[1] * zero + d[2] * zero);
-        if u64::from_ne_bytes(reasons) == all_reprojected && poison.simd_eq(zero).all() {
-            let (at_own, at_theirs) = (t.simd_eq(zero), t.simd_eq(F32s::ONE));
+        if u64::from_ne_bytes(reasons) == all_reprojected && finite_with_difference(&mine, &d).all() {
+            let (at_own, at_theirs) = (t.simd_eq(F32s::ZERO), t.simd_eq(F32s::ONE));
             for c in 0..3 {
                 let v = at_own.select(mine[c], at_theirs.select(theirs[c], mine[c] + t * d[c]));
                 store(out[c], x, finish_simd(v));

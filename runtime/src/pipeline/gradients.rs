@@ -308,11 +308,9 @@ impl<S: FrameSource> Pipeline<S> {
         stats.times.tracing += trace_start.elapsed();
 
         let t = Instant::now();
-        let before = if in_work { &s.prev.work } else { &s.prev.traced };
-        let reshaded = &g.reshaded;
         // A stratum's pixel is the index `y·w + x` into both images' packed planes.
-        let (before, reshaded) = (before.view().channels(), reshaded.view().channels());
-        let (before, reshaded) = (before.map(|p| p.as_slice()), reshaded.map(|p| p.as_slice()));
+        let before = if in_work { s.prev.work.slices() } else { s.prev.traced.slices() };
+        let reshaded = g.reshaded.slices();
         let texel = |planes: &[&[f32]; 3], i: usize| [planes[0][i], planes[1][i], planes[2][i]];
         let pair = |pixel: u32| {
             if pixel == NONE {
