@@ -935,8 +935,10 @@ fn edges_fit_i32(rec: &FixedRecord, e: &FixedEyeEdges) -> bool {
 /// before the image's right border and whose edge values fit `i32` ([`edges_fit_i32`]): most
 /// of a detailed scene's triangles. One block per row at the record's first column, so a row
 /// costs no span; each edge's eight lane values live in one `i32x8` and step by row with one
-/// add, exact (nothing overflows, by the bound). A row that covers nothing loads and stores
-/// nothing.
+/// add, exact (nothing overflows, by the bound). Every row is depth-tested, covered or not
+/// (its block blended and stored back unchanged when not): whether a small triangle's row
+/// covers a pixel centre is a coin toss for the branch predictor, and the mispredictions
+/// cost more than the loads and stores they skipped (BENCHMARKS.md).
 fn walk_small(rec: &FixedRecord, eye: usize, band: &mut Band<'_>) {
     let e = &rec.eyes[eye];
     let Some(((c0, c1), (y0, y1))) = span(rec, eye, band) else { return };
@@ -959,10 +961,8 @@ fn walk_small(rec: &FixedRecord, eye: usize, band: &mut Band<'_>) {
         for k in 0..3 {
             edge[k] += step[k];
         }
-        if covered.any() {
-            let q = F32s::splat(e.qc + e.qb * (y - rec.rows.0) as f32) + q_lanes;
-            depth_test_block(band, row, q, prim, bytemuck::cast(covered));
-        }
+        let q = F32s::splat(e.qc + e.qb * (y - rec.rows.0) as f32) + q_lanes;
+        depth_test_block(band, row, q, prim, bytemuck::cast(covered));
         row += band.width;
     }
 }
