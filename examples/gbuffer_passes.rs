@@ -7,8 +7,9 @@
 //! resolve writes only the compact layout's planes, as the pipeline does with that layout.
 //! `RASTER_RUNS` and `TRACED_RUNS` change the number of passes (9 and 3; a profile of the
 //! rasterised pass alone wants many of the one and none of the other); at least one rasterised
-//! pass runs, and with no traced pass its column reads NaN. `VISIBILITY=fixed` rasterises with
-//! the fixed-point rasteriser instead of the exact one (`--gbuffer fixed`).
+//! pass runs, and with no traced pass its column reads NaN. `VISIBILITY=exact` rasterises with
+//! the exact rasteriser instead of the fixed-point one (`--gbuffer exact`). `BAND_ROWS` sets
+//! the rasterisers' band height (default 32 rows).
 
 use std::time::Instant;
 
@@ -49,6 +50,10 @@ fn main() -> Result<(), String> {
     let mut raster = RasterGBuffers::new(extent);
     if std::env::var_os("COMPACT").is_some() {
         raster.planes = stereotrace::pipeline::Layout::Compact;
+    }
+    if let Some(rows) = std::env::var_os("BAND_ROWS") {
+        let rows = rows.to_str().and_then(|r| r.parse().ok()).ok_or("BAND_ROWS must be a number of rows")?;
+        raster.set_band_rows(rows);
     }
     raster.visibility_by = match std::env::var("VISIBILITY").as_deref() {
         Ok("fixed") | Err(_) => stereotrace::render::raster::Visibility::Fixed,
