@@ -394,28 +394,34 @@ impl Renderer {
         if !(hit.t > 0.0 && hit.t < f32::INFINITY) {
             return None;
         }
-        let normal = match &mesh.normals {
+        let (normal, oct) = match &mesh.normals {
             Some(normals) => {
                 let interpolated = hit.interpolate(normals[prim as usize].map(|v| v.to_array()));
-                let rcp = 1.0 / dot(interpolated, interpolated).sqrt();
-                if !(rcp < f32::INFINITY && rcp > 0.0 && dot(cross, cross) > 0.0) {
+                let len2 = dot(interpolated, interpolated);
+                // Where `1 / √len2` is finite and positive.
+                if !(len2 > 0.0 && len2 < f32::INFINITY && dot(cross, cross) > 0.0) {
                     return None;
                 }
-                let ns = interpolated.map(|c| c * rcp);
                 let facing = dot(cross, dir) > 0.0;
                 let ng = if facing { cross.map(|c| -c) } else { cross };
-                if dot(ns, ng) < 0.0 { ns.map(|c| -c) } else { ns }
+                let turned = if dot(interpolated, ng) < 0.0 { interpolated.map(|c| -c) } else { interpolated };
+                // The octahedral code divides by the L1 norm, so it needs no unit vector:
+                // encoded before normalising, it keeps the square root and the division out
+                // of the chain to the compact layout's only normal plane.
+                let rcp = 1.0 / len2.sqrt();
+                (turned.map(|c| c * rcp), encode_normal(turned))
             }
             None => {
                 let ng0 = self.geometric_normals[prim as usize].to_array();
-                if dot(ng0, dir) > 0.0 { ng0.map(|c| -c) } else { ng0 }
+                let normal = if dot(ng0, dir) > 0.0 { ng0.map(|c| -c) } else { ng0 };
+                (normal, encode_normal(normal))
             }
         };
         Some(GTexel {
             depth: hit.t,
             position: [0, 1, 2].map(|c| camera.centre[c] + hit.t * dir[c]),
             normal,
-            oct: encode_normal(normal),
+            oct,
             material: mesh.material[prim as usize],
         })
     }
@@ -489,20 +495,26 @@ impl Renderer {
         let cross = cross(sub(verts[1], verts[0]), sub(verts[2], verts[0]));
         let zero = F32s::ZERO;
         let decided = hit.t.simd_gt(zero) & hit.t.simd_lt(F32s::splat(f32::INFINITY));
-        let (normal, decided) = match &mesh.normals {
+        let (normal, oct, decided) = match &mesh.normals {
             Some(normals) => {
                 let n = lane_triangles(normals, prims, uniform);
-                let (ns, ok) = try_normalize(hit.interpolate(n));
+                let interpolated = hit.interpolate(n);
+                let len2 = dot(interpolated, interpolated);
+                let ok = len2.simd_gt(zero) & len2.simd_lt(F32s::splat(f32::INFINITY));
                 let facing = dot(cross, dir).simd_gt(zero);
                 let ng = map3(cross, |g| facing.select(-g, g));
-                let against = dot(ns, ng).simd_lt(zero);
+                let against = dot(interpolated, ng).simd_lt(zero);
                 let has_area = dot(cross, cross).simd_gt(zero);
-                (map3(ns, |n| against.select(-n, n)), decided & ok & has_area)
+                let turned = map3(interpolated, |n| against.select(-n, n));
+                // Dead in the compact layout's resolve, which writes the octahedral code only.
+                let rcp = F32s::ONE / len2.sqrt();
+                (map3(turned, |n| n * rcp), encode_normals(turned), decided & ok & has_area)
             }
             None => {
                 let ng0 = lane_geometric_normals(&self.geometric_normals, prims, uniform, cross);
                 let facing = dot(ng0, dir).simd_gt(zero);
-                (map3(ng0, |n| facing.select(-n, n)), decided)
+                let normal = map3(ng0, |n| facing.select(-n, n));
+                (normal, encode_normals(normal), decided)
             }
         };
         let lanes = GLanes {
@@ -510,7 +522,7 @@ impl Renderer {
             // Dead in the compact layout's resolve, which does not write positions.
             position: if ALL_PLANES { from3(|i| c[i] + hit.t * dir[i]) } else { [F32s::ZERO; 3] },
             normal,
-            oct: encode_normals(normal),
+            oct,
             material: lane_materials(&mesh.material, prims, uniform),
         };
         (lanes, !decided.to_bitmask() & ((1 << LANES) - 1))
