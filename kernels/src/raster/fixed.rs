@@ -15,7 +15,9 @@
 //!    gets records of its own); the polygon left is fanned into triangles. Each vertex is projected for both eyes (the parallel rig's eyes differ by a
 //!    constant clip-space offset, so the right eye costs one more division per vertex) and
 //!    snapped to [`SUBPIXEL_BITS`] fractional bits. A triangle whose snapped area is zero, or
-//!    whose bounding box holds no pixel centre, in both eyes, keeps no record. [`Body::Simd`]
+//!    whose bounding box holds no pixel centre, in both eyes, keeps no record; nor does an
+//!    eye whose box holds at most 2×2 pixel centres, none of them covered (tested with the
+//!    walks' own integers: most of a dense mesh's far triangles). [`Body::Simd`]
 //!    takes four triangles at a time in `f64x4` lanes through the culls, the projection and
 //!    the snap (the same operations, so the same vertices); a triangle that needs clipping
 //!    goes through the scalar setup, which is [`Body::Scalar`]'s for every triangle. Before
@@ -529,20 +531,82 @@ fn setup_four(ts: [&[f32; 9]; 4], p: &Projection, near: f64, out: &mut [[Snapped
             snapped[eye][k] = [(sx * one).round(), (sy * one).round(), q];
         }
     }
+    // Simple lanes whose tiny triangle covers no pixel centre in either eye get no record
+    // (`record` would drop them after its scalar setup): 43 % of the 833k-triangle bunny
+    // grid's triangles. The right eye is tested only where the left eye's test culls a lane,
+    // and each test stops at the box where no lane's is small (most groups of a scene of
+    // large triangles).
+    let none = F::splat(0.0).simd_ne(F::splat(0.0));
+    let left_empty = simple & covers_no_centre_four(&snapped[0]);
+    let tiny = if left_empty.any() { left_empty & covers_no_centre_four(&snapped[1]) } else { none };
+    let culled = culled | tiny;
     let culled = culled.to_bitmask();
     let simple = simple.to_bitmask() & !culled;
+    // The snapped integers to `i64` in lanes: adding 1.5·2⁵² puts an integer below 2⁵¹ in
+    // magnitude into the low mantissa bits, so the difference of the bit patterns is the
+    // integer (the scalar `as i64`, with its saturation checks, was a sixth of this function's
+    // instructions). Exact for simple lanes (|x| ≤ 2²⁹); the others are not read.
+    const MAGIC: f64 = 6_755_399_441_055_744.0;
+    let magic_bits = i64x4::splat(MAGIC.to_bits() as i64);
+    let to_i64 = |v: F| (bytemuck::cast::<F, i64x4>(v + F::splat(MAGIC)) - magic_bits).to_array();
     for (eye, v) in snapped.iter().enumerate() {
         for (k, [x, y, q]) in v.iter().enumerate() {
-            let (x, y, q) = (x.to_array(), y.to_array(), q.to_array());
+            let (x, y, q) = (to_i64(*x), to_i64(*y), q.to_array());
             for (lane, tri) in out.iter_mut().enumerate() {
-                // In range for simple lanes (|x| ≤ 2²⁹); the others are not read.
-                tri[k].x[eye] = x[lane] as i64;
-                tri[k].y[eye] = y[lane] as i64;
+                tri[k].x[eye] = x[lane];
+                tri[k].y[eye] = y[lane];
                 tri[k].q[eye] = q[lane];
             }
         }
     }
     (culled, simple)
+}
+
+/// [`covers_no_centre`] for one eye of [`setup_four`]'s four triangles, from their snapped
+/// vertices (`[x, y, q]` per vertex, fixed point as exact `f64` integers): the lanes whose
+/// box holds at most 2×2 pixel centres (or none) and whose triangle covers none of them, by
+/// the edge functions, winding and top-left rule of [`record`]. In those lanes every term is
+/// an integer below 2²¹ in magnitude (the vertices lie within three pixels of each other and
+/// of the centres), so the `f64` arithmetic is exact and equals `record`'s `i64`; other lanes
+/// (larger boxes, or not finite) are false, whatever their values.
+#[inline(always)]
+fn covers_no_centre_four(v: &[[f64x4; 3]; 3]) -> f64x4 {
+    type F = f64x4;
+    let (zero, one, half) = (F::splat(0.0), F::splat(ONE as f64), F::splat((ONE / 2) as f64));
+    let (x, y) = ([v[0][0], v[1][0], v[2][0]], [v[0][1], v[1][1], v[2][1]]);
+    let lo = |a: [F; 3]| a[0].min(a[1]).min(a[2]);
+    let hi = |a: [F; 3]| a[0].max(a[1]).max(a[2]);
+    // The box's first and last pixel centres, as `record`'s `centres` before the frame clamp
+    // (a centre off the frame is one more to test, which only makes the cull rarer).
+    let (c0, c1) = (((lo(x) - half) / one).ceil(), ((hi(x) - half) / one).floor());
+    let (r0, r1) = (((lo(y) - half) / one).ceil(), ((hi(y) - half) / one).floor());
+    let small = (c1 - c0).simd_le(F::splat(1.0)) & (r1 - r0).simd_le(F::splat(1.0));
+    if !small.any() {
+        return small;
+    }
+    let (two_cols, two_rows) = ((c1 - c0).simd_eq(F::splat(1.0)), (r1 - r0).simd_eq(F::splat(1.0)));
+    // `record`'s winding: vertices 1 and 2 swapped where the signed area is negative.
+    let area2 = (x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0]);
+    let flip = area2.simd_lt(zero);
+    let xs = [x[0], flip.select(x[2], x[1]), flip.select(x[1], x[2])];
+    let ys = [y[0], flip.select(y[2], y[1]), flip.select(y[1], y[2])];
+    let (px0, py0) = (c0 * one + half, r0 * one + half);
+    let mut covered = zero.simd_ne(zero);
+    for (dx, dy, wanted) in
+        [(0.0, 0.0, zero.simd_eq(zero)), (1.0, 0.0, two_cols), (0.0, 1.0, two_rows), (1.0, 1.0, two_cols & two_rows)]
+    {
+        let (px, py) = (px0 + F::splat(dx) * one, py0 + F::splat(dy) * one);
+        let mut inside = wanted;
+        for k in 0..3 {
+            let j = (k + 1) % 3;
+            let (ex, ey) = (xs[j] - xs[k], ys[j] - ys[k]);
+            let owns = (-ey).simd_gt(zero) | (ey.simd_eq(zero) & ex.simd_gt(zero));
+            let e = ex * (py - ys[k]) - ey * (px - xs[k]) - owns.select(zero, F::splat(1.0));
+            inside &= e.simd_ge(zero);
+        }
+        covered |= inside;
+    }
+    small & !covered
 }
 
 /// Whether every triangle of a cluster is culled by [`setup_four`]'s frustum test (all three
@@ -657,10 +721,25 @@ fn clip_polygon(poly: &mut [[f64; 3]; MAX_POLYGON], n: usize, inside: impl Fn(&[
 }
 
 /// Pushes the record of one snapped triangle for `eyes` (the other eye's part empty) onto
-/// `out`, or nothing when it covers no pixel centre in them (zero snapped area, or a
-/// bounding box between centres or off screen). The record is written where it lands in
-/// `out`: built elsewhere and moved there, its 208 bytes were copied twice.
+/// `out`, or nothing when it covers no pixel centre in them (zero snapped area, a bounding
+/// box between centres or off screen, or a box of a few centres none of which it covers).
+/// The record is written where it lands in `out`: built elsewhere and moved there, its 208
+/// bytes were copied twice.
 fn record(v: &[Snapped; 3], prim: u32, p: &Projection, eyes: [bool; 2], out: &mut Vec<FixedRecord>) {
+    record_culling::<true>(v, prim, p, eyes, out);
+}
+
+/// [`record`], with `CULL_EMPTY` deciding whether an eye whose box of a few centres holds
+/// none it covers is dropped ([`covers_no_centre`]); off only in the test that holds that
+/// cull to the walk.
+#[inline(always)]
+fn record_culling<const CULL_EMPTY: bool>(
+    v: &[Snapped; 3],
+    prim: u32,
+    p: &Projection,
+    eyes: [bool; 2],
+    out: &mut Vec<FixedRecord>,
+) {
     // Pixel centres `i + 1/2` inside [lo, hi] (fixed point), clamped to the frame.
     let centres = |lo: i64, hi: i64, size: i32| -> (i32, i32) {
         let first = (lo - ONE / 2).div_euclid(ONE) + i64::from((lo - ONE / 2).rem_euclid(ONE) != 0);
@@ -725,6 +804,10 @@ fn record(v: &[Snapped; 3], prim: u32, p: &Projection, eyes: [bool; 2], out: &mu
             e.dx[k] = step_x * ONE;
             e.dy[k] = step_y * ONE;
         }
+        if CULL_EMPTY && covers_no_centre(e, rows) {
+            e.cols = (1, 0);
+            continue;
+        }
         // q is linear in screen space: the plane through the three snapped vertices,
         // relative to the first pixel centre.
         let fx = x.map(|x| (x - px) as f64 / ONE as f64);
@@ -736,6 +819,34 @@ fn record(v: &[Snapped; 3], prim: u32, p: &Projection, eyes: [bool; 2], out: &mu
         let qc = q[0] - qa * fx[0] - qb * fy[0];
         (e.qa, e.qb, e.qc) = (qa as f32, qb as f32, qc as f32);
     }
+    if !(rec.visible_in(0) || rec.visible_in(1)) {
+        out.pop();
+    }
+}
+
+/// Whether the eye's edges `e` (from pixel centre `(cols.0, rows.0)`) cover none of the pixel
+/// centres of its box, where the box is at most 2×2 centres; false for larger boxes, which
+/// are left to the walks. A triangle much smaller than a pixel has a box of one to four
+/// centres and usually covers none of them (42 % of the 833k-triangle bunny grid's records,
+/// 16 % of courtyard's): deciding that here costs a few integer adds, where its record would
+/// cost a write, a bin entry and a walk that writes nothing. The same integers as the walks
+/// test, so the buffers are unchanged. No branch per centre: whether a tiny triangle covers
+/// a centre is a coin toss for the predictor (with branches this cost more than it saved).
+#[inline(always)]
+fn covers_no_centre(e: &FixedEyeEdges, rows: (i32, i32)) -> bool {
+    let (row_count, col_count) = (rows.1 - rows.0 + 1, e.cols.1 - e.cols.0 + 1);
+    if row_count > 2 || col_count > 2 {
+        return false;
+    }
+    // The smallest of the three edge values at each of the box's four centres (the right
+    // column and the lower row masked off where the box has one).
+    let at = |dx: i64, dy: i64| (0..3).map(|k| e.e0[k] + e.dx[k] * dx + e.dy[k] * dy).fold(i64::MAX, i64::min);
+    let (two_cols, two_rows) = (col_count == 2, row_count == 2);
+    let covered = (at(0, 0) >= 0)
+        | (two_cols & (at(1, 0) >= 0))
+        | (two_rows & (at(0, 1) >= 0))
+        | (two_cols & two_rows & (at(1, 1) >= 0));
+    !covered
 }
 
 /// The depth test: a fragment of `prim` at `q` replaces the stored one when nearer (larger
@@ -1151,7 +1262,10 @@ mod tests {
     /// (bit for bit) and the same "clipped" count, on seeded random triangles around the
     /// eye (in front, behind, across the near plane, far off screen) and on edge cases:
     /// vertices on half-subpixel positions (the rounding's ties), non-finite and collinear
-    /// vertices, a vertex past the guard band, a triangle exactly on the near plane.
+    /// vertices, a vertex past the guard band, a triangle exactly on the near plane. Tiny
+    /// triangles, some with vertices on pixel centres and corners, hold the four-wide cull of
+    /// those that cover no centre to `record`'s (it fails when a centre on an owned edge
+    /// counts as outside, or the fill rule is mirrored).
     #[test]
     fn the_four_wide_setup_makes_the_scalar_setups_records() {
         let p = rig();
@@ -1166,6 +1280,27 @@ mod tests {
             let at = [rng.range(-1.2, 1.2) * z.abs(), rng.range(-0.7, 0.7) * z.abs(), -z];
             tris.push(core::array::from_fn(|i| c[i % 3] + at[i % 3] + rng.range(-spread, spread)));
         }
+        // Tiny triangles on screen, a tenth of a pixel to two pixels across (at w = z, a
+        // pixel is z / 640): most cover no pixel centre, and the four-wide setup culls them.
+        let tiny_from = tris.len();
+        for _ in 0..4000 {
+            let z = rng.range(2.0, 10.0);
+            let spread = z / 640.0 * [0.1, 0.5, 1.0, 2.0][rng.below(4)];
+            let at = [rng.range(-0.9, 0.9) * z, rng.range(-0.5, 0.5) * z, -z];
+            tris.push(core::array::from_fn(|i| c[i % 3] + at[i % 3] + rng.range(-spread, spread)));
+        }
+        // And tiny triangles with their vertices on pixel centres and corners (at w = 2), so
+        // that centres fall exactly on edges and the fill rule decides.
+        for _ in 0..4000 {
+            let (i, j) = (rng.below(1200) as f32 + 20.0, rng.below(680) as f32 + 20.0);
+            let corner = |rng: &mut crate::synth::Rng| {
+                let (sx, sy) = (i + 0.5 * rng.below(5) as f32, j + 0.5 * rng.below(5) as f32);
+                [c[0] + (sx - 640.0) / 640.0 * 2.0, c[1] - (sy - 360.0) / 360.0 * 2.0, c[2] - 2.0]
+            };
+            let (a, b, d) = (corner(&mut rng), corner(&mut rng), corner(&mut rng));
+            tris.push([a[0], a[1], a[2], b[0], b[1], b[2], d[0], d[1], d[2]]);
+        }
+        let tiny = tiny_from..tris.len();
         // Vertices whose screen x lands exactly on k + 1/512 px (a tie of the 1/256 snap):
         // x_screen = X/w · 640 + 640 with w = 2.
         let tie = |k: f32| (k + 1.0 / 512.0 - 640.0) / 640.0 * 2.0;
@@ -1194,7 +1329,7 @@ mod tests {
             tris.push(tris[tris.len() % 7]);
         }
         let near64 = both_eyes_near(&p, near);
-        let (mut kinds, mut snapped) = ([0usize; 3], [[Snapped::default(); 3]; 4]);
+        let (mut kinds, mut snapped, mut tiny_culled) = ([0usize; 3], [[Snapped::default(); 3]; 4], 0);
         for (group, four) in tris.chunks_exact(4).enumerate() {
             let ts = [&four[0], &four[1], &four[2], &four[3]];
             let (culled, simple) = setup_four(ts, &p, near64, &mut snapped);
@@ -1209,6 +1344,7 @@ mod tests {
                     assert_eq!((got, false), (want, clipped), "triangle {prim}: {:?}", ts[lane]);
                 } else if culled >> lane & 1 != 0 {
                     kinds[1] += 1;
+                    tiny_culled += usize::from(tiny.contains(&(prim as usize)));
                     assert_eq!((want.len(), clipped), (0, false), "triangle {prim} culled: {:?}", ts[lane]);
                 } else {
                     kinds[2] += 1;
@@ -1217,5 +1353,74 @@ mod tests {
         }
         // Every kind of lane was met, or the comparison proved little.
         assert!(kinds.iter().all(|&k| k > 50), "simple, culled, left to the scalar setup: {kinds:?}");
+        assert!(tiny_culled > 1000, "tiny triangles culled for covering no centre: {tiny_culled}");
+    }
+
+    /// The setup's cull of tiny triangles that cover no pixel centre, held to the walk: on
+    /// seeded random triangles from a tenth of a pixel to three pixels across (every snapped
+    /// position, so centres fall on edges and corners, both windings, slivers), an eye is
+    /// dropped exactly where walking its record without the cull covers nothing and its box
+    /// is at most 2×2 centres, and every eye kept is the record without the cull, bit for
+    /// bit.
+    #[test]
+    fn tiny_triangles_that_cover_no_centre_get_no_record() {
+        let p = rig();
+        let mut rng = crate::synth::Rng::new(0x71_4e);
+        let (mut dropped, mut kept_small, mut covering) = (0, 0, 0);
+        let (w, h) = (p.width as usize, p.height as usize);
+        let (mut prim_plane, mut q_plane) = (vec![NO_PRIM; w * h], vec![0.0f32; w * h]);
+        for prim in 0..20_000u32 {
+            let size = [26, 64, 256, 768][rng.below(4)] as i64;
+            // Near pixel centres and corners alike: any 1/256 position.
+            let base = [
+                rng.below(1200) as i64 * ONE + rng.below(256) as i64,
+                rng.below(700) as i64 * ONE + rng.below(256) as i64,
+            ];
+            let disparity = rng.below(3 * ONE as usize) as i64;
+            let v: [Snapped; 3] = core::array::from_fn(|_| {
+                let (x, y) = (base[0] + rng.below(size as usize) as i64, base[1] + rng.below(size as usize) as i64);
+                let q = f64::from(rng.range(0.1, 1.0));
+                Snapped { x: [x, x - disparity], y: [y, y], q: [q, q] }
+            });
+            let (mut with, mut without) = (Vec::new(), Vec::new());
+            record_culling::<true>(&v, prim, &p, [true; 2], &mut with);
+            record_culling::<false>(&v, prim, &p, [true; 2], &mut without);
+            let Some(full) = without.first() else {
+                assert!(with.is_empty(), "triangle {prim}: a record where none was before");
+                continue;
+            };
+            for eye in 0..2 {
+                if !full.visible_in(eye) {
+                    assert!(with.first().is_none_or(|r| !r.visible_in(eye)), "triangle {prim} eye {eye}");
+                    continue;
+                }
+                let e = &full.eyes[eye];
+                assert!(edges_fit_i32(full, e) && e.cols.0 as usize + LANES <= w, "a small record");
+                let rows = full.rows.0 as usize..full.rows.1 as usize + 1;
+                let mut band = Band {
+                    prim: &mut prim_plane[rows.start * w..rows.end * w],
+                    q: &mut q_plane[rows.start * w..rows.end * w],
+                    width: w,
+                    rows: rows.clone(),
+                };
+                walk_small(full, eye, &mut band);
+                let covers = band.prim.contains(&prim);
+                band.prim.fill(NO_PRIM);
+                band.q.fill(0.0);
+                let small = full.rows.1 - full.rows.0 < 2 && e.cols.1 - e.cols.0 < 2;
+                let kept = with.first().is_some_and(|r| r.visible_in(eye));
+                assert_eq!(kept, covers || !small, "triangle {prim} eye {eye}: {v:?}");
+                if kept {
+                    assert_eq!(with[0].eyes[eye], *e, "triangle {prim} eye {eye}: the record kept");
+                    assert_eq!((with[0].rows, with[0].prim), (full.rows, full.prim));
+                    kept_small += usize::from(small);
+                    covering += usize::from(covers);
+                } else {
+                    dropped += 1;
+                }
+            }
+        }
+        // Both outcomes, often, or the comparison proved little.
+        assert!(dropped > 2000 && kept_small > 2000 && covering > 2000, "{dropped} {kept_small} {covering}");
     }
 }
