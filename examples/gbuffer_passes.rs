@@ -88,7 +88,7 @@ fn main() -> Result<(), String> {
         println!(
             "{name} ({} triangles, {threads} threads, {:?} visibility): raster + resolve {total:.1} ms (setup {:.1}, \
              binning {:.1}, \
-             fragments {:.1}, resolve {:.1}); traced {traced:.1} ms; {:.2}x; visible {} clipped {} skipped-in-off-screen-clusters {} band-records {} \
+             fragments {:.1}, resolve {:.1}); traced {traced:.1} ms; {:.2}x; visible {} clipped {} skipped-in-off-screen-clusters {} band-records {} band-points {} \
              exact-path fragments {} (near ties {})",
             s.triangles,
             raster.visibility_by,
@@ -101,6 +101,7 @@ fn main() -> Result<(), String> {
             s.clipped,
             s.cluster_culled,
             s.band_records,
+            s.band_points,
             s.exact,
             s.exact_ties,
         );

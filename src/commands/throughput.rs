@@ -129,6 +129,9 @@ pub struct RasterSteps {
     pub cluster_culled: u64,
     /// (record, band of rows) pairs the fragment loop walked (the last frame's).
     pub band_records: u64,
+    /// Covered pixel centres of tiny triangles depth-tested as points instead of walked
+    /// records (the last frame's).
+    pub band_points: u64,
     /// Fragments decided on the exact path: uncertain coverage, depth near-ties and
     /// alpha-masked triangles (the last frame's).
     pub exact_fragments: u64,
@@ -463,6 +466,7 @@ fn raster_steps(stats: &[FrameStats]) -> Option<RasterSteps> {
         visible: last.raster.visible,
         cluster_culled: last.raster.cluster_culled,
         band_records: last.raster.band_records,
+        band_points: last.raster.band_points,
         exact_fragments: last.raster.exact,
     })
 }

@@ -166,6 +166,9 @@ pub struct RasterStats {
     pub cluster_culled: u64,
     /// (record, band) pairs walked.
     pub band_records: u64,
+    /// Covered pixel centres of tiny triangles depth-tested as points instead of records
+    /// (the fixed-point pass's SIMD body; see its module notes).
+    pub band_points: u64,
     /// Fragments decided on the exact path (uncertain coverage, near ties, masks).
     pub exact: u64,
     /// Of those, the near ties (certainly covered, depth too close for `q` to decide).
@@ -187,6 +190,7 @@ impl core::ops::Add for RasterStats {
             clipped: self.clipped + o.clipped,
             cluster_culled: self.cluster_culled + o.cluster_culled,
             band_records: self.band_records + o.band_records,
+            band_points: self.band_points + o.band_points,
             exact: self.exact + o.exact,
             exact_ties: self.exact_ties + o.exact_ties,
             setup: self.setup + o.setup,
