@@ -19,7 +19,8 @@
 //!    eye whose box holds at most 2×2 pixel centres, none of them covered (tested with the
 //!    walks' own integers: most of a dense mesh's far triangles). With [`Body::Simd`], an
 //!    opaque triangle's eye whose box holds at most 2×2 centres keeps no record either: its
-//!    covered centres become points (pixel, id and the depth key its walk would form).
+//!    covered centres become points (pixel, id and the depth key its walk would form), found
+//!    four triangles at a time where both eyes are that small.
 //!    [`Body::Simd`]
 //!    takes four triangles at a time in `f64x4` lanes through the culls, the projection and
 //!    the snap (the same operations, so the same vertices); a triangle that needs clipping
@@ -314,6 +315,7 @@ impl FixedRasterizer {
                 if body == Body::Simd {
                     let near64 = both_eyes_near(proj, near);
                     let mut snapped = [[Snapped::default(); 3]; 4];
+                    let mut four_points = FourPoints::default();
                     while prim + 4 <= end {
                         // Chunks start on cluster boundaries (CHUNK is a multiple of CLUSTER).
                         if (prim - first).is_multiple_of(CLUSTER)
@@ -325,15 +327,22 @@ impl FixedRasterizer {
                             continue;
                         }
                         let ids: [u32; 4] = core::array::from_fn(|i| (prim + i) as u32);
-                        let (culled, simple) = setup_four(ids.map(|id| tris.get(id)), proj, near64, &mut snapped);
+                        // Cut-out triangles keep records: their fragments need the mask.
+                        let opaque = (0..4).fold(0, |bits, lane| bits | u32::from(!mask.has_mask(ids[lane])) << lane);
+                        let tris4 = ids.map(|id| tris.get(id));
+                        let (culled, simple, pointed) =
+                            setup_four(tris4, proj, near64, opaque, &mut snapped, &mut four_points);
                         for (lane, id) in ids.into_iter().enumerate() {
                             let before = (records.len(), points.len());
-                            // Cut-out triangles keep records: their fragments need the mask.
-                            let points = (!mask.has_mask(id)).then_some(&mut *points);
+                            let taken = pointed >> lane & 1 != 0;
+                            if taken {
+                                four_points.push(lane, id, points);
+                            }
+                            let points = (opaque >> lane & 1 != 0).then_some(&mut *points);
                             let mut out = SetupOut { records: &mut *records, points };
                             if simple >> lane & 1 != 0 {
                                 record(&snapped[lane], id, proj, [true; 2], &mut out);
-                            } else if culled >> lane & 1 == 0 {
+                            } else if !taken && culled >> lane & 1 == 0 {
                                 stats.clipped += u64::from(setup_triangle(tris.get(id), id, proj, near, &mut out));
                             }
                             finish(id, before, &mut out, &mut stats);
@@ -591,11 +600,22 @@ fn both_eyes_near(p: &Projection, near: f32) -> f64 {
 
 /// [`setup_triangle`]'s common case for four triangles at once, one per `f64x4` lane: the
 /// same f64 operations in the same order (so the same snapped vertices, bit for bit), without
-/// its branches. `near` is [`both_eyes_near`]'s. Returns two lane masks: the triangles
-/// culled (outside both eyes' frusta, collinear or not finite: no record), and those that
-/// need no clipping and land within the coordinate limit, whose snapped vertices are in
-/// `out` (their record is [`record`]'s). Lanes in neither are [`setup_triangle`]'s to do.
-fn setup_four(ts: [&[f32; 9]; 4], p: &Projection, near: f64, out: &mut [[Snapped; 3]; 4]) -> (u32, u32) {
+/// its branches. `near` is [`both_eyes_near`]'s. Returns three lane masks: the triangles
+/// culled (outside both eyes' frusta, collinear or not finite, or tiny and covering no pixel
+/// centre: no record); those that need no clipping and land within the coordinate limit,
+/// whose snapped vertices are in `out` (their record is [`record`]'s); and those of the
+/// `opaque` lanes that `record` would make only points of, whose points are in `points`
+/// ([`points_four`]: on the 833k-triangle bunny grid nearly every visible triangle, and
+/// `record`'s scalar steps were half the setup). Lanes in none are [`setup_triangle`]'s to
+/// do.
+fn setup_four(
+    ts: [&[f32; 9]; 4],
+    p: &Projection,
+    near: f64,
+    opaque: u32,
+    out: &mut [[Snapped; 3]; 4],
+    points: &mut FourPoints,
+) -> (u32, u32, u32) {
     type F = f64x4;
     let all = F::splat(f64::from_bits(u64::MAX));
     let comp = |k: usize, c: usize| F::from(ts.map(|t| f64::from(t[3 * k + c]))) - F::splat(f64::from(p.centre[c]));
@@ -660,6 +680,9 @@ fn setup_four(ts: [&[f32; 9]; 4], p: &Projection, near: f64, out: &mut [[Snapped
     let culled = culled | tiny;
     let culled = culled.to_bitmask();
     let simple = simple.to_bitmask() & !culled;
+    // Opaque simple lanes whose eyes `record` would turn wholly into points take them here.
+    let pointed = if simple & opaque != 0 { points_four(&snapped, p, simple & opaque, points) } else { 0 };
+    let simple = simple & !pointed;
     // The snapped integers to `i64` in lanes: adding 1.5·2⁵² puts an integer below 2⁵¹ in
     // magnitude into the low mantissa bits, so the difference of the bit patterns is the
     // integer (the scalar `as i64`, with its saturation checks, was a sixth of this function's
@@ -677,7 +700,139 @@ fn setup_four(ts: [&[f32; 9]; 4], p: &Projection, near: f64, out: &mut [[Snapped
             }
         }
     }
-    (culled, simple)
+    (culled, simple, pointed)
+}
+
+/// The points of [`setup_four`]'s lanes that [`points_four`] took, per lane and eye: which of
+/// the 2×2 centres from `(cols, row)` are covered (bit `2·dy + dx`), and the depth-key plane
+/// there, rounded to `f32` as `record` rounds it.
+#[derive(Clone, Copy, Debug, Default)]
+struct FourPoints {
+    covered: [[u8; 2]; 4],
+    cols: [[i32; 2]; 4],
+    row: [i32; 4],
+    plane: [[[f32; 3]; 2]; 4],
+}
+
+impl FourPoints {
+    /// Pushes lane `lane`'s points as [`record`] with [`push_points`] would: the left eye's,
+    /// then the right's, each row by row.
+    #[inline(always)]
+    fn push(&self, lane: usize, prim: u32, points: &mut Vec<FixedPoint>) {
+        points.reserve(8);
+        let spare = &mut points.spare_capacity_mut()[..8];
+        let mut count = 0;
+        for eye in 0..2 {
+            let [qa, qb, qc] = self.plane[lane][eye];
+            for (bit, (dy, dx)) in [(0, 0), (0, 1), (1, 0), (1, 1)].into_iter().enumerate() {
+                let q = (qc + qb * dy as f32) + qa * dx as f32;
+                let x = (self.cols[lane][eye] + dx) as u32 | (eye as u32) << 31;
+                spare[count].write(FixedPoint { eye_x: x, y: (self.row[lane] + dy) as u32, prim, q });
+                count += usize::from(self.covered[lane][eye] >> bit & 1);
+            }
+        }
+        // SAFETY: the first `count` spare slots were written just now.
+        unsafe { points.set_len(points.len() + count) };
+    }
+}
+
+/// Of [`setup_four`]'s `lanes` (snapped vertices per eye, fixed point as exact `f64`
+/// integers), those `record` would give no record but points: each eye either not visible
+/// (zero area, or a box between pixel centres) or a box of at most 2×2 centres inside the
+/// frame, the rows of both eyes' boxes together at most two. Their coverage and depth-key
+/// planes go to `out`; the lanes are returned as a bit mask. The same operations as
+/// `record`'s, in lanes: the edge functions are exact (every term an integer below 2²¹, the
+/// vertices lying within three pixels of the centres), and the plane's `f64` steps are
+/// `record`'s, one for one. Other lanes (larger or clipped boxes, rows apart) are left to it.
+#[inline(always)]
+fn points_four(snapped: &[[[f64x4; 3]; 3]; 2], p: &Projection, lanes: u32, out: &mut FourPoints) -> u32 {
+    type F = f64x4;
+    let (zero, one, half, unit) = (F::splat(0.0), F::splat(ONE as f64), F::splat((ONE / 2) as f64), F::splat(1.0));
+    // `x / ONE`, exactly (see `covers_no_centre_four`).
+    let per_one = F::splat(1.0 / ONE as f64);
+    let lo = |a: [F; 3]| a[0].min(a[1]).min(a[2]);
+    let hi = |a: [F; 3]| a[0].max(a[1]).max(a[2]);
+    let (last_col, last_row) = (F::splat(f64::from(p.width - 1)), F::splat(f64::from(p.height - 1)));
+    let xs = |v: &[[F; 3]; 3]| [v[0][0], v[1][0], v[2][0]];
+    let ys = |v: &[[F; 3]; 3]| [v[0][1], v[1][1], v[2][1]];
+    // Per eye: the box's first and last centres (unclamped), and whether `record` sees the
+    // eye (nonzero area, centres in both axes) with its box inside the frame and at most
+    // two columns wide.
+    let eye_box = |v: &[[F; 3]; 3]| {
+        let (x, y) = (xs(v), ys(v));
+        let (c0, c1) = (((lo(x) - half) * per_one).ceil(), ((hi(x) - half) * per_one).floor());
+        let (r0, r1) = (((lo(y) - half) * per_one).ceil(), ((hi(y) - half) * per_one).floor());
+        let area2 = (x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0]);
+        let visible = area2.simd_ne(zero) & c0.simd_le(c1) & r0.simd_le(r1);
+        let fits = c0.simd_ge(zero) & c1.simd_le(last_col) & r0.simd_ge(zero) & r1.simd_le(last_row);
+        (c0, c1, r0, r1, area2, visible, fits & (c1 - c0).simd_le(unit))
+    };
+    // Written out, not `map`ped: see `setup_four`.
+    let boxes = [eye_box(&snapped[0]), eye_box(&snapped[1])];
+    let [(.., vis_l, fits_l), (.., vis_r, fits_r)] = boxes;
+    // `record`'s rows: the union of the visible eyes'.
+    let both = vis_l & vis_r;
+    let r0 = both.select(boxes[0].2.min(boxes[1].2), vis_l.select(boxes[0].2, boxes[1].2));
+    let r1 = both.select(boxes[0].3.max(boxes[1].3), vis_l.select(boxes[0].3, boxes[1].3));
+    let all = zero.simd_eq(zero);
+    let lane_mask = F::from([0, 1, 2, 3].map(|l| if lanes >> l & 1 != 0 { f64::from_bits(u64::MAX) } else { 0.0 }));
+    let take = lane_mask & (vis_l | vis_r) & (!vis_l | fits_l) & (!vis_r | fits_r) & (r1 - r0).simd_le(unit);
+    let taken = take.to_bitmask();
+    if taken == 0 {
+        return 0;
+    }
+    let row = r0.to_array();
+    for (lane, r) in row.iter().enumerate() {
+        out.row[lane] = *r as i32;
+    }
+    let two_rows = (r1 - r0).simd_eq(unit);
+    for (eye, v) in snapped.iter().enumerate() {
+        let (c0, c1, _, _, area2, visible, _) = boxes[eye];
+        let (x, y) = (xs(v), ys(v));
+        let q = [v[0][2], v[1][2], v[2][2]];
+        // `record`'s winding: vertices 1 and 2 swapped where the signed area is negative.
+        let flip = area2.simd_lt(zero);
+        let order = |a: [F; 3]| [a[0], flip.select(a[2], a[1]), flip.select(a[1], a[2])];
+        let (x, y, q) = (order(x), order(y), order(q));
+        let (px, py) = (c0 * one + half, r0 * one + half);
+        let two_cols = (c1 - c0).simd_eq(unit);
+        let mut covered = [0u8; 4];
+        for (bit, (dy, dx, wanted)) in
+            [(0.0, 0.0, all), (0.0, 1.0, two_cols), (1.0, 0.0, two_rows), (1.0, 1.0, two_cols & two_rows)]
+                .into_iter()
+                .enumerate()
+        {
+            let (cx, cy) = (px + F::splat(dx) * one, py + F::splat(dy) * one);
+            let mut inside = wanted & visible;
+            for k in 0..3 {
+                let j = (k + 1) % 3;
+                let (ex, ey) = (x[j] - x[k], y[j] - y[k]);
+                let owns = (-ey).simd_gt(zero) | (ey.simd_eq(zero) & ex.simd_gt(zero));
+                let e = ex * (cy - y[k]) - ey * (cx - x[k]) - owns.select(zero, unit);
+                inside &= e.simd_ge(zero);
+            }
+            let bits = inside.to_bitmask();
+            for (lane, c) in covered.iter_mut().enumerate() {
+                *c |= ((bits >> lane & 1) as u8) << bit;
+            }
+        }
+        // The depth-key plane through the three snapped vertices, relative to the first
+        // centre, in `record`'s steps.
+        let fx = [(x[0] - px) * per_one, (x[1] - px) * per_one, (x[2] - px) * per_one];
+        let fy = [(y[0] - py) * per_one, (y[1] - py) * per_one, (y[2] - py) * per_one];
+        let det = (fx[1] - fx[0]) * (fy[2] - fy[0]) - (fx[2] - fx[0]) * (fy[1] - fy[0]);
+        let (dq1, dq2) = (q[1] - q[0], q[2] - q[0]);
+        let qa = (dq1 * (fy[2] - fy[0]) - dq2 * (fy[1] - fy[0])) / det;
+        let qb = (dq2 * (fx[1] - fx[0]) - dq1 * (fx[2] - fx[0])) / det;
+        let qc = q[0] - qa * fx[0] - qb * fy[0];
+        let (qa, qb, qc, c0) = (qa.to_array(), qb.to_array(), qc.to_array(), c0.to_array());
+        for lane in 0..4 {
+            out.covered[lane][eye] = covered[lane];
+            out.cols[lane][eye] = c0[lane] as i32;
+            out.plane[lane][eye] = [qa[lane] as f32, qb[lane] as f32, qc[lane] as f32];
+        }
+    }
+    taken
 }
 
 /// [`covers_no_centre`] for one eye of [`setup_four`]'s four triangles, from their snapped
@@ -691,13 +846,16 @@ fn setup_four(ts: [&[f32; 9]; 4], p: &Projection, near: f64, out: &mut [[Snapped
 fn covers_no_centre_four(v: &[[f64x4; 3]; 3]) -> f64x4 {
     type F = f64x4;
     let (zero, one, half) = (F::splat(0.0), F::splat(ONE as f64), F::splat((ONE / 2) as f64));
+    // Dividing by a power of two is multiplying by its exact inverse (a division costs a
+    // dozen multiplies' time).
+    let per_one = F::splat(1.0 / ONE as f64);
     let (x, y) = ([v[0][0], v[1][0], v[2][0]], [v[0][1], v[1][1], v[2][1]]);
     let lo = |a: [F; 3]| a[0].min(a[1]).min(a[2]);
     let hi = |a: [F; 3]| a[0].max(a[1]).max(a[2]);
     // The box's first and last pixel centres, as `record`'s `centres` before the frame clamp
     // (a centre off the frame is one more to test, which only makes the cull rarer).
-    let (c0, c1) = (((lo(x) - half) / one).ceil(), ((hi(x) - half) / one).floor());
-    let (r0, r1) = (((lo(y) - half) / one).ceil(), ((hi(y) - half) / one).floor());
+    let (c0, c1) = (((lo(x) - half) * per_one).ceil(), ((hi(x) - half) * per_one).floor());
+    let (r0, r1) = (((lo(y) - half) * per_one).ceil(), ((hi(y) - half) * per_one).floor());
     let small = (c1 - c0).simd_le(F::splat(1.0)) & (r1 - r0).simd_le(F::splat(1.0));
     if !small.any() {
         return small;
@@ -1494,16 +1652,30 @@ mod tests {
             tris.push(tris[tris.len() % 7]);
         }
         let near64 = both_eyes_near(&p, near);
-        let (mut kinds, mut snapped, mut tiny_culled) = ([0usize; 3], [[Snapped::default(); 3]; 4], 0);
+        let (mut kinds, mut snapped, mut tiny_culled) = ([0usize; 4], [[Snapped::default(); 3]; 4], 0);
+        let (mut four_points, mut covered_points) = (FourPoints::default(), 0);
         for (group, four) in tris.chunks_exact(4).enumerate() {
             let ts = [&four[0], &four[1], &four[2], &four[3]];
-            let (culled, simple) = setup_four(ts, &p, near64, &mut snapped);
+            // Every other group as cut-out (no points), so both kinds of lanes are met.
+            let opaque = if group % 2 == 0 { 0b1111 } else { 0 };
+            let (culled, simple, pointed) = setup_four(ts, &p, near64, opaque, &mut snapped, &mut four_points);
             for lane in 0..4 {
                 let prim = (group * 4 + lane) as u32;
                 let mut want = Vec::new();
                 let clipped =
                     setup_triangle(ts[lane], prim, &p, near, &mut SetupOut { records: &mut want, points: None });
-                if simple >> lane & 1 != 0 {
+                if pointed >> lane & 1 != 0 {
+                    // The scalar setup with points makes the same points and no record.
+                    kinds[3] += 1;
+                    let (mut records, mut points, mut got) = (Vec::new(), Vec::new(), Vec::new());
+                    let mut out = SetupOut { records: &mut records, points: Some(&mut points) };
+                    assert!(!setup_triangle(ts[lane], prim, &p, near, &mut out), "triangle {prim}");
+                    four_points.push(lane, prim, &mut got);
+                    assert!(records.is_empty(), "triangle {prim}: records {records:?}");
+                    assert_eq!(got, points, "triangle {prim}: {:?}", ts[lane]);
+                    covered_points += got.len();
+                    assert_eq!(opaque >> lane & 1, 1, "a cut-out triangle's lane made points");
+                } else if simple >> lane & 1 != 0 {
                     kinds[0] += 1;
                     let mut got = Vec::new();
                     record(&snapped[lane], prim, &p, [true; 2], &mut SetupOut { records: &mut got, points: None });
@@ -1518,7 +1690,8 @@ mod tests {
             }
         }
         // Every kind of lane was met, or the comparison proved little.
-        assert!(kinds.iter().all(|&k| k > 50), "simple, culled, left to the scalar setup: {kinds:?}");
+        assert!(kinds.iter().all(|&k| k > 50), "simple, culled, left to the scalar setup, points: {kinds:?}");
+        assert!(covered_points > 1000, "points made by the four-wide setup: {covered_points}");
         assert!(tiny_culled > 1000, "tiny triangles culled for covering no centre: {tiny_culled}");
     }
 
