@@ -328,7 +328,9 @@ impl FixedRasterizer {
                         }
                         let ids: [u32; 4] = core::array::from_fn(|i| (prim + i) as u32);
                         // Cut-out triangles keep records: their fragments need the mask.
-                        let opaque = (0..4).fold(0, |bits, lane| bits | u32::from(!mask.has_mask(ids[lane])) << lane);
+                        // Asked only of groups with simple lanes (a lookup per triangle).
+                        let opaque =
+                            || (0..4).fold(0, |bits, lane| bits | u32::from(!mask.has_mask(ids[lane])) << lane);
                         let tris4 = ids.map(|id| tris.get(id));
                         let (culled, simple, pointed) =
                             setup_four(tris4, proj, near64, opaque, &mut snapped, &mut four_points);
@@ -338,7 +340,8 @@ impl FixedRasterizer {
                             if taken {
                                 four_points.push(lane, id, points);
                             }
-                            let points = (opaque >> lane & 1 != 0).then_some(&mut *points);
+                            // (A taken lane's points are in it already, for `finish` to count.)
+                            let points = (taken || !mask.has_mask(id)).then_some(&mut *points);
                             let mut out = SetupOut { records: &mut *records, points };
                             if simple >> lane & 1 != 0 {
                                 record(&snapped[lane], id, proj, [true; 2], &mut out);
@@ -612,7 +615,7 @@ fn setup_four(
     ts: [&[f32; 9]; 4],
     p: &Projection,
     near: f64,
-    opaque: u32,
+    opaque: impl FnOnce() -> u32,
     out: &mut [[Snapped; 3]; 4],
     points: &mut FourPoints,
 ) -> (u32, u32, u32) {
@@ -675,13 +678,20 @@ fn setup_four(
     // and each test stops at the box where no lane's is small (most groups of a scene of
     // large triangles).
     let none = F::splat(0.0).simd_ne(F::splat(0.0));
-    let left_empty = simple & covers_no_centre_four(&snapped[0]);
-    let tiny = if left_empty.any() { left_empty & covers_no_centre_four(&snapped[1]) } else { none };
+    let (left_small, left_empty) = covers_no_centre_four(&snapped[0]);
+    let left_empty = simple & left_empty;
+    let tiny = if left_empty.any() { left_empty & covers_no_centre_four(&snapped[1]).1 } else { none };
     let culled = culled | tiny;
     let culled = culled.to_bitmask();
     let simple = simple.to_bitmask() & !culled;
     // Opaque simple lanes whose eyes `record` would turn wholly into points take them here.
-    let pointed = if simple & opaque != 0 { points_four(&snapped, p, simple & opaque, points) } else { 0 };
+    // Points need a small left box (or none, which the left test counts as small too).
+    let pointed = if simple & left_small.to_bitmask() != 0 {
+        let lanes = simple & opaque();
+        if lanes != 0 { points_four(&snapped, p, lanes, points) } else { 0 }
+    } else {
+        0
+    };
     let simple = simple & !pointed;
     // The snapped integers to `i64` in lanes: adding 1.5·2⁵² puts an integer below 2⁵¹ in
     // magnitude into the low mantissa bits, so the difference of the bit patterns is the
@@ -767,15 +777,22 @@ fn points_four(snapped: &[[[f64x4; 3]; 3]; 2], p: &Projection, lanes: u32, out: 
         let fits = c0.simd_ge(zero) & c1.simd_le(last_col) & r0.simd_ge(zero) & r1.simd_le(last_row);
         (c0, c1, r0, r1, area2, visible, fits & (c1 - c0).simd_le(unit))
     };
+    let lane_mask = F::from([0, 1, 2, 3].map(|l| if lanes >> l & 1 != 0 { f64::from_bits(u64::MAX) } else { 0.0 }));
+    // The left eye alone first: in a scene of large triangles no lane passes, and the right
+    // eye's box is not needed.
+    let left = eye_box(&snapped[0]);
+    let small_rows = |b: &(F, F, F, F, F, F, F)| !b.5 | (b.6 & (b.3 - b.2).simd_le(unit));
+    if !(lane_mask & small_rows(&left)).any() {
+        return 0;
+    }
     // Written out, not `map`ped: see `setup_four`.
-    let boxes = [eye_box(&snapped[0]), eye_box(&snapped[1])];
+    let boxes = [left, eye_box(&snapped[1])];
     let [(.., vis_l, fits_l), (.., vis_r, fits_r)] = boxes;
     // `record`'s rows: the union of the visible eyes'.
     let both = vis_l & vis_r;
     let r0 = both.select(boxes[0].2.min(boxes[1].2), vis_l.select(boxes[0].2, boxes[1].2));
     let r1 = both.select(boxes[0].3.max(boxes[1].3), vis_l.select(boxes[0].3, boxes[1].3));
     let all = zero.simd_eq(zero);
-    let lane_mask = F::from([0, 1, 2, 3].map(|l| if lanes >> l & 1 != 0 { f64::from_bits(u64::MAX) } else { 0.0 }));
     let take = lane_mask & (vis_l | vis_r) & (!vis_l | fits_l) & (!vis_r | fits_r) & (r1 - r0).simd_le(unit);
     let taken = take.to_bitmask();
     if taken == 0 {
@@ -837,13 +854,14 @@ fn points_four(snapped: &[[[f64x4; 3]; 3]; 2], p: &Projection, lanes: u32, out: 
 
 /// [`covers_no_centre`] for one eye of [`setup_four`]'s four triangles, from their snapped
 /// vertices (`[x, y, q]` per vertex, fixed point as exact `f64` integers): the lanes whose
-/// box holds at most 2×2 pixel centres (or none) and whose triangle covers none of them, by
+/// box holds at most 2×2 pixel centres (or none), and of those the lanes whose triangle
+/// covers none of them, by
 /// the edge functions, winding and top-left rule of [`record`]. In those lanes every term is
 /// an integer below 2²¹ in magnitude (the vertices lie within three pixels of each other and
 /// of the centres), so the `f64` arithmetic is exact and equals `record`'s `i64`; other lanes
 /// (larger boxes, or not finite) are false, whatever their values.
 #[inline(always)]
-fn covers_no_centre_four(v: &[[f64x4; 3]; 3]) -> f64x4 {
+fn covers_no_centre_four(v: &[[f64x4; 3]; 3]) -> (f64x4, f64x4) {
     type F = f64x4;
     let (zero, one, half) = (F::splat(0.0), F::splat(ONE as f64), F::splat((ONE / 2) as f64));
     // Dividing by a power of two is multiplying by its exact inverse (a division costs a
@@ -858,7 +876,7 @@ fn covers_no_centre_four(v: &[[f64x4; 3]; 3]) -> f64x4 {
     let (r0, r1) = (((lo(y) - half) * per_one).ceil(), ((hi(y) - half) * per_one).floor());
     let small = (c1 - c0).simd_le(F::splat(1.0)) & (r1 - r0).simd_le(F::splat(1.0));
     if !small.any() {
-        return small;
+        return (small, small);
     }
     let (two_cols, two_rows) = ((c1 - c0).simd_eq(F::splat(1.0)), (r1 - r0).simd_eq(F::splat(1.0)));
     // `record`'s winding: vertices 1 and 2 swapped where the signed area is negative.
@@ -882,7 +900,7 @@ fn covers_no_centre_four(v: &[[f64x4; 3]; 3]) -> f64x4 {
         }
         covered |= inside;
     }
-    small & !covered
+    (small, small & !covered)
 }
 
 /// Whether every triangle of a cluster is culled by [`setup_four`]'s frustum test (all three
@@ -1658,7 +1676,7 @@ mod tests {
             let ts = [&four[0], &four[1], &four[2], &four[3]];
             // Every other group as cut-out (no points), so both kinds of lanes are met.
             let opaque = if group % 2 == 0 { 0b1111 } else { 0 };
-            let (culled, simple, pointed) = setup_four(ts, &p, near64, opaque, &mut snapped, &mut four_points);
+            let (culled, simple, pointed) = setup_four(ts, &p, near64, || opaque, &mut snapped, &mut four_points);
             for lane in 0..4 {
                 let prim = (group * 4 + lane) as u32;
                 let mut want = Vec::new();
