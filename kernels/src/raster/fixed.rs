@@ -177,6 +177,9 @@ pub struct FixedRasterizer {
     point_counts: Vec<u32>,
     point_bin_start: Vec<u32>,
     point_bins: Vec<BandPoint>,
+    /// Each row's band: looked up for every point, twice (an integer division per point
+    /// was a few milliseconds of the setup and binning of a dense mesh).
+    row_band: Vec<u32>,
 }
 
 impl Default for FixedRasterizer {
@@ -204,6 +207,7 @@ impl FixedRasterizer {
             point_counts: Vec::new(),
             point_bin_start: Vec::new(),
             point_bins: Vec::new(),
+            row_band: Vec::new(),
         }
     }
 
@@ -265,6 +269,9 @@ impl FixedRasterizer {
         self.counts.resize(chunks * 2 * bands, 0);
         self.point_counts.clear();
         self.point_counts.resize(chunks * 2 * bands, 0);
+        self.row_band.clear();
+        self.row_band.extend((0..proj.height as usize).map(|y| (y / band_rows) as u32));
+        let row_band = &self.row_band;
         self.records
             .par_iter_mut()
             .zip(self.points.par_iter_mut())
@@ -297,7 +304,7 @@ impl FixedRasterizer {
                         stats.visible += 1;
                         for point in points {
                             let eye = (point.eye_x >> 31) as usize;
-                            point_counts[eye * bands + point.y as usize / band_rows] += 1;
+                            point_counts[eye * bands + row_band[point.y as usize] as usize] += 1;
                         }
                         let masked = mask.has_mask(prim);
                         for rec in &mut out.records[before.0..] {
@@ -440,10 +447,11 @@ impl FixedRasterizer {
         }
         super::resize_with_headroom(&mut self.point_bins, total as usize, BandPoint::default());
         let bins = super::SharedSlice::new(&mut self.point_bins);
+        let row_band = &self.row_band;
         self.points.par_iter().zip(self.point_counts.par_chunks_mut(2 * bands)).for_each(|(points, cursors)| {
             for point in points {
                 let (eye, x, y) = ((point.eye_x >> 31) as usize, (point.eye_x & !(1 << 31)) as usize, point.y as usize);
-                let band = y / band_rows;
+                let band = row_band[y] as usize;
                 let at = &mut cursors[eye * bands + band];
                 let in_band = ((y - band * band_rows) * width + x) as u32;
                 // SAFETY: as in `bin`: this chunk's cursors walk its own ranges of the bins.
@@ -605,9 +613,10 @@ fn both_eyes_near(p: &Projection, near: f32) -> f64 {
 /// same f64 operations in the same order (so the same snapped vertices, bit for bit), without
 /// its branches. `near` is [`both_eyes_near`]'s. Returns three lane masks: the triangles
 /// culled (outside both eyes' frusta, collinear or not finite, or tiny and covering no pixel
-/// centre: no record); those that need no clipping and land within the coordinate limit,
-/// whose snapped vertices are in `out` (their record is [`record`]'s); and those of the
-/// `opaque` lanes that `record` would make only points of, whose points are in `points`
+/// centre, unless taken as points: no record); those that need no clipping and land within
+/// the coordinate limit, whose snapped vertices are in `out` (their record is [`record`]'s);
+/// and those of the `opaque` lanes that `record` would make only points of (or nothing),
+/// whose points are in `points`
 /// ([`points_four`]: on the 833k-triangle bunny grid nearly every visible triangle, and
 /// `record`'s scalar steps were half the setup). Lanes in none are [`setup_triangle`]'s to
 /// do.
@@ -659,40 +668,39 @@ fn setup_four(
     let (hw, hh) = (F::splat(f64::from(p.hw)), F::splat(f64::from(p.hh)));
     let (gx, gy) = (F::splat(GUARD_HALF_PX / f64::from(p.hw)), F::splat(GUARD_HALF_PX / f64::from(p.hh)));
     let (limit, one) = (F::splat(HARD_LIMIT_PX), F::splat(ONE as f64));
-    let mut simple = clip.iter().fold(all, |acc, c| acc & c[2].simd_gt(F::splat(near)));
-    // Per eye and vertex: the snapped position (rounded, in f64) and q.
-    let mut snapped = [[[F::splat(0.0); 3]; 3]; 2];
-    for (eye, v) in eye_clip.iter().enumerate() {
-        for (k, [x, y, w]) in v.iter().enumerate() {
-            simple &= x.abs().simd_le(gx * *w) & y.abs().simd_le(gy * *w);
-            let q = F::splat(1.0) / *w;
-            let (sx, sy) = (*x * q * hw + hw, -*y * q * hh + hh);
-            simple &= sx.abs().simd_le(limit) & sy.abs().simd_le(limit);
-            // `round` is f64::round's (half away from zero), lane for lane.
-            snapped[eye][k] = [(sx * one).round(), (sy * one).round(), q];
-        }
-    }
-    // Simple lanes whose tiny triangle covers no pixel centre in either eye get no record
-    // (`record` would drop them after its scalar setup): 43 % of the 833k-triangle bunny
-    // grid's triangles. The right eye is tested only where the left eye's test culls a lane,
-    // and each test stops at the box where no lane's is small (most groups of a scene of
-    // large triangles).
-    let none = F::splat(0.0).simd_ne(F::splat(0.0));
-    let (left_small, left_empty) = covers_no_centre_four(&snapped[0]);
-    let left_empty = simple & left_empty;
-    let tiny = if left_empty.any() { left_empty & covers_no_centre_four(&snapped[1]).1 } else { none };
-    let culled = culled | tiny;
-    let culled = culled.to_bitmask();
-    let simple = simple.to_bitmask() & !culled;
-    // Opaque simple lanes whose eyes `record` would turn wholly into points take them here.
-    // Points need a small left box (or none, which the left test counts as small too).
-    let pointed = if simple & left_small.to_bitmask() != 0 {
-        let lanes = simple & opaque();
-        if lanes != 0 { points_four(&snapped, p, lanes, points) } else { 0 }
-    } else {
-        0
+    let simple = clip.iter().fold(all, |acc, c| acc & c[2].simd_gt(F::splat(near)));
+    // One vertex in one eye: the snapped position (rounded, in f64) and q, and whether it
+    // lies within the guard band and the coordinate limit.
+    let snap = |[x, y, w]: [F; 3]| {
+        let inside = x.abs().simd_le(gx * w) & y.abs().simd_le(gy * w);
+        let q = F::splat(1.0) / w;
+        let (sx, sy) = (x * q * hw + hw, -y * q * hh + hh);
+        let inside = inside & sx.abs().simd_le(limit) & sy.abs().simd_le(limit);
+        // `round` is f64::round's (half away from zero), lane for lane.
+        ([(sx * one).round(), (sy * one).round(), q], inside)
     };
-    let simple = simple & !pointed;
+    // Written out (an array filled in a loop was zeroed first, with a `memset` call).
+    let [[a, b, c], [d, e, f]] = eye_clip;
+    let (a, b, c, d, e, f) = (snap(a), snap(b), snap(c), snap(d), snap(e), snap(f));
+    let simple = simple & a.1 & b.1 & c.1 & d.1 & e.1 & f.1;
+    // Per eye and vertex.
+    let snapped = [[a.0, b.0, c.0], [d.0, e.0, f.0]];
+    // Opaque simple lanes whose eyes `record` would turn wholly into points take them here
+    // (a lane that covers no centre takes none: it is culled as well).
+    let simple = simple & !culled;
+    let pointed = if simple.any() { points_four(&snapped, p, simple.to_bitmask(), opaque, points) } else { 0 };
+    let simple = simple.to_bitmask() & !pointed;
+    // The simple lanes left whose tiny triangle covers no pixel centre in either eye get no
+    // record (`record` would drop them after its scalar setup): cut-out triangles, and those
+    // whose eyes' rows differ. On the 833k-triangle bunny grid, before points, 43 % of all
+    // triangles. The right eye is tested only where the left eye's test culls a lane, and
+    // each test stops at the box where no lane's is small.
+    let lanes = F::from([0, 1, 2, 3].map(|l| if simple >> l & 1 != 0 { f64::from_bits(u64::MAX) } else { 0.0 }));
+    let none = F::splat(0.0).simd_ne(F::splat(0.0));
+    let left_empty = if simple != 0 { lanes & covers_no_centre_four(&snapped[0]) } else { none };
+    let tiny = if left_empty.any() { left_empty & covers_no_centre_four(&snapped[1]) } else { none };
+    let culled = (culled | tiny).to_bitmask();
+    let simple = simple & !culled;
     // The snapped integers to `i64` in lanes: adding 1.5·2⁵² puts an integer below 2⁵¹ in
     // magnitude into the low mantissa bits, so the difference of the bit patterns is the
     // integer (the scalar `as i64`, with its saturation checks, was a sixth of this function's
@@ -700,6 +708,10 @@ fn setup_four(
     const MAGIC: f64 = 6_755_399_441_055_744.0;
     let magic_bits = i64x4::splat(MAGIC.to_bits() as i64);
     let to_i64 = |v: F| (bytemuck::cast::<F, i64x4>(v + F::splat(MAGIC)) - magic_bits).to_array();
+    if simple == 0 {
+        // No lane needs `record` (on a dense mesh, most groups: points or culled).
+        return (culled, simple, pointed);
+    }
     for (eye, v) in snapped.iter().enumerate() {
         for (k, [x, y, q]) in v.iter().enumerate() {
             let (x, y, q) = (to_i64(*x), to_i64(*y), q.to_array());
@@ -747,7 +759,8 @@ impl FourPoints {
 }
 
 /// Of [`setup_four`]'s `lanes` (snapped vertices per eye, fixed point as exact `f64`
-/// integers), those `record` would give no record but points: each eye either not visible
+/// integers), those of an opaque triangle (`opaque()`, asked only once some lane's left box
+/// is small) that `record` would give no record but points (or nothing): each eye either not visible
 /// (zero area, or a box between pixel centres) or a box of at most 2×2 centres inside the
 /// frame, the rows of both eyes' boxes together at most two. Their coverage and depth-key
 /// planes go to `out`; the lanes are returned as a bit mask. The same operations as
@@ -755,7 +768,13 @@ impl FourPoints {
 /// vertices lying within three pixels of the centres), and the plane's `f64` steps are
 /// `record`'s, one for one. Other lanes (larger or clipped boxes, rows apart) are left to it.
 #[inline(always)]
-fn points_four(snapped: &[[[f64x4; 3]; 3]; 2], p: &Projection, lanes: u32, out: &mut FourPoints) -> u32 {
+fn points_four(
+    snapped: &[[[f64x4; 3]; 3]; 2],
+    p: &Projection,
+    lanes: u32,
+    opaque: impl FnOnce() -> u32,
+    out: &mut FourPoints,
+) -> u32 {
     type F = f64x4;
     let (zero, one, half, unit) = (F::splat(0.0), F::splat(ONE as f64), F::splat((ONE / 2) as f64), F::splat(1.0));
     // `x / ONE`, exactly (see `covers_no_centre_four`).
@@ -785,6 +804,12 @@ fn points_four(snapped: &[[[f64x4; 3]; 3]; 2], p: &Projection, lanes: u32, out: 
     if !(lane_mask & small_rows(&left)).any() {
         return 0;
     }
+    // Only then the materials (a lookup per triangle): cut-out triangles keep records.
+    let lanes = lanes & opaque();
+    if lanes == 0 {
+        return 0;
+    }
+    let lane_mask = F::from([0, 1, 2, 3].map(|l| if lanes >> l & 1 != 0 { f64::from_bits(u64::MAX) } else { 0.0 }));
     // Written out, not `map`ped: see `setup_four`.
     let boxes = [left, eye_box(&snapped[1])];
     let [(.., vis_l, fits_l), (.., vis_r, fits_r)] = boxes;
@@ -854,14 +879,13 @@ fn points_four(snapped: &[[[f64x4; 3]; 3]; 2], p: &Projection, lanes: u32, out: 
 
 /// [`covers_no_centre`] for one eye of [`setup_four`]'s four triangles, from their snapped
 /// vertices (`[x, y, q]` per vertex, fixed point as exact `f64` integers): the lanes whose
-/// box holds at most 2×2 pixel centres (or none), and of those the lanes whose triangle
-/// covers none of them, by
+/// box holds at most 2×2 pixel centres (or none) and whose triangle covers none of them, by
 /// the edge functions, winding and top-left rule of [`record`]. In those lanes every term is
 /// an integer below 2²¹ in magnitude (the vertices lie within three pixels of each other and
 /// of the centres), so the `f64` arithmetic is exact and equals `record`'s `i64`; other lanes
 /// (larger boxes, or not finite) are false, whatever their values.
 #[inline(always)]
-fn covers_no_centre_four(v: &[[f64x4; 3]; 3]) -> (f64x4, f64x4) {
+fn covers_no_centre_four(v: &[[f64x4; 3]; 3]) -> f64x4 {
     type F = f64x4;
     let (zero, one, half) = (F::splat(0.0), F::splat(ONE as f64), F::splat((ONE / 2) as f64));
     // Dividing by a power of two is multiplying by its exact inverse (a division costs a
@@ -876,7 +900,7 @@ fn covers_no_centre_four(v: &[[f64x4; 3]; 3]) -> (f64x4, f64x4) {
     let (r0, r1) = (((lo(y) - half) * per_one).ceil(), ((hi(y) - half) * per_one).floor());
     let small = (c1 - c0).simd_le(F::splat(1.0)) & (r1 - r0).simd_le(F::splat(1.0));
     if !small.any() {
-        return (small, small);
+        return small;
     }
     let (two_cols, two_rows) = ((c1 - c0).simd_eq(F::splat(1.0)), (r1 - r0).simd_eq(F::splat(1.0)));
     // `record`'s winding: vertices 1 and 2 swapped where the signed area is negative.
@@ -900,7 +924,7 @@ fn covers_no_centre_four(v: &[[f64x4; 3]; 3]) -> (f64x4, f64x4) {
         }
         covered |= inside;
     }
-    (small, small & !covered)
+    small & !covered
 }
 
 /// Whether every triangle of a cluster is culled by [`setup_four`]'s frustum test (all three
