@@ -57,7 +57,9 @@ use std::time::Instant;
 use rayon::prelude::*;
 use wide::{f64x4, i32x8, i64x4, u32x8};
 
-use super::{AlphaTest, Body, EyeView, NO_PRIM, Projection, RasterStats, Triangles, VisibilityBuffer, band_range};
+use super::{
+    AlphaTest, Body, EyeView, NO_PRIM, Projection, RasterStats, Triangles, VisibilityBuffer, band_range, bin_cursors,
+};
 use crate::camera::CameraModel;
 use crate::frame::{Extent, FrameError, same_extent};
 use crate::simd::{F32s, LANES, lane_offsets, prefetch};
@@ -384,22 +386,7 @@ impl FixedRasterizer {
 
     fn bin(&mut self, extent: Extent) {
         let (band_rows, bands) = (self.band_rows, self.bands(extent));
-        let chunks = self.records.len();
-        self.bin_start.clear();
-        self.bin_start.resize(2 * (bands + 1), 0);
-        let mut total = 0u32;
-        for eye in 0..2 {
-            for band in 0..bands {
-                self.bin_start[eye * (bands + 1) + band] = total;
-                for chunk in 0..chunks {
-                    let c = &mut self.counts[(chunk * 2 + eye) * bands + band];
-                    let count = *c;
-                    *c = total;
-                    total += count;
-                }
-            }
-            self.bin_start[eye * (bands + 1) + bands] = total;
-        }
+        let total = bin_cursors(&mut self.counts, bands, &mut self.bin_start);
         super::resize_with_headroom(&mut self.bins, total as usize, 0);
         self.bin_points(extent);
         let bins = super::SharedSlice::new(&mut self.bins);
@@ -425,21 +412,7 @@ impl FixedRasterizer {
     /// [`Self::bin`] for the points: each copied into its eye's band, in triangle order.
     fn bin_points(&mut self, extent: Extent) {
         let (band_rows, bands, width) = (self.band_rows, self.bands(extent), extent.width());
-        self.point_bin_start.clear();
-        self.point_bin_start.resize(2 * (bands + 1), 0);
-        let mut total = 0u32;
-        for eye in 0..2 {
-            for band in 0..bands {
-                self.point_bin_start[eye * (bands + 1) + band] = total;
-                for chunk in 0..self.points.len() {
-                    let c = &mut self.point_counts[(chunk * 2 + eye) * bands + band];
-                    let count = *c;
-                    *c = total;
-                    total += count;
-                }
-            }
-            self.point_bin_start[eye * (bands + 1) + bands] = total;
-        }
+        let total = bin_cursors(&mut self.point_counts, bands, &mut self.point_bin_start);
         // As much room as the chunks have: the bins grow only when a chunk's points do.
         let room: usize = self.points.iter().map(Vec::capacity).sum();
         if self.point_bins.capacity() < room {

@@ -598,22 +598,7 @@ impl Rasterizer {
     /// Step 2: prefix sums over (eye, band, chunk) and the index lists.
     fn bin(&mut self, extent: Extent) {
         let (band_rows, bands) = (self.band_rows, self.bands(extent));
-        let chunks = self.records.len().div_ceil(CHUNK);
-        self.bin_start.clear();
-        self.bin_start.resize(2 * (bands + 1), 0);
-        let mut total = 0u32;
-        for eye in 0..2 {
-            for band in 0..bands {
-                self.bin_start[eye * (bands + 1) + band] = total;
-                for chunk in 0..chunks {
-                    let c = &mut self.counts[(chunk * 2 + eye) * bands + band];
-                    let count = *c;
-                    *c = total;
-                    total += count;
-                }
-            }
-            self.bin_start[eye * (bands + 1) + bands] = total;
-        }
+        let total = bin_cursors(&mut self.counts, bands, &mut self.bin_start);
         resize_with_headroom(&mut self.bins, total as usize, 0);
         // Each chunk writes its records at its own cursors: disjoint ranges of `bins`.
         let bins = SharedSlice::new(&mut self.bins);
@@ -696,6 +681,31 @@ pub(crate) struct BandOut<'a> {
     pub q_err: &'a mut [f32],
     pub width: usize,
     pub rows: Range<usize>,
+}
+
+/// The prefix sum that lays out the bins: `counts[(chunk · 2 + eye) · bands + band]` (what
+/// each chunk put in each eye's band) becomes where that chunk's part of the bin starts,
+/// bins ordered by eye, then band, then chunk (so each bin lists its work in triangle order);
+/// `start[eye · (bands + 1) + band]` gets where each bin starts, and `start[eye · (bands +
+/// 1) + bands]` where the eye's bins end. Returns the total.
+fn bin_cursors(counts: &mut [u32], bands: usize, start: &mut Vec<u32>) -> u32 {
+    let chunks = counts.len() / (2 * bands);
+    start.clear();
+    start.resize(2 * (bands + 1), 0);
+    let mut total = 0u32;
+    for eye in 0..2 {
+        for band in 0..bands {
+            start[eye * (bands + 1) + band] = total;
+            for chunk in 0..chunks {
+                let c = &mut counts[(chunk * 2 + eye) * bands + band];
+                let count = *c;
+                *c = total;
+                total += count;
+            }
+        }
+        start[eye * (bands + 1) + bands] = total;
+    }
+    total
 }
 
 /// The bands of `band_rows` rows that the pixel rows `rows.0..=rows.1` touch.
