@@ -179,8 +179,9 @@ pub struct FixedRasterizer {
     point_counts: Vec<u32>,
     point_bin_start: Vec<u32>,
     point_bins: Vec<BandPoint>,
-    /// Each row's band: looked up for every point, twice (an integer division per point
-    /// was a few milliseconds of the setup and binning of a dense mesh).
+    /// Each row's band: looked up for every point, twice (in the setup's counts and in
+    /// binning), where an integer division would sit on the path of each of a dense mesh's
+    /// points.
     row_band: Vec<u32>,
 }
 
