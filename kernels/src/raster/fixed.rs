@@ -669,7 +669,7 @@ fn setup_four(
     // whose eyes' rows differ. On the 833k-triangle bunny grid, before points, 43 % of all
     // triangles. The right eye is tested only where the left eye's test culls a lane, and
     // each test stops at the box where no lane's is small.
-    let lanes = F::from([0, 1, 2, 3].map(|l| if simple >> l & 1 != 0 { f64::from_bits(u64::MAX) } else { 0.0 }));
+    let lanes = lane_mask(simple);
     let none = F::splat(0.0).simd_ne(F::splat(0.0));
     let left_empty = if simple != 0 { lanes & covers_no_centre_four(&snapped[0]) } else { none };
     let tiny = if left_empty.any() { left_empty & covers_no_centre_four(&snapped[1]) } else { none };
@@ -699,6 +699,12 @@ fn setup_four(
     (culled, simple, pointed)
 }
 
+/// The lanes of `bits` (bit `l` for lane `l`) as an `f64x4` mask.
+#[inline(always)]
+fn lane_mask(bits: u32) -> f64x4 {
+    f64x4::from([0, 1, 2, 3].map(|l| if bits >> l & 1 != 0 { f64::from_bits(u64::MAX) } else { 0.0 }))
+}
+
 /// The points of [`setup_four`]'s lanes that [`points_four`] took, per lane and eye: which of
 /// the 2×2 centres from `(cols, row)` are covered (bit `2·dy + dx`), and the depth-key plane
 /// there, rounded to `f32` as `record` rounds it.
@@ -715,20 +721,10 @@ impl FourPoints {
     /// then the right's, each row by row.
     #[inline(always)]
     fn push(&self, lane: usize, prim: u32, points: &mut Vec<FixedPoint>) {
-        points.reserve(8);
-        let spare = &mut points.spare_capacity_mut()[..8];
-        let mut count = 0;
         for eye in 0..2 {
-            let [qa, qb, qc] = self.plane[lane][eye];
-            for (bit, (dy, dx)) in [(0, 0), (0, 1), (1, 0), (1, 1)].into_iter().enumerate() {
-                let q = (qc + qb * dy as f32) + qa * dx as f32;
-                let x = (self.cols[lane][eye] + dx) as u32 | (eye as u32) << 31;
-                spare[count].write(FixedPoint { eye_x: x, y: (self.row[lane] + dy) as u32, prim, q });
-                count += usize::from(self.covered[lane][eye] >> bit & 1);
-            }
+            let (col, row) = (self.cols[lane][eye], self.row[lane]);
+            append_points(points, eye, (col, row), prim, self.plane[lane][eye], self.covered[lane][eye]);
         }
-        // SAFETY: the first `count` spare slots were written just now.
-        unsafe { points.set_len(points.len() + count) };
     }
 }
 
@@ -770,12 +766,12 @@ fn points_four(
         let fits = c0.simd_ge(zero) & c1.simd_le(last_col) & r0.simd_ge(zero) & r1.simd_le(last_row);
         (c0, c1, r0, r1, area2, visible, fits & (c1 - c0).simd_le(unit))
     };
-    let lane_mask = F::from([0, 1, 2, 3].map(|l| if lanes >> l & 1 != 0 { f64::from_bits(u64::MAX) } else { 0.0 }));
+    let in_lanes = lane_mask(lanes);
     // The left eye alone first: in a scene of large triangles no lane passes, and the right
     // eye's box is not needed.
     let left = eye_box(&snapped[0]);
     let small_rows = |b: &(F, F, F, F, F, F, F)| !b.5 | (b.6 & (b.3 - b.2).simd_le(unit));
-    if !(lane_mask & small_rows(&left)).any() {
+    if !(in_lanes & small_rows(&left)).any() {
         return 0;
     }
     // Only then the materials (a lookup per triangle): cut-out triangles keep records.
@@ -783,7 +779,7 @@ fn points_four(
     if lanes == 0 {
         return 0;
     }
-    let lane_mask = F::from([0, 1, 2, 3].map(|l| if lanes >> l & 1 != 0 { f64::from_bits(u64::MAX) } else { 0.0 }));
+    let in_lanes = lane_mask(lanes);
     // Written out, not `map`ped: see `setup_four`.
     let boxes = [left, eye_box(&snapped[1])];
     let [(.., vis_l, fits_l), (.., vis_r, fits_r)] = boxes;
@@ -792,7 +788,7 @@ fn points_four(
     let r0 = both.select(boxes[0].2.min(boxes[1].2), vis_l.select(boxes[0].2, boxes[1].2));
     let r1 = both.select(boxes[0].3.max(boxes[1].3), vis_l.select(boxes[0].3, boxes[1].3));
     let all = zero.simd_eq(zero);
-    let take = lane_mask & (vis_l | vis_r) & (!vis_l | fits_l) & (!vis_r | fits_r) & (r1 - r0).simd_le(unit);
+    let take = in_lanes & (vis_l | vis_r) & (!vis_l | fits_l) & (!vis_r | fits_r) & (r1 - r0).simd_le(unit);
     let taken = take.to_bitmask();
     if taken == 0 {
         return 0;
@@ -1144,23 +1140,41 @@ fn push_points(e: &FixedEyeEdges, rows: (i32, i32), eye: usize, prim: u32, point
     if row_count > 2 || col_count > 2 {
         return false;
     }
-    // All four candidates are written and the length advanced past the covered ones: no
-    // branch per centre, whose outcome is a coin toss for a tiny triangle.
+    let mut covered = 0u8;
+    for (bit, (dy, dx)) in [(0, 0), (0, 1), (1, 0), (1, 1)].into_iter().enumerate() {
+        let (dx64, dy64) = (i64::from(dx), i64::from(dy));
+        let smallest = (0..3).map(|k| e.e0[k] + e.dy[k] * dy64 + e.dx[k] * dx64).fold(i64::MAX, i64::min);
+        covered |= u8::from((dy < row_count) & (dx < col_count) & (smallest >= 0)) << bit;
+    }
+    append_points(points, eye, (e.cols.0, rows.0), prim, [e.qa, e.qb, e.qc], covered);
+    true
+}
+
+/// Appends the points of one eye's box of at most 2×2 pixel centres from `(col, row)`: those
+/// whose bit `2·dy + dx` is set in `covered`, with the depth key of the plane `[qa, qb, qc]`
+/// formed as [`walk_scalar`] forms it. All four slots are written and the length advanced
+/// past the covered ones: no branch per centre, whose outcome is a coin toss for a tiny
+/// triangle.
+#[inline(always)]
+fn append_points(
+    points: &mut Vec<FixedPoint>,
+    eye: usize,
+    (col, row): (i32, i32),
+    prim: u32,
+    [qa, qb, qc]: [f32; 3],
+    covered: u8,
+) {
     points.reserve(4);
     let spare = &mut points.spare_capacity_mut()[..4];
     let mut count = 0;
-    for (dy, dx) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
-        let (dx64, dy64) = (i64::from(dx), i64::from(dy));
-        let smallest = (0..3).map(|k| e.e0[k] + e.dy[k] * dy64 + e.dx[k] * dx64).fold(i64::MAX, i64::min);
-        let covered = (dy < row_count) & (dx < col_count) & (smallest >= 0);
-        let q = (e.qc + e.qb * dy as f32) + e.qa * dx as f32;
-        let x = (e.cols.0 + dx) as u32 | (eye as u32) << 31;
-        spare[count].write(FixedPoint { eye_x: x, y: (rows.0 + dy) as u32, prim, q });
-        count += usize::from(covered);
+    for (bit, (dy, dx)) in [(0, 0), (0, 1), (1, 0), (1, 1)].into_iter().enumerate() {
+        let q = (qc + qb * dy as f32) + qa * dx as f32;
+        let x = (col + dx) as u32 | (eye as u32) << 31;
+        spare[count].write(FixedPoint { eye_x: x, y: (row + dy) as u32, prim, q });
+        count += usize::from(covered >> bit & 1);
     }
     // SAFETY: the first `count` spare slots were written just now.
     unsafe { points.set_len(points.len() + count) };
-    true
 }
 
 /// Whether the eye's edges `e` (from pixel centre `(cols.0, rows.0)`) cover none of the pixel
