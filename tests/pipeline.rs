@@ -318,8 +318,10 @@ fn a_resized_pipeline_renders_what_a_new_one_of_that_size_renders() {
 /// material is `material` move by the rigid motion `path` makes between the last two frames
 /// (checked by the path's inverse transform, not the renderer's barycentric way), all others
 /// are still. Returns the pixels of `material` (both eyes) and how many of them kept their
-/// history without and with vectors.
+/// history without and with vectors. `pass` makes the G-buffers: the rasterised pass names
+/// each pixel's moving triangle, the traced one leaves it to a search of them all.
 fn motion_and_history(
+    pass: GBufferPass,
     scene: &str,
     material: impl Fn(&Renderer) -> (u32, stereotrace::scene::TransformPath),
     frames: std::ops::Range<u32>,
@@ -334,7 +336,8 @@ fn motion_and_history(
     for motion_vectors in [false, true] {
         let mut cfg = PipelineConfig::paper(Mode::Temporal, 1, r.scene().tolerances.at_height(e.height()));
         cfg.motion_vectors = motion_vectors;
-        let mut p = Pipeline::new(&r, cfg, StereoRig::default(), e).unwrap();
+        let options = RendererOptions::with_gbuffer(pass);
+        let mut p = Pipeline::with_options(&r, options, cfg, StereoRig::default(), e).unwrap();
         for frame in frames.clone() {
             p.render_frame(frame, &head).unwrap();
         }
@@ -352,14 +355,14 @@ fn motion_and_history(
                 let (x, y) = (i % e.width(), i / e.width());
                 let m = glam::Vec3::from(std::array::from_fn(|c| motion[c].as_slice()[i]));
                 if !moving {
-                    assert_eq!(m, glam::Vec3::ZERO, "{scene} {eye} ({x}, {y}): still geometry");
+                    assert_eq!(m, glam::Vec3::ZERO, "{scene} {pass:?} {eye} ({x}, {y}): still geometry");
                     continue;
                 }
                 let point = glam::Vec3::from(g.camera.unproject_pixel(x, y, g.depth.as_slice()[i]));
                 let expected = point - then.transform_point3(now.inverse().transform_point3(point));
                 assert!(
                     (m - expected).length() < 1e-3 * expected.length().max(1e-2),
-                    "{scene} {eye} ({x}, {y}): {m} vs {expected}"
+                    "{scene} {pass:?} {eye} ({x}, {y}): {m} vs {expected}"
                 );
             }
         }
@@ -378,11 +381,13 @@ fn motion_vectors_follow_a_moving_light_and_keep_its_history() {
         assert_eq!(moving.len(), 1);
         (stereotrace::render::MOVING_LIGHT_MATERIAL, moving[0].path.clone())
     };
-    let (pixels, [without, with]) = motion_and_history("atrium-moving-light", sphere, 10..13);
-    eprintln!("sphere pixels {pixels}: history kept on {without} without vectors, {with} with");
-    assert!(pixels > 50, "the sphere covers {pixels} pixels");
-    assert!(with * 10 >= pixels * 8, "with vectors {with} of {pixels}");
-    assert!(without * 5 <= pixels, "without vectors {without} of {pixels}");
+    for pass in [GBufferPass::Raster, GBufferPass::Traced] {
+        let (pixels, [without, with]) = motion_and_history(pass, "atrium-moving-light", sphere, 10..13);
+        eprintln!("{pass:?}: sphere pixels {pixels}: history kept on {without} without vectors, {with} with");
+        assert!(pixels > 50, "the sphere covers {pixels} pixels");
+        assert!(with * 10 >= pixels * 8, "with vectors {with} of {pixels}");
+        assert!(without * 5 <= pixels, "without vectors {without} of {pixels}");
+    }
 }
 
 /// Motion vectors on atrium's moving crate (a non-emissive object that slides and turns): its
@@ -393,13 +398,15 @@ fn motion_vectors_follow_a_moving_object() {
         let object = &r.scene().moving_objects[0];
         (object.material, object.path.clone())
     };
-    let (pixels, [without, with]) = motion_and_history("atrium-moving-object", crate_, 20..23);
-    // Without vectors the sliding crate mostly keeps a history too, but of the wrong texels
-    // (its faces slide along themselves and pass the geometric tests); RESULTS.md measures
-    // what that costs.
-    eprintln!("crate pixels {pixels}: history kept on {without} without vectors, {with} with");
-    assert!(pixels > 500, "the crate covers {pixels} pixels");
-    assert!(with * 10 >= pixels * 8, "with vectors {with} of {pixels}");
+    for pass in [GBufferPass::Raster, GBufferPass::Traced] {
+        let (pixels, [without, with]) = motion_and_history(pass, "atrium-moving-object", crate_, 20..23);
+        // Without vectors the sliding crate mostly keeps a history too, but of the wrong
+        // texels (its faces slide along themselves and pass the geometric tests); RESULTS.md
+        // measures what that costs.
+        eprintln!("{pass:?}: crate pixels {pixels}: history kept on {without} without vectors, {with} with");
+        assert!(pixels > 500, "the crate covers {pixels} pixels");
+        assert!(with * 10 >= pixels * 8, "with vectors {with} of {pixels}");
+    }
 }
 
 /// A scene pipeline renders its G-buffers with the stated jitter (the rasterised pass takes the

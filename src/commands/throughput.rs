@@ -68,6 +68,11 @@ pub struct ThroughputOptions {
     /// How the G-buffers are made.
     #[command(flatten)]
     pub gbuffer: GBufferArg,
+    /// Give the pipeline the surfaces' motion since the last frame (moving lights' and
+    /// objects' own), which temporal reprojection follows, as an engine's motion vectors do;
+    /// without it every surface is taken as still and a moving object's pixels are traced.
+    #[arg(long)]
+    pub motion_vectors: bool,
     /// Per-frame time budget in milliseconds (tracing stops when it is spent).
     #[arg(long, value_parser = parse_budget_ms)]
     pub budget_ms: Option<f64>,
@@ -165,6 +170,9 @@ pub struct ThroughputReport {
     /// Where each pixel's first sample started (`jittered` or `centre`).
     #[serde(default)]
     pub first_sample: String,
+    /// Whether the G-buffers carried the surfaces' motion (`--motion-vectors`).
+    #[serde(default)]
+    pub motion_vectors: bool,
     /// Samples per traced pixel.
     pub spp: u32,
     /// Frames measured (the warm-up frame left out).
@@ -357,6 +365,7 @@ pub fn run(opts: &ThroughputOptions) -> Result<ThroughputReport, String> {
     config.history = opts.history;
     config.blend = opts.blend;
     config.filter = opts.filter;
+    config.motion_vectors = opts.motion_vectors;
     let options = opts.gbuffer.options();
     config.budget = opts.budget_ms.map(crate::pipeline::budget_duration).transpose()?;
     let stats = pool.install(|| run_frames(&renderer, options, config, opts.input.res, opts.frames, false))?;
@@ -415,6 +424,7 @@ pub fn run(opts: &ThroughputOptions) -> Result<ThroughputReport, String> {
         layout: format!("{:?}", opts.layout).to_lowercase(),
         gbuffer_pass: opts.gbuffer.gbuffer.name().into(),
         first_sample: opts.gbuffer.first_sample.name().into(),
+        motion_vectors: opts.motion_vectors,
         spp: opts.spp,
         frames_measured: stats.len(),
         simd_level: crate::cpu::simd_level(),
@@ -477,7 +487,7 @@ impl ThroughputReport {
         let stage =
             |name: &str, s: &Spread| format!("  {name:<13} {:>9.2} ms median {:>9.2} ms p95\n", s.median_ms, s.p95_ms);
         let mut out = format!(
-            "{} {}x{} {} threads, mode {} (order {}, {} history, {} blend, filter {}, {} {} G-buffer, {} first sample), {} spp, {}: {} frames measured\n",
+            "{} {}x{} {} threads, mode {} (order {}, {} history, {} blend, filter {}, {} {} G-buffer{}, {} first sample), {} spp, {}: {} frames measured\n",
             self.scene,
             self.width,
             self.height,
@@ -489,6 +499,7 @@ impl ThroughputReport {
             self.filter,
             self.layout,
             self.gbuffer_pass,
+            if self.motion_vectors { " with motion vectors" } else { "" },
             self.first_sample,
             self.spp,
             self.simd_level,

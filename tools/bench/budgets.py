@@ -22,7 +22,8 @@ def run(scene, args, budget, frames=None):
     baselines = frames is not None
     cmd = [BIN, "throughput", "--scene", scene, "--res", args.res, "--threads", str(args.threads),
            "--frames", str(frames if baselines else args.frames), "--spp", "1", "--mode", "spatiotemporal",
-           "--gbuffer", args.gbuffer, "--json"] + ([] if baselines else ["--no-baseline"])
+           "--gbuffer", args.gbuffer, "--json"] + ([] if baselines else ["--no-baseline"]) \
+        + (["--motion-vectors"] if args.motion_vectors else [])
     if budget is not None:
         cmd += ["--budget-ms", str(budget)]
     out = subprocess.run(cmd, capture_output=True, text=True)
@@ -38,6 +39,8 @@ def main():
     ap.add_argument("--res", default="1280x720")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--gbuffer", default="raster")
+    ap.add_argument("--motion-vectors", action="store_true",
+                    help="give the pipelines the surfaces' motion, as an engine's motion vectors")
     ap.add_argument("--scenes", default=None, help="comma-separated (default: every built-in)")
     ap.add_argument("--mono-frames", type=int, default=0, help="also the stereo-over-mono table")
     args = ap.parse_args()

@@ -14,6 +14,22 @@ use super::lights::FrameLights;
 use super::packets;
 use super::renderer::{RenderError, Renderer};
 
+/// Pixels of a material row [`Renderer::write_motion`] tests for moving materials at once.
+const MOTION_SCAN: usize = 32;
+
+/// The barycentric coordinates `(u, v)` (the weights of `v[1]` and `v[2]`) of `point`
+/// projected on the plane of the triangle `v`; `None` for a degenerate triangle.
+fn barycentric(point: Vec3, v: &[Vec3; 3]) -> Option<(f32, f32)> {
+    let (e1, e2) = (v[1] - v[0], v[2] - v[0]);
+    let n = e1.cross(e2);
+    let inv = 1.0 / n.length_squared();
+    if !inv.is_finite() {
+        return None;
+    }
+    let p = point - v[0];
+    Some((p.dot(e2.cross(n)) * inv, p.dot(n.cross(e1)) * inv))
+}
+
 impl Renderer {
     /// Fills `out` with the G-buffer seen by `out.camera` (one ray per pixel centre, traced
     /// as 8-wide packets along rows).
@@ -28,41 +44,81 @@ impl Renderer {
 
     /// Fills `out.motion`, if it has motion planes, with each pixel's world-space motion since
     /// the light table's previous frame: zero on the static mesh and background, and the
-    /// motion of the moving light or object seen at the pixel (its centre ray's hit on the
-    /// triangle now, less the same barycentric point of it then). A pixel sees moving geometry
+    /// motion of the moving light or object seen at the pixel (the point of the triangle it
+    /// sees now, less the same barycentric point of it then). A pixel sees moving geometry
     /// when its material is one that moving triangles carry and a moving triangle lies at its
     /// depth (not behind a static surface of the same material). Nothing is written for a
     /// scene without moving geometry: its planes stay as allocated, zero.
-    pub fn write_motion(&self, lights: &FrameLights, out: &mut GBufferBuf) {
-        let Some(motion) = &mut out.motion else { return };
+    ///
+    /// `seen`, the rasteriser's visibility of `out` (triangle ids: the mesh's, then this
+    /// frame's moving triangles), names the moving triangle a pixel sees, as a GPU's
+    /// fragment knows its triangle: the pixel's surface point (rebuilt from its depth) is
+    /// taken on that triangle's plane, with no ray. Elsewhere (no `seen`, or a static
+    /// triangle of a moving material) the centre ray searches every moving triangle.
+    pub fn write_motion(&self, lights: &FrameLights, out: &mut GBufferBuf, seen: Option<&[u32]>) {
+        let Some([mx, my, mz]) = &mut out.motion else { return };
         let triangles = lights.moving_triangles();
         if triangles.is_empty() {
             return;
         }
-        for plane in motion.iter_mut() {
-            plane.as_mut_slice().fill(0.0);
-        }
         let camera = &out.camera;
         let width = out.material.extent().width();
-        let depth = out.depth.as_slice();
         let moving = lights.moving_materials();
-        for (i, _) in out.material.as_slice().iter().enumerate().filter(|(_, m)| moving.contains(m)) {
-            let (x, y) = (i % width, i / width);
-            let dir = Vec3::from(camera.ray(x as f32 + 0.5, y as f32 + 0.5));
-            let Some(ray) = PreparedRay::new(&Ray::new(Vec3::from(camera.centre), dir)) else { continue };
-            // The ray has unit view depth, so the pixel's surface lies at t = depth; a moving
-            // triangle up to a rounding margin beyond it is the one the pixel sees.
-            let limit = depth[i] * (1.0 + 1e-5) + f32::MIN_POSITIVE;
-            if let Some((index, hit)) = nearest_moving(lights, &ray, limit) {
-                let tri = &triangles[index as usize];
-                let (u, v) = hit.uv();
-                let moved = |k: usize| tri.v[k] - tri.previous[k];
-                let m = (1.0 - u - v) * moved(0) + u * moved(1) + v * moved(2);
-                for c in 0..3 {
-                    motion[c].as_mut_slice()[i] = m[c];
+        let mesh_len = self.scene.mesh.len();
+        // Rows in parallel: a moving object can cover a large share of the frame.
+        let rows = (
+            mx.as_mut_slice().par_chunks_mut(width),
+            my.as_mut_slice().par_chunks_mut(width),
+            mz.as_mut_slice().par_chunks_mut(width),
+            out.material.as_slice().par_chunks(width),
+            out.depth.as_slice().par_chunks(width),
+        );
+        rows.into_par_iter().enumerate().for_each(|(y, (mx, my, mz, material, depth))| {
+            // Most rows show nothing that moves and were still last time too: reading them
+            // to check costs less than writing three cold rows.
+            for m in [&mut *mx, &mut *my, &mut *mz] {
+                if m.iter().fold(0u32, |bits, v| bits | v.to_bits()) != 0 {
+                    m.fill(0.0);
                 }
             }
-        }
+            let seen = seen.map(|s| &s[y * width..(y + 1) * width]);
+            for (c, chunk) in material.chunks(MOTION_SCAN).enumerate() {
+                // Whole chunks at a time (compares without a branch per pixel): the moving
+                // materials are a few pixels of most rows.
+                let shows_moving = moving.iter().any(|&id| chunk.iter().fold(false, |any, &m| any | (m == id)));
+                if !shows_moving {
+                    continue;
+                }
+                for (i, _) in chunk.iter().enumerate().filter(|(_, m)| moving.contains(m)) {
+                    let x = c * MOTION_SCAN + i;
+                    let raster_triangle = seen.and_then(|s| triangles.get((s[x] as usize).checked_sub(mesh_len)?));
+                    let weights = match raster_triangle {
+                        // The raster's triangle: the pixel's surface point lies on it.
+                        Some(tri) => {
+                            let point = Vec3::from(camera.unproject_pixel(x, y, depth[x]));
+                            barycentric(point, &tri.v).map(|uv| (tri, uv))
+                        }
+                        None => {
+                            let dir = Vec3::from(camera.ray(x as f32 + 0.5, y as f32 + 0.5));
+                            let Some(ray) = PreparedRay::new(&Ray::new(Vec3::from(camera.centre), dir)) else {
+                                continue;
+                            };
+                            // The ray has unit view depth, so the pixel's surface lies at
+                            // t = depth; a moving triangle up to a rounding margin beyond it is
+                            // the one the pixel sees.
+                            let limit = depth[x] * (1.0 + 1e-5) + f32::MIN_POSITIVE;
+                            nearest_moving(lights, &ray, limit)
+                                .map(|(index, hit)| (&triangles[index as usize], hit.uv()))
+                        }
+                    };
+                    if let Some((tri, (u, v))) = weights {
+                        let moved = |k: usize| tri.v[k] - tri.previous[k];
+                        let m = (1.0 - u - v) * moved(0) + u * moved(1) + v * moved(2);
+                        (mx[x], my[x], mz[x]) = (m[0], m[1], m[2]);
+                    }
+                }
+            }
+        });
     }
 
     fn gbuffer_pass<const E: u16>(&self, lights: &FrameLights, out: &mut GBufferBuf) {

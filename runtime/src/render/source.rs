@@ -216,8 +216,10 @@ impl<R: Borrow<Renderer>> FrameSource for RendererSource<R> {
                 None
             }
         };
-        renderer.write_motion(&self.lights, left);
-        renderer.write_motion(&self.lights, right);
+        // The rasteriser's visibility names each pixel's moving triangle.
+        let seen = self.raster.as_ref().map(|r| r.visibility().each_ref().map(|v| v.prim.as_slice()));
+        renderer.write_motion(&self.lights, left, seen.map(|s| s[0]));
+        renderer.write_motion(&self.lights, right, seen.map(|s| s[1]));
         Ok(stats)
     }
 
