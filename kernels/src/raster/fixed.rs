@@ -215,9 +215,9 @@ impl FixedRasterizer {
     }
 
     /// Fills `out[0]` (left eye, `cameras[0]`) and `out[1]` with the triangle whose snapped
-    /// image covers each pixel centre nearest the eye (`prim`) and its depth key (`q`;
-    /// `q_err` is written 0: the key is exact for the snapped triangle up to its f32
-    /// evaluation). `near` is the nearest view depth rasterised. The cameras must be a
+    /// image covers each pixel centre nearest the eye (`prim`) and its depth key (`q`, exact
+    /// for the snapped triangle up to its f32 evaluation, so with no error bound:
+    /// [`VisibilityBuffer::q_err`] is `None` after this pass). `near` is the nearest view depth rasterised. The cameras must be a
     /// parallel stereo pair of one extent, and each buffer of that extent.
     pub fn rasterize<M: AlphaTest>(
         &mut self,
@@ -447,10 +447,9 @@ impl FixedRasterizer {
         let (w, band_rows, bands) = (extent.width(), self.band_rows, self.bands(extent));
         let [left, right] = out;
         let views = [0, 1].map(|eye| EyeView { camera: cameras[eye], tris, mask });
-        let run = |eye: usize, band: usize, ((prim, q), q_err): ((&mut [u32], &mut [f32]), &mut [f32])| {
+        let run = |eye: usize, band: usize, (prim, q): (&mut [u32], &mut [f32])| {
             prim.fill(NO_PRIM);
             q.fill(0.0);
-            q_err.fill(0.0);
             let at = eye * (bands + 1) + band;
             let list = &self.bins[self.bin_start[at] as usize..self.bin_start[at + 1] as usize];
             let rows = band * band_rows..(band * band_rows + band_rows).min(extent.height());
@@ -481,8 +480,8 @@ impl FixedRasterizer {
             }
             stats
         };
-        let l = super::band_planes(left, w, band_rows).enumerate().map(|(band, bufs)| run(0, band, bufs));
-        let r = super::band_planes(right, w, band_rows).enumerate().map(|(band, bufs)| run(1, band, bufs));
+        let l = super::band_keys(left, w, band_rows).enumerate().map(|(band, bufs)| run(0, band, bufs));
+        let r = super::band_keys(right, w, band_rows).enumerate().map(|(band, bufs)| run(1, band, bufs));
         l.chain(r).reduce(RasterStats::default, |a, b| a + b)
     }
 }

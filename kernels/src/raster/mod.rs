@@ -109,21 +109,37 @@ impl AlphaTest for NoMasks {
 }
 
 /// One eye's visibility: the triangle seen at each pixel centre ([`NO_PRIM`] for none) and
-/// the depth key used to find it (`q = 1/view depth`, and its error bound).
-#[derive(Clone, Debug, PartialEq)]
+/// the depth key used to find it (`q = 1/view depth`, and, from the exact pass, its error
+/// bound).
+#[derive(Clone, Debug)]
 pub struct VisibilityBuffer {
     /// The triangle seen at each pixel centre.
     pub prim: PlaneBuf<u32>,
     /// Its depth key `1 / view depth` (larger is nearer).
     pub q: PlaneBuf<f32>,
-    /// The error bound of `q`.
-    pub q_err: PlaneBuf<f32>,
+    /// The error bound of `q` ([`VisibilityBuffer::q_err`]).
+    q_err: PlaneBuf<f32>,
+    /// Whether `q_err` is this buffer's: the exact pass writes it; the fixed-point pass's keys
+    /// are exact for its snapped triangles, so it leaves the plane alone (writing zeros
+    /// there cost a plane of stores a frame that nothing reads).
+    bounded: bool,
+}
+
+impl PartialEq for VisibilityBuffer {
+    fn eq(&self, other: &Self) -> bool {
+        self.prim == other.prim && self.q == other.q && self.q_err() == other.q_err()
+    }
 }
 
 impl VisibilityBuffer {
     /// Buffers for one eye of `extent`, showing nothing.
     pub fn new(extent: Extent) -> Self {
-        Self { prim: PlaneBuf::new(extent, NO_PRIM), q: PlaneBuf::new(extent, 0.0), q_err: PlaneBuf::new(extent, 0.0) }
+        Self {
+            prim: PlaneBuf::new(extent, NO_PRIM),
+            q: PlaneBuf::new(extent, 0.0),
+            q_err: PlaneBuf::new(extent, 0.0),
+            bounded: true,
+        }
     }
 
     /// [`VisibilityBuffer::new`] that reports an allocation failure instead of aborting.
@@ -132,12 +148,21 @@ impl VisibilityBuffer {
             prim: PlaneBuf::try_new(extent, NO_PRIM)?,
             q: PlaneBuf::try_new(extent, 0.0)?,
             q_err: PlaneBuf::try_new(extent, 0.0)?,
+            bounded: true,
         })
     }
 
     /// The buffers' width and height.
     pub fn extent(&self) -> Extent {
         self.prim.extent()
+    }
+
+    /// The error bound of each pixel's `q`, where the pass that filled the buffer has one:
+    /// the exact pass ([`Rasterizer`]) bounds its f32 keys; the fixed-point pass
+    /// ([`fixed::FixedRasterizer`]) has none to give (`None`), its keys being exact for
+    /// the snapped triangle.
+    pub fn q_err(&self) -> Option<&PlaneBuf<f32>> {
+        self.bounded.then_some(&self.q_err)
     }
 }
 
@@ -660,18 +685,32 @@ impl Rasterizer {
     }
 }
 
-/// The three planes of `v` cut into bands of `band_rows` rows of `width` pixels.
+/// The three planes of `v` cut into bands of `band_rows` rows of `width` pixels (the exact
+/// pass's: it writes the error bounds).
 fn band_planes(
     v: &mut VisibilityBuffer,
     width: usize,
     band_rows: usize,
 ) -> impl IndexedParallelIterator<Item = ((&mut [u32], &mut [f32]), &mut [f32])> {
-    let VisibilityBuffer { prim, q, q_err } = v;
+    v.bounded = true;
+    let VisibilityBuffer { prim, q, q_err, .. } = v;
     let n = band_rows * width;
     prim.as_mut_slice()
         .par_chunks_mut(n)
         .zip(q.as_mut_slice().par_chunks_mut(n))
         .zip(q_err.as_mut_slice().par_chunks_mut(n))
+}
+
+/// The ids and keys of `v` cut into bands of `band_rows` rows of `width` pixels (the
+/// fixed-point pass's: it has no error bounds, so `v` says it has none).
+fn band_keys(
+    v: &mut VisibilityBuffer,
+    width: usize,
+    band_rows: usize,
+) -> impl IndexedParallelIterator<Item = (&mut [u32], &mut [f32])> {
+    v.bounded = false;
+    let n = band_rows * width;
+    v.prim.as_mut_slice().par_chunks_mut(n).zip(v.q.as_mut_slice().par_chunks_mut(n))
 }
 
 /// One band's rows of the three output planes (row `y` starts at `(y − rows.start)·width`).
