@@ -704,6 +704,88 @@ fn lane_mask(bits: u32) -> f64x4 {
     f64x4::from([0, 1, 2, 3].map(|l| if bits >> l & 1 != 0 { f64::from_bits(u64::MAX) } else { 0.0 }))
 }
 
+/// One eye's box of [`setup_four`]'s four triangles, from their snapped vertices (`[x, y, q]`
+/// per vertex, fixed point as exact `f64` integers): the first and last pixel centres in
+/// each axis, as `record`'s `centres` before the frame clamp, and twice the signed area.
+#[derive(Clone, Copy)]
+struct BoxFour {
+    c0: f64x4,
+    c1: f64x4,
+    r0: f64x4,
+    r1: f64x4,
+    area2: f64x4,
+}
+
+impl BoxFour {
+    #[inline(always)]
+    fn of(v: &[[f64x4; 3]; 3]) -> Self {
+        let half = f64x4::splat((ONE / 2) as f64);
+        // Dividing by a power of two is multiplying by its exact inverse (a division costs a
+        // dozen multiplies' time).
+        let per_one = f64x4::splat(1.0 / ONE as f64);
+        let (x, y) = ([v[0][0], v[1][0], v[2][0]], [v[0][1], v[1][1], v[2][1]]);
+        let lo = |a: [f64x4; 3]| a[0].min(a[1]).min(a[2]);
+        let hi = |a: [f64x4; 3]| a[0].max(a[1]).max(a[2]);
+        Self {
+            c0: ((lo(x) - half) * per_one).ceil(),
+            c1: ((hi(x) - half) * per_one).floor(),
+            r0: ((lo(y) - half) * per_one).ceil(),
+            r1: ((hi(y) - half) * per_one).floor(),
+            area2: (x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0]),
+        }
+    }
+}
+
+/// `record`'s winding of four triangles' vertices: 1 and 2 swapped where the signed area
+/// `area2` is negative.
+#[inline(always)]
+fn wound(a: [f64x4; 3], area2: f64x4) -> [f64x4; 3] {
+    let flip = area2.simd_lt(f64x4::splat(0.0));
+    [a[0], flip.select(a[2], a[1]), flip.select(a[1], a[2])]
+}
+
+/// Which of the 2×2 pixel centres from column `c0`, row `r0` (in pixels) four wound
+/// triangles `(x, y)` cover, by `record`'s edge functions and top-left rule: entry
+/// `2·dy + dx`, the second column only where `two_cols`, the second row only where
+/// `two_rows`. Exact where every term is an integer below 2²¹ in magnitude, as in the
+/// callers' lanes.
+#[inline(always)]
+fn centres_covered_four(
+    x: [f64x4; 3],
+    y: [f64x4; 3],
+    (c0, r0): (f64x4, f64x4),
+    two_cols: f64x4,
+    two_rows: f64x4,
+) -> [f64x4; 4] {
+    let (one, half) = (f64x4::splat(ONE as f64), f64x4::splat((ONE / 2) as f64));
+    let (px, py) = (c0 * one + half, r0 * one + half);
+    let (px1, py1) = (px + one, py + one);
+    let all = one.simd_eq(one);
+    // Written out, not filled in a loop: see `setup_four`.
+    [
+        centre_inside(&x, &y, px, py, all),
+        centre_inside(&x, &y, px1, py, two_cols),
+        centre_inside(&x, &y, px, py1, two_rows),
+        centre_inside(&x, &y, px1, py1, two_cols & two_rows),
+    ]
+}
+
+/// The lanes of `wanted` where the pixel centre `(px, py)` (fixed point) is inside the wound
+/// triangle `(x, y)` by `record`'s edge functions and top-left rule.
+#[inline(always)]
+fn centre_inside(x: &[f64x4; 3], y: &[f64x4; 3], px: f64x4, py: f64x4, wanted: f64x4) -> f64x4 {
+    let (zero, unit) = (f64x4::splat(0.0), f64x4::splat(1.0));
+    let mut inside = wanted;
+    for k in 0..3 {
+        let j = (k + 1) % 3;
+        let (ex, ey) = (x[j] - x[k], y[j] - y[k]);
+        let owns = (-ey).simd_gt(zero) | (ey.simd_eq(zero) & ex.simd_gt(zero));
+        let e = ex * (py - y[k]) - ey * (px - x[k]) - owns.select(zero, unit);
+        inside &= e.simd_ge(zero);
+    }
+    inside
+}
+
 /// The points of [`setup_four`]'s lanes that [`points_four`] took, per lane and eye: which of
 /// the 2×2 centres from `(cols, row)` are covered (bit `2·dy + dx`), and the depth-key plane
 /// there, rounded to `f32` as `record` rounds it.
@@ -746,31 +828,22 @@ fn points_four(
 ) -> u32 {
     type F = f64x4;
     let (zero, one, half, unit) = (F::splat(0.0), F::splat(ONE as f64), F::splat((ONE / 2) as f64), F::splat(1.0));
-    // `x / ONE`, exactly (see `covers_no_centre_four`).
+    // `x / ONE`, exactly (see `BoxFour::of`).
     let per_one = F::splat(1.0 / ONE as f64);
-    let lo = |a: [F; 3]| a[0].min(a[1]).min(a[2]);
-    let hi = |a: [F; 3]| a[0].max(a[1]).max(a[2]);
     let (last_col, last_row) = (F::splat(f64::from(p.width - 1)), F::splat(f64::from(p.height - 1)));
-    let xs = |v: &[[F; 3]; 3]| [v[0][0], v[1][0], v[2][0]];
-    let ys = |v: &[[F; 3]; 3]| [v[0][1], v[1][1], v[2][1]];
-    // Per eye: the box's first and last centres (unclamped), and whether `record` sees the
-    // eye (nonzero area, centres in both axes) with its box inside the frame and at most
-    // two columns wide.
-    let eye_box = |v: &[[F; 3]; 3]| {
-        let (x, y) = (xs(v), ys(v));
-        let (c0, c1) = (((lo(x) - half) * per_one).ceil(), ((hi(x) - half) * per_one).floor());
-        let (r0, r1) = (((lo(y) - half) * per_one).ceil(), ((hi(y) - half) * per_one).floor());
-        let area2 = (x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0]);
-        let visible = area2.simd_ne(zero) & c0.simd_le(c1) & r0.simd_le(r1);
-        let fits = c0.simd_ge(zero) & c1.simd_le(last_col) & r0.simd_ge(zero) & r1.simd_le(last_row);
-        (c0, c1, r0, r1, area2, visible, fits & (c1 - c0).simd_le(unit))
+    // Per eye: whether `record` sees the eye (nonzero area, centres in both axes), and whether
+    // its box lies inside the frame and is at most two columns wide.
+    let seen = |b: &BoxFour| {
+        let visible = b.area2.simd_ne(zero) & b.c0.simd_le(b.c1) & b.r0.simd_le(b.r1);
+        let fits = b.c0.simd_ge(zero) & b.c1.simd_le(last_col) & b.r0.simd_ge(zero) & b.r1.simd_le(last_row);
+        (visible, fits & (b.c1 - b.c0).simd_le(unit))
     };
     let in_lanes = lane_mask(lanes);
     // The left eye alone first: in a scene of large triangles no lane passes, and the right
     // eye's box is not needed.
-    let left = eye_box(&snapped[0]);
-    let small_rows = |b: &(F, F, F, F, F, F, F)| !b.5 | (b.6 & (b.3 - b.2).simd_le(unit));
-    if !(in_lanes & small_rows(&left)).any() {
+    let left = BoxFour::of(&snapped[0]);
+    let (vis_l, fits_l) = seen(&left);
+    if !(in_lanes & (!vis_l | (fits_l & (left.r1 - left.r0).simd_le(unit)))).any() {
         return 0;
     }
     // Only then the materials (a lookup per triangle): cut-out triangles keep records.
@@ -779,14 +852,12 @@ fn points_four(
         return 0;
     }
     let in_lanes = lane_mask(lanes);
-    // Written out, not `map`ped: see `setup_four`.
-    let boxes = [left, eye_box(&snapped[1])];
-    let [(.., vis_l, fits_l), (.., vis_r, fits_r)] = boxes;
+    let right = BoxFour::of(&snapped[1]);
+    let (vis_r, fits_r) = seen(&right);
     // `record`'s rows: the union of the visible eyes'.
     let both = vis_l & vis_r;
-    let r0 = both.select(boxes[0].2.min(boxes[1].2), vis_l.select(boxes[0].2, boxes[1].2));
-    let r1 = both.select(boxes[0].3.max(boxes[1].3), vis_l.select(boxes[0].3, boxes[1].3));
-    let all = zero.simd_eq(zero);
+    let r0 = both.select(left.r0.min(right.r0), vis_l.select(left.r0, right.r0));
+    let r1 = both.select(left.r1.max(right.r1), vis_l.select(left.r1, right.r1));
     let take = in_lanes & (vis_l | vis_r) & (!vis_l | fits_l) & (!vis_r | fits_r) & (r1 - r0).simd_le(unit);
     let taken = take.to_bitmask();
     if taken == 0 {
@@ -797,38 +868,21 @@ fn points_four(
         out.row[lane] = *r as i32;
     }
     let two_rows = (r1 - r0).simd_eq(unit);
-    for (eye, v) in snapped.iter().enumerate() {
-        let (c0, c1, _, _, area2, visible, _) = boxes[eye];
-        let (x, y) = (xs(v), ys(v));
-        let q = [v[0][2], v[1][2], v[2][2]];
-        // `record`'s winding: vertices 1 and 2 swapped where the signed area is negative.
-        let flip = area2.simd_lt(zero);
-        let order = |a: [F; 3]| [a[0], flip.select(a[2], a[1]), flip.select(a[1], a[2])];
-        let (x, y, q) = (order(x), order(y), order(q));
-        let (px, py) = (c0 * one + half, r0 * one + half);
-        let two_cols = (c1 - c0).simd_eq(unit);
+    for (eye, (v, b, visible)) in [(&snapped[0], &left, vis_l), (&snapped[1], &right, vis_r)].into_iter().enumerate() {
+        let x = wound([v[0][0], v[1][0], v[2][0]], b.area2);
+        let y = wound([v[0][1], v[1][1], v[2][1]], b.area2);
+        let q = wound([v[0][2], v[1][2], v[2][2]], b.area2);
+        let centres = centres_covered_four(x, y, (b.c0, r0), (b.c1 - b.c0).simd_eq(unit), two_rows);
         let mut covered = [0u8; 4];
-        for (bit, (dy, dx, wanted)) in
-            [(0.0, 0.0, all), (0.0, 1.0, two_cols), (1.0, 0.0, two_rows), (1.0, 1.0, two_cols & two_rows)]
-                .into_iter()
-                .enumerate()
-        {
-            let (cx, cy) = (px + F::splat(dx) * one, py + F::splat(dy) * one);
-            let mut inside = wanted & visible;
-            for k in 0..3 {
-                let j = (k + 1) % 3;
-                let (ex, ey) = (x[j] - x[k], y[j] - y[k]);
-                let owns = (-ey).simd_gt(zero) | (ey.simd_eq(zero) & ex.simd_gt(zero));
-                let e = ex * (cy - y[k]) - ey * (cx - x[k]) - owns.select(zero, unit);
-                inside &= e.simd_ge(zero);
-            }
-            let bits = inside.to_bitmask();
+        for (bit, inside) in centres.into_iter().enumerate() {
+            let bits = (inside & visible).to_bitmask();
             for (lane, c) in covered.iter_mut().enumerate() {
                 *c |= ((bits >> lane & 1) as u8) << bit;
             }
         }
         // The depth-key plane through the three snapped vertices, relative to the first
         // centre, in `record`'s steps.
+        let (px, py) = (b.c0 * one + half, r0 * one + half);
         let fx = [(x[0] - px) * per_one, (x[1] - px) * per_one, (x[2] - px) * per_one];
         let fy = [(y[0] - py) * per_one, (y[1] - py) * per_one, (y[2] - py) * per_one];
         let det = (fx[1] - fx[0]) * (fy[2] - fy[0]) - (fx[2] - fx[0]) * (fy[1] - fy[0]);
@@ -836,7 +890,7 @@ fn points_four(
         let qa = (dq1 * (fy[2] - fy[0]) - dq2 * (fy[1] - fy[0])) / det;
         let qb = (dq2 * (fx[1] - fx[0]) - dq1 * (fx[2] - fx[0])) / det;
         let qc = q[0] - qa * fx[0] - qb * fy[0];
-        let (qa, qb, qc, c0) = (qa.to_array(), qb.to_array(), qc.to_array(), c0.to_array());
+        let (qa, qb, qc, c0) = (qa.to_array(), qb.to_array(), qc.to_array(), b.c0.to_array());
         for lane in 0..4 {
             out.covered[lane][eye] = covered[lane];
             out.cols[lane][eye] = c0[lane] as i32;
@@ -855,45 +909,17 @@ fn points_four(
 /// (larger boxes, or not finite) are false, whatever their values.
 #[inline(always)]
 fn covers_no_centre_four(v: &[[f64x4; 3]; 3]) -> f64x4 {
-    type F = f64x4;
-    let (zero, one, half) = (F::splat(0.0), F::splat(ONE as f64), F::splat((ONE / 2) as f64));
-    // Dividing by a power of two is multiplying by its exact inverse (a division costs a
-    // dozen multiplies' time).
-    let per_one = F::splat(1.0 / ONE as f64);
-    let (x, y) = ([v[0][0], v[1][0], v[2][0]], [v[0][1], v[1][1], v[2][1]]);
-    let lo = |a: [F; 3]| a[0].min(a[1]).min(a[2]);
-    let hi = |a: [F; 3]| a[0].max(a[1]).max(a[2]);
-    // The box's first and last pixel centres, as `record`'s `centres` before the frame clamp
-    // (a centre off the frame is one more to test, which only makes the cull rarer).
-    let (c0, c1) = (((lo(x) - half) * per_one).ceil(), ((hi(x) - half) * per_one).floor());
-    let (r0, r1) = (((lo(y) - half) * per_one).ceil(), ((hi(y) - half) * per_one).floor());
-    let small = (c1 - c0).simd_le(F::splat(1.0)) & (r1 - r0).simd_le(F::splat(1.0));
+    let unit = f64x4::splat(1.0);
+    let b = BoxFour::of(v);
+    let small = (b.c1 - b.c0).simd_le(unit) & (b.r1 - b.r0).simd_le(unit);
     if !small.any() {
         return small;
     }
-    let (two_cols, two_rows) = ((c1 - c0).simd_eq(F::splat(1.0)), (r1 - r0).simd_eq(F::splat(1.0)));
-    // `record`'s winding: vertices 1 and 2 swapped where the signed area is negative.
-    let area2 = (x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0]);
-    let flip = area2.simd_lt(zero);
-    let xs = [x[0], flip.select(x[2], x[1]), flip.select(x[1], x[2])];
-    let ys = [y[0], flip.select(y[2], y[1]), flip.select(y[1], y[2])];
-    let (px0, py0) = (c0 * one + half, r0 * one + half);
-    let mut covered = zero.simd_ne(zero);
-    for (dx, dy, wanted) in
-        [(0.0, 0.0, zero.simd_eq(zero)), (1.0, 0.0, two_cols), (0.0, 1.0, two_rows), (1.0, 1.0, two_cols & two_rows)]
-    {
-        let (px, py) = (px0 + F::splat(dx) * one, py0 + F::splat(dy) * one);
-        let mut inside = wanted;
-        for k in 0..3 {
-            let j = (k + 1) % 3;
-            let (ex, ey) = (xs[j] - xs[k], ys[j] - ys[k]);
-            let owns = (-ey).simd_gt(zero) | (ey.simd_eq(zero) & ex.simd_gt(zero));
-            let e = ex * (py - ys[k]) - ey * (px - xs[k]) - owns.select(zero, F::splat(1.0));
-            inside &= e.simd_ge(zero);
-        }
-        covered |= inside;
-    }
-    small & !covered
+    let x = wound([v[0][0], v[1][0], v[2][0]], b.area2);
+    let y = wound([v[0][1], v[1][1], v[2][1]], b.area2);
+    let [a, c, d, e] =
+        centres_covered_four(x, y, (b.c0, b.r0), (b.c1 - b.c0).simd_eq(unit), (b.r1 - b.r0).simd_eq(unit));
+    small & !(a | c | d | e)
 }
 
 /// Whether every triangle of a cluster is culled by [`setup_four`]'s frustum test (all three
