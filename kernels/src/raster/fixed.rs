@@ -217,8 +217,9 @@ impl FixedRasterizer {
     /// Fills `out[0]` (left eye, `cameras[0]`) and `out[1]` with the triangle whose snapped
     /// image covers each pixel centre nearest the eye (`prim`) and its depth key (`q`, exact
     /// for the snapped triangle up to its f32 evaluation, so with no error bound:
-    /// [`VisibilityBuffer::q_err`] is `None` after this pass). `near` is the nearest view depth rasterised. The cameras must be a
-    /// parallel stereo pair of one extent, and each buffer of that extent.
+    /// [`VisibilityBuffer::q_err`] is `None` after this pass). `near` is the nearest view
+    /// depth rasterised. The cameras must be a parallel stereo pair of one extent, and each
+    /// buffer of that extent.
     pub fn rasterize<M: AlphaTest>(
         &mut self,
         tris: Triangles<'_>,
