@@ -268,6 +268,44 @@ fn random_soups_agree() {
     }
 }
 
+/// A hole where an alpha mask would be one: a third of the triangles are cut away on half of
+/// their surface (by `u`), the rest are solid.
+fn solid(prim: u32, u: f32, _v: f32) -> bool {
+    !(prim % 3 == 0 && u < 0.5)
+}
+
+#[test]
+fn filtered_occlusion_sees_every_solid_hit_and_no_hole() {
+    for (seed, n) in [(21u64, 1usize), (22, 7), (23, 500), (24, 3000)] {
+        let mut rng = Rng::new(seed);
+        let tris = soup(&mut rng, n, 10.0, 1.5);
+        for quality in [BuildQuality::Medium, BuildQuality::SahSplits] {
+            let (mut bvh, _) = TriangleBvh::build(&tris, quality).unwrap();
+            let rays = random_rays(&mut rng, &tris, 1500, 10.0);
+            for isa in [Isa::Avx2, Isa::Avx512].into_iter().filter(|i| i.is_supported()) {
+                bvh.set_isa(isa);
+                let (mut blocked, mut through_holes) = (0, 0);
+                for r in &rays {
+                    // Brute force: any triangle hit in [tmin, tmax) whose hit point is solid.
+                    let hits: Vec<Hit> = (0..tris.len())
+                        .filter_map(|i| intersect_brute_force(&tris[i..i + 1], r).map(|h| Hit { prim: i as u32, ..h }))
+                        .collect();
+                    let want = hits.iter().any(|h| solid(h.prim, h.u, h.v));
+                    let got = bvh.occluded_where(r, solid);
+                    assert_eq!(got, want, "{quality:?} {isa:?}: {r:?}, hits {hits:?}");
+                    blocked += usize::from(got);
+                    through_holes += usize::from(!hits.is_empty() && !want);
+                    // Nothing a hole: the plain occlusion test.
+                    assert_eq!(bvh.occluded_where(r, |_, _, _| true), bvh.occluded(r), "{r:?}");
+                }
+                if n >= 500 {
+                    assert!(blocked > 100 && through_holes > 10, "{blocked} blocked, {through_holes} through holes");
+                }
+            }
+        }
+    }
+}
+
 #[test]
 fn every_build_quality_agrees() {
     let mut rng = Rng::new(11);

@@ -97,6 +97,9 @@ pub(crate) enum Search {
     GoOn,
     /// Done (any hit).
     Stop,
+    /// The hit does not count (a filtered any-hit search): the rest of its block is tested
+    /// again without it, and the search goes on with its far bound unchanged.
+    Skip,
 }
 
 /// Lanes at or below which a packet continues as single rays (see the module notes).

@@ -151,6 +151,27 @@ impl SingleSearch for AnyHit {
     }
 }
 
+/// Any hit below a fixed `tmax` that `blocks` (given the BVH slot and the hit) accepts; the
+/// others are skipped, as if their triangles were not there.
+pub(crate) struct AnyHitWhere<F> {
+    pub(crate) tmax: f32,
+    pub(crate) blocks: F,
+}
+
+impl<F: FnMut(u32, &TriHit) -> bool> SingleSearch for AnyHitWhere<F> {
+    const CLOSEST: bool = false;
+
+    #[inline(always)]
+    fn tfar(&self) -> f32 {
+        self.tmax
+    }
+
+    #[inline(always)]
+    fn hit(&mut self, slot: u32, hit: TriHit) -> Search {
+        if (self.blocks)(slot, &hit) { Search::Stop } else { Search::Skip }
+    }
+}
+
 impl TriangleBvh {
     /// Closest hit along the ray, or `None` (also for an invalid ray).
     #[inline]
@@ -189,6 +210,26 @@ impl TriangleBvh {
     pub fn occluded(&self, ray: &Ray) -> bool {
         match PreparedRay::new(ray) {
             Some(r) if !self.is_empty() => self.traverse(&r, 0, &mut AnyHit { tmax: r.tmax }, &mut NoCounts),
+            _ => false,
+        }
+    }
+
+    /// True if a triangle that `blocks(prim, u, v)` accepts is hit with `tmin ≤ t < tmax`
+    /// (false for an invalid ray): occlusion where some surfaces are holes (cut-out
+    /// materials). The same any-hit search as [`TriangleBvh::occluded`], which ends at the
+    /// first accepted hit; a refused hit is skipped without lowering the far bound, where a
+    /// closest-hit search restarted past each hole would read the tree again per hole and
+    /// could not stop early.
+    #[inline]
+    pub fn occluded_where(&self, ray: &Ray, mut blocks: impl FnMut(u32, f32, f32) -> bool) -> bool {
+        match PreparedRay::new(ray) {
+            Some(r) if !self.is_empty() => {
+                let accepts = |slot: u32, hit: &TriHit| {
+                    let (u, v) = hit.uv();
+                    blocks(self.original_index(slot), u, v)
+                };
+                self.traverse(&r, 0, &mut AnyHitWhere { tmax: r.tmax, blocks: accepts }, &mut NoCounts)
+            }
             _ => false,
         }
     }
@@ -281,14 +322,20 @@ impl TriangleBvh {
                 while lanes != 0 {
                     let chunk = lanes.trailing_zeros() / LANES as u32;
                     let first = node.primitive_base + chunk * LANES as u32;
-                    let chunk_lanes = (lanes >> (chunk * LANES as u32)) & ALL_LANES;
+                    let mut chunk_lanes = (lanes >> (chunk * LANES as u32)) & ALL_LANES;
                     lanes &= !(ALL_LANES << (chunk * LANES as u32));
                     counter.triangles(chunk_lanes.count_ones());
-                    let tested = intersect_triangles_lanes(r, self.leaf_block(node, chunk), chunk_lanes, search.tfar());
-                    if let Some((lane, h)) = tested {
-                        found = true;
-                        if search.hit(first + lane, h) == Search::Stop {
-                            return true;
+                    let block = self.leaf_block(node, chunk);
+                    // Once for the closest and any-hit searches (whose `hit` never skips);
+                    // a filtered search tests the block again without each hit it skips.
+                    while let Some((lane, h)) = intersect_triangles_lanes(r, block, chunk_lanes, search.tfar()) {
+                        match search.hit(first + lane, h) {
+                            Search::Stop => return true,
+                            Search::GoOn => {
+                                found = true;
+                                break;
+                            }
+                            Search::Skip => chunk_lanes &= !(1 << lane),
                         }
                     }
                 }

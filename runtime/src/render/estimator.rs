@@ -129,7 +129,14 @@ impl Renderer {
     /// Whether anything blocks `ray` (in `[tmin, tmax)`).
     #[inline]
     pub(super) fn occluded<const E: u16>(&self, lights: &FrameLights, ray: Ray) -> bool {
-        let blocked = if has(E, ALPHA_MASKS) { self.closest_mesh::<E>(ray).is_some() } else { self.bvh.occluded(&ray) };
+        // With cut-outs, an any-hit search that skips the holes: the closest non-hole hit
+        // is found exactly when some non-hole hit is (but for a hole and a surface at the
+        // very same distance), and the search can stop at the first one.
+        let blocked = if has(E, ALPHA_MASKS) {
+            self.bvh.occluded_where(&ray, |prim, u, v| !self.cut_out(&Hit { t: 0.0, prim, u, v }))
+        } else {
+            self.bvh.occluded(&ray)
+        };
         blocked || (has(E, MOVING_GEOMETRY) && Self::closest_moving(lights, &ray, ray.tmax).is_some())
     }
 

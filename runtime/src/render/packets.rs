@@ -147,22 +147,16 @@ impl Renderer {
         active: u32,
         threshold: u32,
     ) -> u32 {
-        if threshold >= SINGLE_RAYS {
+        // With cut-outs, each lane's any-hit search that skips the holes (the reference's):
+        // a packet would have to find each lane's closest hit and restart past every hole.
+        if threshold >= SINGLE_RAYS || has(E, ALPHA_MASKS) {
             return lanes(active).filter(|&i| self.occluded::<E>(lights, rays[i])).fold(0, |m, i| m | 1 << i);
         }
         if active == 0 {
             return 0;
         }
-        let mut packet = RayPacket::from_rays(rays);
-        let mut blocked = if has(E, ALPHA_MASKS) {
-            // As the reference: the closest hit that is not cut away.
-            let mut hits = PacketHits::NONE;
-            let hit = self.bvh.intersect_packet_with(&packet, active, &mut hits, threshold);
-            self.skip_cut_outs(&mut packet, hit, &mut hits, threshold);
-            lanes(hit).filter(|&i| hits.prim[i] != u32::MAX).fold(0, |m, i| m | 1 << i)
-        } else {
-            self.bvh.occluded_packet_with(&packet, active, threshold)
-        };
+        let packet = RayPacket::from_rays(rays);
+        let mut blocked = self.bvh.occluded_packet_with(&packet, active, threshold);
         if has(E, MOVING_GEOMETRY) {
             for i in lanes(active & !blocked) {
                 if Self::closest_moving(lights, &rays[i], rays[i].tmax).is_some() {
