@@ -271,7 +271,7 @@ fn random_soups_agree() {
 /// A hole where an alpha mask would be one: a third of the triangles are cut away on half of
 /// their surface (by `u`), the rest are solid.
 fn solid(prim: u32, u: f32, _v: f32) -> bool {
-    !(prim % 3 == 0 && u < 0.5)
+    !(prim.is_multiple_of(3) && u < 0.5)
 }
 
 #[test]
