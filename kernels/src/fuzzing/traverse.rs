@@ -79,6 +79,12 @@ pub fn traverse(data: &[u8]) {
     for (r, s) in rays.iter().zip(&singles) {
         same(*s, intersect_brute_force(&tris, r), r, "single ray vs brute force");
         assert_eq!(bvh.occluded(r), s.is_some(), "occlusion vs closest hit for {r:?}");
+        // Occlusion with holes (every other triangle a hole where u < 0.5) against brute force:
+        // any solid hit in the ray's interval.
+        let solid = |prim: u32, u: f32, _: f32| prim % 2 == 1 || u >= 0.5;
+        let want = (0..tris.len())
+            .any(|i| intersect_brute_force(&tris[i..i + 1], r).is_some_and(|h| solid(i as u32, h.u, h.v)));
+        assert_eq!(bvh.occluded_where(r, solid), want, "occlusion with holes for {r:?}");
         if let Some(h) = s {
             assert!(h.t.is_finite() && h.t >= r.tmin && h.t < r.tmax, "hit outside the ray's interval: {h:?} {r:?}");
         }
