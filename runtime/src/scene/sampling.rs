@@ -66,7 +66,7 @@ impl Distribution1D {
     /// or above the guide's point of cell `k` and below that of cell `k + 2`; the answer is
     /// monotone in `u`, so it lies between their bins.
     #[inline]
-    pub fn bin_of(&self, u: f32) -> usize {
+    fn bin_of(&self, u: f32) -> usize {
         let cells = self.guide.len() - 3;
         let k = ((u * cells as f32) as usize).min(cells);
         let (lo, hi) = (self.guide[k] as usize, self.guide[k + 2] as usize);
