@@ -89,6 +89,7 @@ fn stereo_mode_reprojects_where_valid_and_traces_only_the_rest() {
         pixel_mask: None,
         motion: None,
         jitter: None,
+        background: None,
     };
     let out = ReprojectOutput { colour: expected.view_mut(), extra: None, reason: reason.view_mut(), weight: None };
     let params = ReprojectParams { tolerances: r.scene().tolerances.at_height(H), ..ReprojectParams::default() };
@@ -139,6 +140,7 @@ fn the_paper_order_left_eye_reprojects_its_history_only_where_stereo_failed() {
         pixel_mask: None,
         motion: None,
         jitter: None,
+        background: None,
     };
     let out = ReprojectOutput { colour: history.view_mut(), extra: None, reason: reason.view_mut(), weight: None };
     let params = ReprojectParams { tolerances: r.scene().tolerances.at_height(H), ..ReprojectParams::default() };
@@ -766,5 +768,60 @@ fn the_atrous_filter_filters_the_shown_image_and_nothing_else() {
                 assert_eq!(b.output(Eye::Right), b.unfiltered_output(Eye::Right));
             }
         }
+    }
+}
+
+/// `Background::Reproject` keeps the sky's history by direction and changes nothing else:
+/// on courtyard (an open sky), every surface pixel of both eyes is the paper's setting's bit
+/// for bit frame after frame, the left eye traces exactly the sky pixels the stereo
+/// reprojection now keeps fewer, and the kept sky's mean is the traced sky's.
+#[test]
+fn reprojected_background_keeps_the_sky_and_changes_no_surface() {
+    use stereotrace::pipeline::Background;
+    const L: usize = Eye::Left as usize;
+    const R: usize = Eye::Right as usize;
+    let r = renderer("courtyard");
+    for mode in [Mode::Spatiotemporal, Mode::Temporal, Mode::SpatiotemporalBlend] {
+        let paper = config(&r, mode, 1);
+        let kept = PipelineConfig { background: Background::Reproject, ..paper };
+        let mut a = Pipeline::new(&r, paper, StereoRig::default(), extent()).unwrap();
+        let mut b = Pipeline::new(&r, kept, StereoRig::default(), extent()).unwrap();
+        let (mut sky_pixels, mut sky_paper, mut sky_kept) = (0usize, 0.0f64, 0.0f64);
+        for f in 3..8 {
+            let pose = r.scene().camera.pose_at(f as f32);
+            let sa = a.render_frame(f, &pose).unwrap();
+            let sb = b.render_frame(f, &pose).unwrap();
+            if mode == Mode::Spatiotemporal {
+                let gained =
+                    sb.stereo_reasons[L].get(Reason::Reprojected) - sa.stereo_reasons[L].get(Reason::Reprojected);
+                assert!(gained > 0, "frame {f}: the stereo reprojection keeps sky");
+                assert_eq!(sa.traced_pixels[L] - sb.traced_pixels[L], gained, "frame {f}: the kept sky is not traced");
+            }
+            if f > 3 && mode != Mode::SpatiotemporalBlend {
+                let right = |s: &stereotrace::pipeline::FrameStats| s.temporal_reasons[R].get(Reason::Reprojected);
+                assert!(right(&sb) > right(&sa), "frame {f}: the temporal reprojection keeps sky");
+            }
+            for eye in Eye::BOTH {
+                let depth = b.gbuffer(eye).depth.as_slice().to_vec();
+                let (pa, pb) = (a.output(eye).planes(), b.output(eye).planes());
+                for (i, &d) in depth.iter().enumerate() {
+                    for c in 0..3 {
+                        let (va, vb) = (pa[c].as_slice()[i], pb[c].as_slice()[i]);
+                        assert!(vb.is_finite(), "{mode} frame {f} {eye}");
+                        if d.is_finite() {
+                            assert_eq!(va.to_bits(), vb.to_bits(), "{mode} frame {f} {eye}: surface pixel {i}");
+                        } else {
+                            sky_pixels += 1;
+                            (sky_paper, sky_kept) = (sky_paper + f64::from(va), sky_kept + f64::from(vb));
+                        }
+                    }
+                }
+            }
+        }
+        assert!(sky_pixels > 100, "{mode}: {sky_pixels} sky values");
+        // A sky pixel's traced sample may hit the geometry its jitter reaches, so single
+        // pixels differ; the sky's mean brightness must not.
+        let bias = (sky_kept - sky_paper) / sky_paper;
+        assert!(bias.abs() < 0.05, "{mode}: the kept sky's mean is {bias:+.3} off the traced one");
     }
 }

@@ -6,7 +6,7 @@
 use stereotrace::camera::StereoRig;
 use stereotrace::kernels::Extent;
 use stereotrace::kernels::check::CountingAllocator;
-use stereotrace::pipeline::{Blend, Filter, History, Mode, Order, Pipeline, PipelineConfig};
+use stereotrace::pipeline::{Background, Blend, Filter, History, Mode, Order, Pipeline, PipelineConfig};
 use stereotrace::render::{GBufferPass, Renderer, RendererOptions};
 use stereotrace::scene::resolve;
 use stereotrace::session::{CameraWalk, Session, View};
@@ -53,6 +53,15 @@ fn frames_after_the_first_allocate_nothing() {
         cfg.history = History::Clamp;
         let pipeline = Pipeline::new(&renderer, cfg, StereoRig::default(), e).unwrap();
         assert_eq!(warm_then_count(&pool, Session::new(pipeline, CameraWalk::Path)), 0, "{mode} with the clamp");
+    }
+    // The sky reprojected by direction (courtyard's open sky), under a budget and without.
+    let courtyard = Renderer::new(resolve("courtyard").unwrap()).unwrap();
+    for budget in [None, Some(std::time::Duration::from_micros(300))] {
+        let mut cfg = PipelineConfig::paper(Mode::Spatiotemporal, 1, courtyard.scene().tolerances.at_height(36));
+        (cfg.background, cfg.budget) = (Background::Reproject, budget);
+        let pipeline = Pipeline::new(&courtyard, cfg, StereoRig::default(), e).unwrap();
+        let allocated = warm_then_count(&pool, Session::new(pipeline, CameraWalk::Path));
+        assert_eq!(allocated, 0, "the sky's reprojection, budget {budget:?}");
     }
     // Motion vectors, written where a moving area light is seen (atrium's sphere).
     let atrium = Renderer::new(resolve("atrium-moving-light").unwrap()).unwrap();

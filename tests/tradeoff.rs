@@ -51,8 +51,9 @@ fn the_sweep_measures_the_harness_images_and_marks_a_consistent_front() {
     }
 
     // 1 path-traced + 7 modes + strict, ramp, full layout, traced G-buffer, centre first
-    // sample, gradient history, clamp history, variance blend, à-trous filter + 2 budgets.
-    assert_eq!(report.rows.len(), 19);
+    // sample, gradient history, clamp history, variance blend, à-trous filter, reprojected
+    // background + 2 budgets.
+    assert_eq!(report.rows.len(), 20);
     let unbudgeted = report.rows.iter().find(|r| r.mode == "spatiotemporal" && r.change == "paper").unwrap();
     let budgeted = report.rows.iter().find(|r| r.change == "budget 50%").unwrap();
     assert_eq!(budgeted.budget_ms, Some(0.5 * unbudgeted.frame.median_ms));
@@ -63,6 +64,9 @@ fn the_sweep_measures_the_harness_images_and_marks_a_consistent_front() {
     // gives the paper's images, so the same quality.
     let gradient = report.rows.iter().find(|r| r.change == "gradient history").unwrap();
     assert_eq!(gradient.effective_ssim, unbudgeted.effective_ssim);
+    // The Cornell box fills its view: no sky to keep, so the paper's images.
+    let sky = report.rows.iter().find(|r| r.change == "reproject background").unwrap();
+    assert_eq!(sky.mean_ssim, unbudgeted.mean_ssim);
     // The clamp moves histories toward single-path noise: its own images and quality.
     let clamp = report.rows.iter().find(|r| r.change == "clamp history").unwrap();
     assert_ne!(clamp.mean_ssim, unbudgeted.mean_ssim);

@@ -42,12 +42,13 @@
 // and, while the major is 0, their minors too (a 0.x minor may grow a struct).
 #define STEREOTRACE_VERSION_MAJOR 0
 
-// The library's minor version. 0.4: `ST_HISTORY_CLAMP` and
+// The library's minor version. 0.5: `StPipelineConfig.background` (`StBackground`).
+// 0.4: `ST_HISTORY_CLAMP` and
 // `StFrameStats.history_clamped`. 0.3: `StPipelineConfig.history`, `.blend` and `.filter`,
 // and their counts and times in `StFrameStats`. 0.2: `ST_STATUS_CALLBACK_FAILED`,
 // `_OUT_OF_MEMORY` and `_BUSY`; the destroy functions return a status; the
 // `STEREOTRACE_MAX_*` limits.
-#define STEREOTRACE_VERSION_MINOR 4
+#define STEREOTRACE_VERSION_MINOR 5
 
 // The library's patch version.
 #define STEREOTRACE_VERSION_PATCH 0
@@ -216,6 +217,17 @@ typedef enum StFilter {
   // `stereotrace_pipeline_output` is filtered, the histories are not.
   ST_FILTER_ATROUS = 1,
 } StFilter;
+
+// What reprojection does with background pixels (no surface: a sky): the values of
+// [`StPipelineConfig::background`].
+typedef enum StBackground {
+  // The paper's: discarded, so every background pixel is traced every frame.
+  ST_BACKGROUND_TRACE = 0,
+  // Reprojected by view direction as points at infinity, from background taps: a sky
+  // that stays in view keeps its history and costs no ray. Only for a background that
+  // does not change between frames.
+  ST_BACKGROUND_REPROJECT = 1,
+} StBackground;
 
 // What the kernels run on: a pool of worker threads. Opaque to C. One call at a time:
 // a kernel call on a context that is in a call on another thread is refused with
@@ -488,6 +500,8 @@ typedef struct StPipelineConfig {
   uint32_t blend;
   // A `StFilter` value (the paper's: `ST_FILTER_NONE`).
   uint32_t filter;
+  // A `StBackground` value (the paper's: `ST_BACKGROUND_TRACE`).
+  uint32_t background;
 } StPipelineConfig;
 
 // A writable plane of `uint32_t`.
@@ -670,7 +684,7 @@ extern "C" {
 // header's `STEREOTRACE_VERSION_*` constants at run time.
 uint32_t stereotrace_version(void);
 
-// The library's version as text (`"0.4.0"`); a static string, never freed.
+// The library's version as text (`"0.5.0"`); a static string, never freed.
 const char *stereotrace_version_string(void);
 
 // The message of the last failed call on this thread, or an empty string after a call

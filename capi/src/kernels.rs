@@ -364,6 +364,9 @@ unsafe fn reproject_views<L: SurfaceLayout>(
                     Some(reproject::Jitter { target: [j[0], j[1]], source: [j[2], j[3]] })
                 }
             },
+            // The C kernel keeps the paper's rule; the pipeline's setting reaches C through
+            // its configuration.
+            background: None,
         };
         let kernel_output = ReprojectOutput {
             colour: output.colour.view(["output.colour.r", "output.colour.g", "output.colour.b"], b)?,

@@ -38,12 +38,13 @@ pub use views::{StPlaneF32, StPlaneMutF32, StPlaneMutU8, StPlaneU8, StPlaneU32, 
 /// The library's major version. A header and a library agree when their majors are equal
 /// and, while the major is 0, their minors too (a 0.x minor may grow a struct).
 pub const STEREOTRACE_VERSION_MAJOR: u32 = 0;
-/// The library's minor version. 0.4: `ST_HISTORY_CLAMP` and
+/// The library's minor version. 0.5: `StPipelineConfig.background` (`StBackground`).
+/// 0.4: `ST_HISTORY_CLAMP` and
 /// `StFrameStats.history_clamped`. 0.3: `StPipelineConfig.history`, `.blend` and `.filter`,
 /// and their counts and times in `StFrameStats`. 0.2: `ST_STATUS_CALLBACK_FAILED`,
 /// `_OUT_OF_MEMORY` and `_BUSY`; the destroy functions return a status; the
 /// `STEREOTRACE_MAX_*` limits.
-pub const STEREOTRACE_VERSION_MINOR: u32 = 4;
+pub const STEREOTRACE_VERSION_MINOR: u32 = 5;
 /// The library's patch version.
 pub const STEREOTRACE_VERSION_PATCH: u32 = 0;
 
@@ -54,7 +55,7 @@ pub extern "C" fn stereotrace_version() -> u32 {
     STEREOTRACE_VERSION_MAJOR * 10_000 + STEREOTRACE_VERSION_MINOR * 100 + STEREOTRACE_VERSION_PATCH
 }
 
-/// The library's version as text (`"0.4.0"`); a static string, never freed.
+/// The library's version as text (`"0.5.0"`); a static string, never freed.
 #[unsafe(no_mangle)]
 pub extern "C" fn stereotrace_version_string() -> *const c_char {
     concat!(env!("CARGO_PKG_VERSION"), "\0").as_ptr().cast()

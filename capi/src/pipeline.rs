@@ -12,8 +12,8 @@ use stereotrace_kernels::reproject::Tolerances;
 use stereotrace_kernels::{CameraModel, Extent, GBufferBuf, PlaneBuf, RgbBuf};
 use stereotrace_runtime::camera::{Eye, StereoRig};
 use stereotrace_runtime::pipeline::{
-    Blend, Filter, FrameStats, GBufferView, History, Layout, MAX_SPP, Mode, Order, Pipeline, PipelineConfig,
-    PipelineError, budget_duration, check_spp,
+    Background, Blend, Filter, FrameStats, GBufferView, History, Layout, MAX_SPP, Mode, Order, Pipeline,
+    PipelineConfig, PipelineError, budget_duration, check_spp,
 };
 use stereotrace_runtime::render::{Renderer, RendererSource};
 use stereotrace_runtime::source::{FrameSource, PixelSelection, RasterPassStats, TraceRequest, TraceStats};
@@ -101,6 +101,19 @@ pub enum StFilter {
     Atrous = 1,
 }
 
+/// What reprojection does with background pixels (no surface: a sky): the values of
+/// [`StPipelineConfig::background`].
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StBackground {
+    /// The paper's: discarded, so every background pixel is traced every frame.
+    Trace = 0,
+    /// Reprojected by view direction as points at infinity, from background taps: a sky
+    /// that stays in view keeps its history and costs no ray. Only for a background that
+    /// does not change between frames.
+    Reproject = 1,
+}
+
 /// Settings of a pipeline (see [`stereotrace_pipeline_config_default`]).
 #[repr(C)]
 #[derive(Clone, Copy, Debug)]
@@ -156,6 +169,8 @@ pub struct StPipelineConfig {
     pub blend: u32,
     /// A `StFilter` value (the paper's: `ST_FILTER_NONE`).
     pub filter: u32,
+    /// A `StBackground` value (the paper's: `ST_BACKGROUND_TRACE`).
+    pub background: u32,
 }
 
 /// Spatiotemporal mode in the paper's order and with the paper's history, blend and (no)
@@ -179,6 +194,7 @@ pub extern "C" fn stereotrace_pipeline_config_default() -> StPipelineConfig {
         history: StHistory::Paper as u32,
         blend: StBlend::Fixed as u32,
         filter: StFilter::None as u32,
+        background: StBackground::Trace as u32,
     }
 }
 
@@ -237,6 +253,11 @@ impl StPipelineConfig {
             0 => Filter::None,
             1 => Filter::Atrous,
             other => return Err(Failure::invalid(format!("config.filter {other} is not a StFilter (0 or 1)"))),
+        };
+        c.background = match self.background {
+            0 => Background::Trace,
+            1 => Background::Reproject,
+            other => return Err(Failure::invalid(format!("config.background {other} is not a StBackground (0 or 1)"))),
         };
         // SAFETY: the caller's contract.
         if let Some(r) = unsafe { self.reprojection.as_ref() } {

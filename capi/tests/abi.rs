@@ -169,6 +169,7 @@ fn direct<L: stereotrace_kernels::SurfaceLayout>(target: &L, source: &L, source_
         pixel_mask: Some(mask.view()),
         motion: Some(motion.each_ref().map(|p| p.view())),
         jitter: Some(reproject::Jitter { target: [JITTER[0], JITTER[1]], source: [JITTER[2], JITTER[3]] }),
+        background: None,
     };
     let output = ReprojectOutput {
         colour: w.colour.view_mut(),

@@ -609,18 +609,19 @@ fn still_frame(p: *mut StPipeline, f: u32) -> StFrameStats {
 fn the_history_blend_and_filter_settings_default_to_the_papers_and_refuse_unknown_values() {
     let config = stereotrace_pipeline_config_default();
     assert_eq!(
-        (config.history, config.blend, config.filter),
-        (StHistory::Paper as u32, StBlend::Fixed as u32, StFilter::None as u32)
+        (config.history, config.blend, config.filter, config.background),
+        (StHistory::Paper as u32, StBlend::Fixed as u32, StFilter::None as u32, StBackground::Trace as u32)
     );
-    assert_eq!(stereotrace_version(), 400, "0.4: ST_HISTORY_CLAMP, and the statistics grew");
+    assert_eq!(stereotrace_version(), 500, "0.5: StPipelineConfig.background");
     let mut engine = RoomEngine::new();
     let callbacks = engine.callbacks();
     let cameras = [camera(-0.03, W, H), camera(0.03, W, H)];
     type Edit = fn(&mut StPipelineConfig);
-    let edits: [(Edit, &str); 3] = [
+    let edits: [(Edit, &str); 4] = [
         (|c| c.history = 3, "config.history 3 is not a StHistory (0 to 2)"),
         (|c| c.blend = 7, "config.blend 7 is not a StBlend (0 or 1)"),
         (|c| c.filter = u32::MAX, "config.filter 4294967295 is not a StFilter (0 or 1)"),
+        (|c| c.background = 2, "config.background 2 is not a StBackground (0 or 1)"),
     ];
     for (edit, want) in edits {
         let mut config = stereotrace_pipeline_config_default();

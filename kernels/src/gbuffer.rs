@@ -60,6 +60,11 @@ pub trait SurfaceLayout: Sync {
     fn extent(&self) -> Extent;
     /// The surface at pixel `(x, y)`. Panics outside the extent.
     fn surfel(&self, x: usize, y: usize) -> Surfel;
+    /// The depth of pixel `(x, y)` alone (`+inf` for background), without decoding the
+    /// rest of its surface. Panics outside the extent.
+    fn depth(&self, x: usize, y: usize) -> f32 {
+        self.surfel(x, y).depth
+    }
     /// Pixels `x .. x + LANES` of row `y`. Panics unless `x + LANES <= width`.
     #[inline(always)]
     fn surfels_row(&self, x: usize, y: usize) -> Surfels {
@@ -78,6 +83,10 @@ pub trait SurfaceLayout: Sync {
     fn depth_row(&self, x: usize, y: usize) -> F32s;
     /// The pixels at `taps` (already clamped into the extent).
     fn surfels_gather(&self, taps: &TapCoords) -> Surfels;
+    /// The depths alone at `taps` (already clamped into the extent).
+    fn depths_gather(&self, taps: &TapCoords) -> F32s {
+        self.surfels_gather(taps).depth
+    }
     /// Bytes read per pixel (for roofline figures).
     fn bytes_per_pixel(&self) -> usize;
     /// Starts loading the cache lines of pixel `(x, y)` in every plane (reads nothing; a
@@ -159,6 +168,10 @@ impl SurfaceLayout for GBuffer<'_> {
         }
     }
 
+    fn depth(&self, x: usize, y: usize) -> f32 {
+        self.depth.get(x, y)
+    }
+
     #[inline(always)]
     fn depth_row(&self, x: usize, y: usize) -> F32s {
         assert!(x + LANES <= self.depth.width() && y < self.depth.height(), "vector load outside the G-buffer");
@@ -186,6 +199,11 @@ impl SurfaceLayout for GBuffer<'_> {
             position: self.position.map(|p| taps.gather_f32(&p)),
             normal: self.normal.map(|p| taps.gather_f32(&p)),
         }
+    }
+
+    #[inline(always)]
+    fn depths_gather(&self, taps: &TapCoords) -> F32s {
+        taps.gather_f32(&self.depth)
     }
 
     fn bytes_per_pixel(&self) -> usize {
@@ -274,6 +292,10 @@ impl SurfaceLayout for CompactGBuffer<'_> {
         }
     }
 
+    fn depth(&self, x: usize, y: usize) -> f32 {
+        self.depth.get(x, y)
+    }
+
     #[inline(always)]
     fn depth_row(&self, x: usize, y: usize) -> F32s {
         assert!(x + LANES <= self.depth.width() && y < self.depth.height(), "vector load outside the G-buffer");
@@ -302,6 +324,11 @@ impl SurfaceLayout for CompactGBuffer<'_> {
         let py = F32s::from(taps.y.map(|v| v as f32)) + F32s::splat(0.5);
         let packed = taps.gather_u32(&self.normal);
         Surfels { depth, position: self.positions(depth, px, py), normal: decode_normals_raw(packed) }
+    }
+
+    #[inline(always)]
+    fn depths_gather(&self, taps: &TapCoords) -> F32s {
+        taps.gather_f32(&self.depth)
     }
 
     fn bytes_per_pixel(&self) -> usize {

@@ -38,6 +38,7 @@ fn reproject_both<L: SurfaceLayout>(
         pixel_mask: None,
         motion: None,
         jitter: None,
+        background: None,
     };
     let run = |simd: bool| {
         let (mut colour, mut reason) = (RgbBuf::new(e, -7.0), stereotrace_kernels::PlaneBuf::new(e, 99u8));

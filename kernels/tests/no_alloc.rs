@@ -45,6 +45,7 @@ fn second_frame_allocates_nothing() {
             pixel_mask: None,
             motion: None,
             jitter: None,
+            background: None,
         };
         let out = ReprojectOutput {
             colour: reprojected.view_mut(),
@@ -66,6 +67,7 @@ fn second_frame_allocates_nothing() {
             pixel_mask: None,
             motion: None,
             jitter: None,
+            background: None,
         };
         let out = ReprojectOutput {
             colour: history.view_mut(),
@@ -94,6 +96,7 @@ fn second_frame_allocates_nothing() {
             pixel_mask: None,
             motion: None,
             jitter: None,
+            background: None,
         };
         let out =
             ReprojectOutput { colour: reprojected.view_mut(), extra: None, reason: reason.view_mut(), weight: None };

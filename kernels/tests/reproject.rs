@@ -109,6 +109,7 @@ fn input_for<'a, L: SurfaceLayout>(
         pixel_mask: None,
         motion: None,
         jitter: None,
+        background: None,
     }
 }
 
@@ -244,10 +245,21 @@ fn simd_equals_scalar_with_edge_values_and_random_cameras() {
         };
         for policy in [TapPolicy::Renormalize, TapPolicy::Strict] {
             let p = ReprojectParams { tolerances, policy, band_rows: 1 + rng.below(5) };
-            let (tf, sf) = (target.gbuffer(), source.gbuffer());
-            assert_every_body_matches_scalar(&input_for(&tf, &sf, &source, None), &p);
-            let (tc, sc) = (target.compact(), source.compact());
-            assert_every_body_matches_scalar(&input_for(&tc, &sc, &source, Some(source.colour.g().view())), &p);
+            // The paper's rule for background pixels, and their reprojection by direction
+            // (the corrupted depths include +inf, so every case has some).
+            for background in [None, Some(&cam_t)] {
+                let (tf, sf) = (target.gbuffer(), source.gbuffer());
+                assert_every_body_matches_scalar(
+                    &ReprojectInput { background, ..input_for(&tf, &sf, &source, None) },
+                    &p,
+                );
+                let (tc, sc) = (target.compact(), source.compact());
+                let extra = Some(source.colour.g().view());
+                assert_every_body_matches_scalar(
+                    &ReprojectInput { background, ..input_for(&tc, &sc, &source, extra) },
+                    &p,
+                );
+            }
         }
     }
 }
@@ -569,6 +581,7 @@ fn bad_inputs_are_refused_with_named_errors() {
         pixel_mask: None,
         motion: None,
         jitter: None,
+        background: None,
     };
     let err = run_reprojection(&input, &params(TapPolicy::Strict), true).unwrap_err();
     assert!(err.to_string().contains("source colour"), "{err}");
@@ -877,4 +890,191 @@ fn stated_jitter_reprojects_onto_the_unjittered_grid() {
         ..input_for(&tc, &sc, &frame, None)
     };
     assert!(matches!(run_reprojection(&bad, &params(TapPolicy::Strict), true), Err(FrameError::InvalidParameter(_))));
+}
+
+/// A window onto the sky: one textured rectangle in the middle of the view at depth 3, and
+/// background everywhere else.
+fn window() -> AnalyticScene {
+    AnalyticScene {
+        rects: vec![Rect {
+            centre: Vec3::new(0.1, -0.05, -3.0),
+            axis_u: Vec3::X,
+            axis_v: Vec3::Y,
+            half: (0.6, 0.4),
+            texture: Texture::ramp([0.2, 0.3, 0.4], [0.1, 0.0, -0.1]),
+        }],
+    }
+}
+
+/// Source samples that differ at every pixel, smoothly: `x + 0.25·y` in red.
+fn numbered(frame: &mut SynthFrame) {
+    let w = frame.extent().width();
+    for (i, v) in frame.colour.r_mut().iter_mut().enumerate() {
+        *v = (i % w) as f32 + 0.25 * (i / w) as f32;
+    }
+}
+
+/// Bilinear interpolation in f64 at `(sx, sy)` over the taps `keep` accepts, renormalised
+/// (`None` where no tap with a positive weight is accepted).
+fn bilinear_where(img: &PlaneBuf, sx: f64, sy: f64, keep: impl Fn(usize, usize) -> bool) -> Option<f64> {
+    let e = img.extent();
+    let (u, v) = (sx - 0.5, sy - 0.5);
+    let (x0, y0) = (u.floor(), v.floor());
+    let (fx, fy) = (u - x0, v - y0);
+    let (mut sum, mut total) = (0.0, 0.0);
+    for (dx, dy, w) in
+        [(0, 0, (1.0 - fx) * (1.0 - fy)), (1, 0, fx * (1.0 - fy)), (0, 1, (1.0 - fx) * fy), (1, 1, fx * fy)]
+    {
+        let (x, y) = (x0 as i64 + dx, y0 as i64 + dy);
+        let inside = x >= 0 && y >= 0 && (x as usize) < e.width() && (y as usize) < e.height();
+        if w > 0.0 && inside && keep(x as usize, y as usize) {
+            sum += w * f64::from(img.as_slice()[y as usize * e.width() + x as usize]);
+            total += w;
+        }
+    }
+    (total > 0.0).then(|| sum / total)
+}
+
+#[test]
+fn background_pixels_reproject_by_direction_as_the_closed_form_says() {
+    let e = extent(72, 40);
+    let vfov = 60.0f32;
+    let scene = window();
+    // The target camera looks down −Z from (0.2, 0, 0); the source stands elsewhere and is
+    // turned (yaw and pitch), as a moving camera between frames.
+    let target_eye = Vec3::new(0.2, 0.0, 0.0);
+    let cam_t = camera_at(target_eye, e, vfov);
+    let source_eye = Vec3::new(-0.4, 0.1, 0.5);
+    let vp_s = stereotrace_kernels::camera::look_at_perspective(
+        source_eye,
+        source_eye + Vec3::new(0.12, 0.05, -1.0),
+        Vec3::Y,
+        vfov.to_radians(),
+        e,
+    );
+    let cam_s = CameraModel::new(vp_s, e).unwrap();
+    let target = scene.render(&cam_t, [0.0; 3]);
+    let mut source = scene.render(&cam_s, [0.0; 3]);
+    numbered(&mut source);
+    let sky = |frame: &SynthFrame, x: usize, y: usize| {
+        frame.surfaces.depth.as_slice()[y * frame.extent().width() + x] == f32::INFINITY
+    };
+    let p = params(TapPolicy::Renormalize);
+    let strict = params(TapPolicy::Strict);
+    let (tc, sc) = (target.compact(), source.compact());
+    let paper = run_reprojection(&input_for(&tc, &sc, &source, None), &p, true).unwrap();
+    let input = ReprojectInput { background: Some(&cam_t), ..input_for(&tc, &sc, &source, None) };
+    let kept = run_reprojection(&input, &p, true).unwrap();
+    let kept_strict = run_reprojection(&input, &strict, true).unwrap();
+    // Every body gives the reference's bits (the sky's coherent rows and its gathers alike).
+    for params in [&p, &strict] {
+        assert_every_body_matches_scalar(&input, params);
+        let (tf, sf) = (target.gbuffer(), source.gbuffer());
+        let extra = Some(source.colour.g().view());
+        assert_every_body_matches_scalar(
+            &ReprojectInput { background: Some(&cam_t), ..input_for(&tf, &sf, &source, extra) },
+            params,
+        );
+    }
+    // The closed form, in f64: the target pixel's direction from the field of view, and its
+    // place in the source from the source's view-projection applied to (d, 0).
+    let tan = (f64::from(vfov).to_radians() / 2.0).tan();
+    let aspect = e.width() as f64 / e.height() as f64;
+    let vp = vp_s.as_dmat4();
+    let (mut checked, mut refused, mut partial) = (0, 0, 0);
+    for y in 0..e.height() {
+        for x in 0..e.width() {
+            let i = y * e.width() + x;
+            if !sky(&target, x, y) {
+                assert_eq!(
+                    kept.reason.as_slice()[i],
+                    paper.reason.as_slice()[i],
+                    "surfaces as the paper's at ({x}, {y})"
+                );
+                continue;
+            }
+            assert_eq!(paper.reason.as_slice()[i], Reason::Background as u8, "the paper discards sky");
+            let ndc =
+                [2.0 * (x as f64 + 0.5) / e.width() as f64 - 1.0, 1.0 - 2.0 * (y as f64 + 0.5) / e.height() as f64];
+            let d = glam::DVec4::new(ndc[0] * tan * aspect, ndc[1] * tan, -1.0, 0.0);
+            let c = vp * d;
+            let (sx, sy) = ((c.x / c.w + 1.0) * 0.5 * e.width() as f64, (1.0 - c.y / c.w) * 0.5 * e.height() as f64);
+            // Away from the tap boundaries, where which taps take part is not in doubt.
+            let (fx, fy) = ((sx - 0.5).rem_euclid(1.0), (sy - 0.5).rem_euclid(1.0));
+            if fx.min(1.0 - fx) < 0.01 || fy.min(1.0 - fy) < 0.01 {
+                continue;
+            }
+            let all = bilinear_where(source.colour.r(), sx, sy, |_, _| true);
+            let sky_only = bilinear_where(source.colour.r(), sx, sy, |tx, ty| sky(&source, tx, ty));
+            let reason = kept.reason.as_slice()[i];
+            match sky_only {
+                Some(expected) => {
+                    assert_eq!(reason, Reason::Reprojected as u8, "sky kept at ({x}, {y})");
+                    let got = f64::from(kept.colour.r().as_slice()[i]);
+                    assert!((got - expected).abs() < 2e-3, "({x}, {y}): {got} against {expected}");
+                    checked += 1;
+                    // Strict: only where every tap in the footprint is sky and in frame.
+                    let whole = all == sky_only
+                        && (sx - 0.5).floor() >= 0.0
+                        && (sy - 0.5).floor() >= 0.0
+                        && (sx + 0.5) < e.width() as f64
+                        && (sy + 0.5) < e.height() as f64;
+                    let strict_reason = kept_strict.reason.as_slice()[i];
+                    if whole {
+                        assert_eq!(strict_reason, Reason::Reprojected as u8, "strict keeps a whole sky footprint");
+                    } else {
+                        assert_eq!(strict_reason, Reason::Background as u8, "strict refuses a mixed footprint");
+                        partial += 1;
+                    }
+                }
+                None => {
+                    assert_eq!(reason, Reason::Background as u8, "no sky tap at ({x}, {y})");
+                    assert_eq!(kept.colour.r().as_slice()[i], 0.0);
+                    assert_eq!(kept.weight.as_slice()[i], 0.0);
+                    refused += 1;
+                }
+            }
+        }
+    }
+    assert!(checked > 500 && refused > 20 && partial > 5, "checked {checked}, refused {refused}, partial {partial}");
+    // The counts say the same as the reason plane.
+    let count = |r: &Reprojected, reason: Reason| r.reason.as_slice().iter().filter(|&&c| c == reason as u8).count();
+    assert_eq!(kept.counts.get(Reason::Reprojected), count(&kept, Reason::Reprojected) as u64);
+    assert_eq!(kept.counts.get(Reason::Background), count(&kept, Reason::Background) as u64);
+}
+
+#[test]
+fn a_parallel_stereo_pair_copies_its_sky_pixel_for_pixel() {
+    // At infinity a parallel rig has no disparity: each sky pixel is the other eye's same pixel.
+    let e = extent(64, 36);
+    let scene = window();
+    let left = scene.render(&camera_at(Vec3::new(-0.032, 0.0, 0.0), e, 60.0), [0.0; 3]);
+    let mut right = scene.render(&camera_at(Vec3::new(0.032, 0.0, 0.0), e, 60.0), [0.0; 3]);
+    numbered(&mut right);
+    let (tc, sc) = (left.compact(), right.compact());
+    let input = ReprojectInput { background: Some(&left.surfaces.camera), ..input_for(&tc, &sc, &right, None) };
+    let r = run_reprojection(&input, &params(TapPolicy::Strict), true).unwrap();
+    assert_every_body_matches_scalar(&input, &params(TapPolicy::Strict));
+    let mut copied = 0;
+    for i in 0..e.pixels() {
+        let both_sky =
+            left.surfaces.depth.as_slice()[i] == f32::INFINITY && right.surfaces.depth.as_slice()[i] == f32::INFINITY;
+        if both_sky {
+            assert_eq!(r.reason.as_slice()[i], Reason::Reprojected as u8);
+            assert!(same_bits(r.colour.r().as_slice()[i], right.colour.r().as_slice()[i]), "pixel {i}");
+            copied += 1;
+        }
+    }
+    assert!(copied > e.pixels() / 2, "{copied} sky pixels");
+}
+
+#[test]
+fn a_background_camera_of_another_extent_is_refused() {
+    let e = extent(16, 8);
+    let (left, right) = stereo_room(e, 0.065);
+    let other = camera_at(Vec3::ZERO, extent(8, 8), 60.0);
+    let (tc, sc) = (left.compact(), right.compact());
+    let input = ReprojectInput { background: Some(&other), ..input_for(&tc, &sc, &right, None) };
+    let err = run_reprojection(&input, &params(TapPolicy::Renormalize), true).unwrap_err();
+    assert!(err.to_string().contains("background"), "{err}");
 }

@@ -128,6 +128,7 @@ fn path_traced_and_stereo_frames_are_the_kernels_on_the_same_buffers() {
         pixel_mask: None,
         motion: None,
         jitter: None,
+        background: None,
     };
     let out = ReprojectOutput { colour: expected.view_mut(), extra: None, reason: reason.view_mut(), weight: None };
     reproject::reproject(&input, out, &params(p.config())).unwrap();
@@ -168,6 +169,7 @@ fn temporal_frames_are_reprojection_then_ema_on_the_same_buffers() {
             pixel_mask: None,
             motion: None,
             jitter: None,
+            background: None,
         };
         let out = ReprojectOutput { colour: history.view_mut(), extra: None, reason: reason.view_mut(), weight: None };
         let counts = reproject::reproject(&input, out, &params(p.config())).unwrap();

@@ -58,6 +58,9 @@ pub fn settings_label(spec: &EvalSpec) -> String {
     if spec.filter != crate::pipeline::Filter::default() {
         parts.push(format!("{} filter", spec.filter.name()));
     }
+    if spec.background != crate::pipeline::Background::default() {
+        parts.push(format!("{} background", spec.background.name()));
+    }
     if spec.motion_vectors {
         parts.push("motion vectors".to_owned());
     }

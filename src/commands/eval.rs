@@ -92,6 +92,11 @@ pub struct EvalOptions {
     /// paper's), or the edge-avoiding à-trous filter (default: the preset's, none).
     #[arg(long, value_enum)]
     pub filter: Option<crate::pipeline::Filter>,
+    /// What the pipelines' reprojection does with background pixels (sky): the paper's
+    /// discards them (`trace`), `reproject` keeps a static sky's history by direction
+    /// (default: the preset's, the paper's).
+    #[arg(long, value_enum)]
+    pub background: Option<crate::pipeline::Background>,
     /// List the run's work units and their estimated CPU time (writes OUT/plan.tsv); compute
     /// nothing.
     #[arg(long, conflicts_with_all = ["shard", "merge"])]
@@ -191,6 +196,9 @@ pub fn build_spec(opts: &EvalOptions) -> Result<EvalSpec, String> {
     }
     if let Some(f) = opts.filter {
         spec.filter = f;
+    }
+    if let Some(b) = opts.background {
+        spec.background = b;
     }
     // Figure options name scenes as the run will know them (a manifest's `name`, not its path).
     let names = spec

@@ -21,7 +21,7 @@ use serde::Serialize;
 use crate::camera::{Eye, StereoRig};
 use crate::kernels::Extent;
 use crate::kernels::bvh::BuildQuality;
-use crate::pipeline::{Blend, Filter, FrameStats, History, Layout, Mode, Order, Pipeline, PipelineConfig};
+use crate::pipeline::{Background, Blend, Filter, FrameStats, History, Layout, Mode, Order, Pipeline, PipelineConfig};
 use crate::render::{Renderer, RendererOptions};
 use crate::session::{CameraWalk, Session, View};
 use crate::source::RasterPassStats;
@@ -65,6 +65,10 @@ pub struct ThroughputOptions {
     /// or the edge-avoiding à-trous filter (five passes, guided by the G-buffers).
     #[arg(long, value_enum, default_value_t = Filter::None)]
     pub filter: Filter,
+    /// What reprojection does with background pixels (sky): the paper's discards them, so
+    /// they are traced every frame; `reproject` keeps a static sky's history by direction.
+    #[arg(long, value_enum, default_value_t = Background::Trace)]
+    pub background: Background,
     /// How the G-buffers are made.
     #[command(flatten)]
     pub gbuffer: GBufferArg,
@@ -163,6 +167,8 @@ pub struct ThroughputReport {
     pub blend: String,
     /// The spatial filter of the shown images (`none` or `atrous`).
     pub filter: String,
+    /// What reprojection did with background pixels (`trace` or `reproject`).
+    pub background: String,
     /// G-buffer layout the reprojection read (`compact` or `full`).
     pub layout: String,
     /// How the G-buffers were made (`raster` or `traced`).
@@ -365,6 +371,7 @@ pub fn run(opts: &ThroughputOptions) -> Result<ThroughputReport, String> {
     config.history = opts.history;
     config.blend = opts.blend;
     config.filter = opts.filter;
+    config.background = opts.background;
     config.motion_vectors = opts.motion_vectors;
     let options = opts.gbuffer.options();
     config.budget = opts.budget_ms.map(crate::pipeline::budget_duration).transpose()?;
@@ -421,6 +428,7 @@ pub fn run(opts: &ThroughputOptions) -> Result<ThroughputReport, String> {
         history: opts.history.name().into(),
         blend: opts.blend.name().into(),
         filter: opts.filter.name().into(),
+        background: opts.background.name().into(),
         layout: format!("{:?}", opts.layout).to_lowercase(),
         gbuffer_pass: opts.gbuffer.gbuffer.name().into(),
         first_sample: opts.gbuffer.first_sample.name().into(),

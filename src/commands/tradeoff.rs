@@ -27,7 +27,7 @@ use crate::eval::stats::Summary;
 use crate::eval::{EvalSpec, Metric, Preset, Reporter, Variant};
 use crate::kernels::Extent;
 use crate::kernels::reproject::TapPolicy;
-use crate::pipeline::{Blend, Filter, History, Layout, Mode, Order, Pipeline};
+use crate::pipeline::{Background, Blend, Filter, History, Layout, Mode, Order, Pipeline};
 use crate::render::{FirstSample, GBufferPass, RendererOptions};
 use crate::session::{CameraWalk, Session};
 
@@ -142,6 +142,8 @@ pub struct Setting {
     pub blend: Blend,
     /// The spatial filter of the shown images.
     pub filter: Filter,
+    /// What reprojection does with background pixels.
+    pub background: Background,
     /// A fraction of the unbudgeted spatiotemporal (paper order) time at the same spp.
     pub budget_fraction: Option<f64>,
     /// A budget in milliseconds.
@@ -163,6 +165,7 @@ impl Setting {
             history: History::Paper,
             blend: Blend::Fixed,
             filter: Filter::None,
+            background: Background::Trace,
             budget_fraction: None,
             budget_ms: None,
         }
@@ -194,6 +197,9 @@ impl Setting {
         }
         if self.filter != Filter::None {
             parts.push(format!("{} filter", self.filter.name()));
+        }
+        if self.background != Background::Trace {
+            parts.push(format!("{} background", self.background.name()));
         }
         if let Some(f) = self.budget_fraction {
             parts.push(format!("budget {:.0}%", f * 100.0));
@@ -258,6 +264,9 @@ pub fn settings(opts: &TradeoffOptions) -> Vec<Setting> {
         out.push(Setting { blend: Blend::Variance, ..blend });
         // The à-trous filter of the shown images (the denoising study's point).
         out.push(Setting { filter: Filter::Atrous, ..base });
+        // The sky's history kept by direction: less tracing on scenes with an open sky, the
+        // paper's points where there is none.
+        out.push(Setting { background: Background::Reproject, ..base });
         for &f in &opts.budgets {
             out.push(Setting { budget_fraction: Some(f), ..base });
         }
@@ -349,6 +358,7 @@ fn measure_setting(
     config.history = setting.history;
     config.filter = setting.filter;
     config.blend = setting.blend;
+    config.background = setting.background;
     config.budget = budget_ms.map(crate::pipeline::budget_duration).transpose()?;
     let rig = StereoRig::new(spec.eye_separation)?;
     let options = RendererOptions::with_first_sample(setting.gbuffer, setting.first_sample);

@@ -930,6 +930,7 @@ pub fn pipeline_config(
     cfg.history = spec.history;
     cfg.blend = spec.blend;
     cfg.filter = spec.filter;
+    cfg.background = spec.background;
     cfg
 }
 

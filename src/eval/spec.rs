@@ -195,6 +195,10 @@ pub struct EvalSpec {
     /// The spatial filter of the pipelines' shown images (older specs: none, the paper's).
     #[serde(default)]
     pub filter: crate::pipeline::Filter,
+    /// What the pipelines' reprojection does with background pixels (older specs: the
+    /// paper's, traced).
+    #[serde(default)]
+    pub background: crate::pipeline::Background,
     /// What the figures show.
     pub figures: FigureSpec,
 }
@@ -273,6 +277,7 @@ impl Preset {
             history: crate::pipeline::History::Paper,
             blend: crate::pipeline::Blend::Fixed,
             filter: crate::pipeline::Filter::None,
+            background: crate::pipeline::Background::Trace,
             figures,
         };
         match self {

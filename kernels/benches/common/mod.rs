@@ -127,6 +127,7 @@ pub fn run_reprojection<L: SurfaceLayout>(
         pixel_mask: optional.pixel_mask.map(|m| m.view()),
         motion: optional.motion.map(|m| m.each_ref().map(|p| p.view())),
         jitter: None,
+        background: None,
     };
     let o = ReprojectOutput { colour: out.colour.view_mut(), extra: None, reason: out.reason.view_mut(), weight: None };
     let counts = match body {

@@ -114,6 +114,8 @@ pub fn reproject(data: &[u8]) {
         target: [bytes.unit(-1.0, 1.0), bytes.unit(-1.0, 1.0)],
         source: [bytes.unit(-1.0, 1.0), bytes.unit(-1.0, 1.0)],
     });
+    // Background pixels reprojected by direction (beyond the paper), or discarded.
+    let background = (bytes.u8() % 2 == 0).then_some(&target_camera);
     let mut target = scene.render(&target_camera, [0.0; 3]);
     let mut source = scene.render(&source_camera, [0.0; 3]);
     let edit_source = bytes.u8() % 2 == 0;
@@ -124,7 +126,7 @@ pub fn reproject(data: &[u8]) {
         .expect("extent matches");
     let (target, source) = (Strided::new(&target, pad), Strided::new(&source, pad));
     let (tf, sf) = (target.gbuffer(), source.gbuffer());
-    let with = Extras { extra: None, mask: mask.as_ref(), motion: motion.as_ref(), jitter };
+    let with = Extras { extra: None, mask: mask.as_ref(), motion: motion.as_ref(), jitter, background };
     check_reprojection(&tf, &sf, &source, with, &params, source_finite);
     let (tc, sc) = (target.compact(), source.compact());
     let with = Extras { extra: Some(&extra), ..with };
@@ -168,6 +170,7 @@ struct Extras<'a> {
     mask: Option<&'a PlaneBuf<u8>>,
     motion: Option<&'a [PlaneBuf; 3]>,
     jitter: Option<crate::reproject::Jitter>,
+    background: Option<&'a CameraModel>,
 }
 
 /// A copy of a frame's planes with `pad` extra elements per row (filled with NaN or an
@@ -242,7 +245,7 @@ fn check_reprojection<L: SurfaceLayout>(
     params: &ReprojectParams,
     source_finite: bool,
 ) {
-    let Extras { extra, mask, motion, jitter } = with;
+    let Extras { extra, mask, motion, jitter, background } = with;
     let input = ReprojectInput {
         target,
         source,
@@ -252,6 +255,7 @@ fn check_reprojection<L: SurfaceLayout>(
         pixel_mask: mask.map(|m| m.view()),
         motion: motion.map(|m| m.each_ref().map(|p| p.view())),
         jitter,
+        background,
     };
     let e = target.extent();
     if let Err(refusal) = params.tolerances.validate() {
@@ -310,6 +314,21 @@ fn check_reprojection<L: SurfaceLayout>(
                 for p in colour.planes() {
                     assert!(p.as_slice()[i].is_finite(), "non-finite output from finite source samples");
                 }
+            }
+            let sky = target.surfel(i % e.width(), i / e.width()).depth == f32::INFINITY;
+            if sky && background.is_none() {
+                assert_eq!(
+                    reason.as_slice()[i],
+                    Reason::Background as u8,
+                    "background is discarded without the option"
+                );
+            }
+            if sky {
+                let code = reason.as_slice()[i];
+                assert!(
+                    code == Reason::Background as u8 || code == Reason::Reprojected as u8,
+                    "a sky pixel is sky or kept"
+                );
             }
             let moved_by_nonsense = motion.is_some_and(|m| m.iter().any(|p| !p.as_slice()[i].is_finite()));
             if moved_by_nonsense && target.surfel(i % e.width(), i / e.width()).depth != f32::INFINITY {

@@ -26,6 +26,16 @@
 //! 5. Every pixel gets a [`Reason`]. Target-side reasons come first (background, invalid,
 //!    projection out of frame); a discarded pixel's reason is the most informative failure
 //!    among its taps: depth/position, then normal, then invalid, then out of frame.
+//! 6. Beyond the paper, only with [`ReprojectInput::background`]: a background pixel (no
+//!    surface) is a point at infinity. Its view direction `d` through the target camera's
+//!    pixel centre is projected with the source view-projection as the homogeneous point
+//!    `(d, 0)` (rotation only: a sky does not move with the camera's position), and its
+//!    taps are accepted where they are in frame, background too (`depth = +inf`), and have
+//!    finite samples. Renormalisation and the strict policy are as above; a pixel with no
+//!    accepted tap keeps [`Reason::Background`] with 0 written. The SIMD bodies write every
+//!    background pixel as the paper's rule does; the `background` module then takes the
+//!    row's background pixels eight at a time (contiguous loads where the footprints are one
+//!    source row, as the coherent path's), with the reference's operations in its order.
 //!
 //! The kernel reads one to four source channels (colour RGB, plus an optional extra channel,
 //! for example a per-pixel history length) and writes the same number of target channels,
@@ -52,6 +62,7 @@
 //! selects become masked moves). Both do the reference's lane-wise operations in its order,
 //! so every body gives the same bits.
 
+mod background;
 mod scalar;
 mod simd;
 #[cfg(target_arch = "x86_64")]
@@ -63,6 +74,7 @@ use crate::frame::{Extent, FrameError, Plane, PlaneMut, RgbPlanes, RgbPlanesMut,
 use crate::gbuffer::{SurfaceLayout, Surfel};
 use crate::isa::Isa;
 use crate::simd::F32s;
+use background::BackgroundRays;
 use scalar::{reproject_pixel_prepared, write_pixel};
 use simd::simd_row;
 
@@ -238,6 +250,9 @@ impl Default for ReprojectParams {
 /// The most channels one call reprojects.
 pub const MAX_CHANNELS: usize = 4;
 
+/// One pixel's result in the scalar reference: its reason, channels and accepted weight.
+type PixelResult = (Reason, [f32; MAX_CHANNELS], f32);
+
 /// Source data of a reprojection.
 pub struct ReprojectInput<'a, L: SurfaceLayout> {
     /// The G-buffer of the frame being filled.
@@ -275,6 +290,11 @@ pub struct ReprojectInput<'a, L: SurfaceLayout> {
     /// tolerances absorb on a smooth surface). `None` and equal offsets are the same, bit for
     /// bit. Each offset must be finite and at most one pixel.
     pub jitter: Option<Jitter>,
+    /// Optional: the target G-buffer's camera, to reproject **background** pixels as points
+    /// at infinity (module notes, item 6) instead of discarding them as the paper does. For a
+    /// static background (an environment map, a constant sky): the samples of a direction are
+    /// taken as the same in both frames. Its extent must be the target's.
+    pub background: Option<&'a CameraModel>,
 }
 
 /// The sub-pixel offsets of the two G-buffers of a reprojection ([`ReprojectInput::jitter`]),
@@ -333,6 +353,8 @@ struct Prepared<'a, L: SurfaceLayout> {
     motion: Option<[Plane<'a>; 3]>,
     /// How far the footprint moves for jitter (source − target), where it moves at all.
     jitter_shift: Option<[f32; 2]>,
+    /// The target camera, where background pixels are reprojected by direction.
+    background: Option<BackgroundRays>,
     source_extent: Extent,
     half_width: f32,
     half_height: f32,
@@ -379,6 +401,9 @@ fn prepare<'a, L: SurfaceLayout>(
             same_extent(what, input.target.extent(), plane.extent())?;
         }
     }
+    if let Some(camera) = input.background {
+        same_extent("target camera extent (background)", input.target.extent(), camera.extent)?;
+    }
     let c = input.colour;
     let tol = params.tolerances;
     Ok(Prepared {
@@ -390,6 +415,7 @@ fn prepare<'a, L: SurfaceLayout>(
         pixel_mask: input.pixel_mask,
         motion: input.motion,
         jitter_shift: input.jitter.map(|j| j.shift()).transpose()?.filter(|s| *s != [0.0; 2]),
+        background: input.background.map(|c| BackgroundRays::new(*c)),
         source_extent: source,
         half_width: input.source_camera.half_extent().0,
         half_height: input.source_camera.half_extent().1,
@@ -517,6 +543,7 @@ pub fn reproject_scalar<L: SurfaceLayout>(
 ///     pixel_mask: None,
 ///     motion: None,
 ///     jitter: None,
+///     background: None,
 /// };
 /// let mut colour = RgbBuf::new(extent, 0.0);
 /// let mut reason = PlaneBuf::new(extent, 0u8);

@@ -3,6 +3,7 @@
 
 use super::{MAX_CHANNELS, Prepared, Reason, ReasonCounts, RowOut, TapVerdict, len2, normals_agree, usable};
 use crate::bilinear::{Footprint, renormalise};
+use crate::camera::CameraModel;
 use crate::gbuffer::SurfaceLayout;
 use crate::simd::flush_subnormal1;
 
@@ -44,7 +45,10 @@ pub(super) fn reproject_pixel_prepared<L: SurfaceLayout>(
         }
     }
     if t.depth == f32::INFINITY {
-        return (Reason::Background, NONE, 0.0);
+        return match &p.background {
+            Some(rays) => background_pixel(p, &rays.camera, x, y),
+            None => (Reason::Background, NONE, 0.0),
+        };
     }
     let t_len2 = len2(t.normal);
     if !usable(&t, t_len2) {
@@ -134,4 +138,69 @@ pub(super) fn reproject_pixel_prepared<L: SurfaceLayout>(
         Reason::OutOfFrame
     };
     (reason, NONE, 0.0)
+}
+
+/// A background pixel reprojected by its view direction (the module notes' item 6):
+/// [`Reason::Reprojected`] with the renormalised samples of its accepted taps, or
+/// [`Reason::Background`] with nothing where no tap is accepted.
+pub(super) fn background_pixel<L: SurfaceLayout>(
+    p: &Prepared<'_, L>,
+    target_camera: &CameraModel,
+    x: usize,
+    y: usize,
+) -> (Reason, [f32; MAX_CHANNELS], f32) {
+    const NONE: [f32; MAX_CHANNELS] = [0.0; MAX_CHANNELS];
+    let refused = (Reason::Background, NONE, 0.0);
+    let d = target_camera.ray(x as f32 + 0.5, y as f32 + 0.5);
+    // The source clip coordinates of the point at infinity (d, 0): no translation column.
+    let r = &p.camera.rows;
+    let dot = |i: usize| r[i][0] * d[0] + r[i][1] * d[1] + r[i][2] * d[2];
+    let (cx, cy, cw) = (dot(0), dot(1), dot(3));
+    if !(cw > 0.0) {
+        return refused;
+    }
+    let (hw, hh) = (p.half_width, p.half_height);
+    let inv_w = 1.0 / cw;
+    let mut sx = (cx * inv_w) * hw + hw;
+    let mut sy = (-(cy * inv_w)) * hh + hh;
+    if let Some([dx, dy]) = p.jitter_shift {
+        (sx, sy) = (sx + dx, sy + dy);
+    }
+    let Some(fp) = Footprint::new(sx, sy, p.source_extent) else {
+        return refused;
+    };
+    let weights = fp.weights();
+    let in_frame = fp.in_frame(p.source_extent);
+    let mut sum = NONE;
+    let mut total = 0.0f32;
+    let (mut any_accepted, mut any_failed) = (false, false);
+    for (tap, &(tx, ty)) in fp.taps().iter().enumerate() {
+        if weights[tap] == 0.0 {
+            continue;
+        }
+        if !in_frame[tap] {
+            any_failed = true;
+            continue;
+        }
+        let (tx, ty) = (tx as usize, ty as usize);
+        let mut values = NONE;
+        for c in 0..p.channel_count {
+            values[c] = p.channels[c].get(tx, ty);
+        }
+        let accepted =
+            p.source.depth(tx, ty) == f32::INFINITY && values[..p.channel_count].iter().all(|v| v.is_finite());
+        if accepted {
+            any_accepted = true;
+            for c in 0..MAX_CHANNELS {
+                sum[c] += weights[tap] * values[c];
+            }
+            total += weights[tap];
+        }
+        any_failed |= !accepted;
+    }
+    if !any_accepted || (p.strict && any_failed) {
+        return refused;
+    }
+    let inv_total = 1.0 / total;
+    (Reason::Reprojected, sum.map(|s| flush_subnormal1(renormalise(s, inv_total))), total.min(1.0))
 }

@@ -109,6 +109,7 @@ pub(super) fn simd_row<L: SurfaceLayout, const C: usize, const AVX512: bool>(
     for x in x..width {
         write_pixel(p, x, y, row, &mut counts);
     }
+    super::background::background_row::<L, C>(p, y, row, &mut counts);
     counts
 }
 
@@ -202,7 +203,7 @@ struct Lanes<const C: usize> {
 /// NaN, so one sum and one compare test them all (two instructions per value instead of
 /// the four of a bit-pattern test).
 #[inline(always)]
-fn all_finite_simd<const N: usize>(values: [F32s; N]) -> F32s {
+pub(super) fn all_finite_simd<const N: usize>(values: [F32s; N]) -> F32s {
     let mut poison = F32s::ZERO;
     for v in values {
         poison += v * F32s::ZERO;

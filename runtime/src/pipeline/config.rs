@@ -187,6 +187,34 @@ impl Blend {
     }
 }
 
+/// What reprojection does with background pixels (no surface: an environment map or a
+/// constant sky seen past the geometry).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum Background {
+    /// The paper's: discarded (its reprojection needs a surface), so every background pixel
+    /// is traced again every frame, under a budget before anything else.
+    #[default]
+    Trace,
+    /// Reprojected by view direction, as points at infinity, from taps that are background
+    /// too (`kernels::reproject::ReprojectInput::background`): a sky that stays in view keeps
+    /// its history in both eyes and costs no ray. For a background that does not change
+    /// between frames (a built-in scene's environment map never does); an engine whose sky
+    /// changes keeps the paper's setting.
+    Reproject,
+}
+
+impl Background {
+    /// The CLI's and the tables' name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Background::Trace => "trace",
+            Background::Reproject => "reproject",
+        }
+    }
+}
+
 /// A spatial filter of each eye's shown image after accumulation.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
@@ -261,6 +289,8 @@ pub struct PipelineConfig {
     pub blend: Blend,
     /// A spatial filter of the shown images (see [`Filter`]).
     pub filter: Filter,
+    /// What reprojection does with background pixels (see [`Background`]).
+    pub background: Background,
 }
 
 impl PipelineConfig {
@@ -290,6 +320,7 @@ impl PipelineConfig {
             history: History::Paper,
             blend: Blend::Fixed,
             filter: Filter::None,
+            background: Background::Trace,
         }
     }
 

@@ -81,8 +81,8 @@ mod tests;
 
 use budget::BudgetPlanner;
 pub use config::{
-    ATROUS_ITERATIONS, Blend, CLAMP_GAMMA, Filter, History, MAX_BUDGET_MS, MAX_SPP, Mode, Order, PipelineConfig,
-    budget_duration, check_spp, readable,
+    ATROUS_ITERATIONS, Background, Blend, CLAMP_GAMMA, Filter, History, MAX_BUDGET_MS, MAX_SPP, Mode, Order,
+    PipelineConfig, budget_duration, check_spp, readable,
 };
 use gradients::GradientBuffers;
 // The seam's types a pipeline user names, where the pipeline's own are.
@@ -290,6 +290,8 @@ struct Carried<'a> {
     pixel_mask: Option<Plane<'a, u8>>,
     motion: Option<[Plane<'a>; 3]>,
     jitter: Option<reproject::Jitter>,
+    /// Background pixels reprojected by direction ([`Background::Reproject`]).
+    background: bool,
 }
 
 /// One reprojection from `source` (planes, and the camera that rendered them) into `target`
@@ -304,23 +306,25 @@ fn reproject_in(
     params: &ReprojectParams,
 ) -> Result<ReasonCounts, PipelineError> {
     fn run<L: SurfaceLayout>(
-        target: &L,
+        (target, target_camera): (&L, &CameraModel),
         source: &L,
         source_camera: &CameraModel,
         c: Carried<'_>,
         out: ReprojectOutput<'_>,
         params: &ReprojectParams,
     ) -> Result<ReasonCounts, FrameError> {
-        let Carried { colour, extra, pixel_mask, motion, jitter } = c;
-        let input = ReprojectInput { target, source, source_camera, colour, extra, pixel_mask, motion, jitter };
+        let Carried { colour, extra, pixel_mask, motion, jitter, background } = c;
+        let background = background.then_some(target_camera);
+        let input =
+            ReprojectInput { target, source, source_camera, colour, extra, pixel_mask, motion, jitter, background };
         reproject::reproject(&input, out, params)
     }
     Ok(match layout {
         Layout::Compact => {
             let (t, s) = (compact(target, target_camera)?, compact(source, *source_camera)?);
-            run(&t, &s, source_camera, carried, out, params)?
+            run((&t, &target_camera), &s, source_camera, carried, out, params)?
         }
-        Layout::Full => run(&full(target)?, &full(source)?, source_camera, carried, out, params)?,
+        Layout::Full => run((&full(target)?, &target_camera), &full(source)?, source_camera, carried, out, params)?,
     })
 }
 
@@ -799,6 +803,7 @@ impl<S: FrameSource> Pipeline<S> {
         let params = self.reproject_params();
         let ramp = self.config.tracks_history_length();
         let layout = self.config.layout;
+        let background = self.config.background == Background::Reproject;
         let s = &mut self.eyes[eye as usize];
         if !has_history {
             s.cur.temporal_reason.as_mut_slice().fill(Reason::Invalid as u8);
@@ -824,7 +829,7 @@ impl<S: FrameSource> Pipeline<S> {
         // The surfaces' own motion since the last frame, where the source gives it.
         let motion = target.motion;
         let (prev_camera, jitter) = (s.prev.gbuffer.camera, jitter_between(g, &s.prev.gbuffer));
-        let carried = Carried { colour, extra, pixel_mask, motion, jitter };
+        let carried = Carried { colour, extra, pixel_mask, motion, jitter, background };
         reproject_in(layout, (&target, g.camera), (&source, &prev_camera), carried, out, &params)
     }
 
@@ -839,6 +844,7 @@ impl<S: FrameSource> Pipeline<S> {
     ) -> Result<ReasonCounts, PipelineError> {
         let params = self.reproject_params();
         let layout = self.config.layout;
+        let background = self.config.background == Background::Reproject;
         // The fused restart: the stereo samples are the left eye's new history.
         let into_history = eye == Eye::Left && !for_blend && self.fuses_left_restart();
         let (target, other) = match eye {
@@ -872,7 +878,7 @@ impl<S: FrameSource> Pipeline<S> {
             weight: None,
         };
         let jitter = jitter_between(&target.cur.gbuffer, &other.cur.gbuffer);
-        let carried = Carried { colour, extra, pixel_mask: None, motion: None, jitter };
+        let carried = Carried { colour, extra, pixel_mask: None, motion: None, jitter, background };
         let target_view = (&target_planes, target.cur.gbuffer.camera);
         reproject_in(layout, target_view, (&source_planes, &other.cur.gbuffer.camera), carried, out, &params)
     }
