@@ -8,7 +8,7 @@ stereo path tracing, measured in the same run. All three runs of that table are 
 (the driver forms time ratios only between runs without a budget).
 
     cargo build --release && python3 tools/bench/budgets.py [--budgets 33,50,100] [--frames 20] \
-        [--mono-frames 6]
+        [--mono-frames 6] [--background reproject]
 """
 import argparse
 import json
@@ -23,7 +23,7 @@ def run(scene, args, budget, frames=None):
     cmd = [BIN, "throughput", "--scene", scene, "--res", args.res, "--threads", str(args.threads),
            "--frames", str(frames if baselines else args.frames), "--spp", "1", "--mode", "spatiotemporal",
            "--gbuffer", args.gbuffer, "--json"] + ([] if baselines else ["--no-baseline"]) \
-        + (["--motion-vectors"] if args.motion_vectors else [])
+        + (["--motion-vectors"] if args.motion_vectors else []) + ["--background", args.background]
     if budget is not None:
         cmd += ["--budget-ms", str(budget)]
     out = subprocess.run(cmd, capture_output=True, text=True)
@@ -41,6 +41,8 @@ def main():
     ap.add_argument("--gbuffer", default="raster")
     ap.add_argument("--motion-vectors", action="store_true",
                     help="give the pipelines the surfaces' motion, as an engine's motion vectors")
+    ap.add_argument("--background", default="trace", choices=["trace", "reproject"],
+                    help="what reprojection does with sky pixels (the paper's: trace)")
     ap.add_argument("--scenes", default=None, help="comma-separated (default: every built-in)")
     ap.add_argument("--mono-frames", type=int, default=0, help="also the stereo-over-mono table")
     args = ap.parse_args()
