@@ -74,6 +74,32 @@ fn reprojection(c: &mut Criterion) {
         group.finish();
     }
 }
+/// Background pixels reprojected by direction (beyond the paper): both eyes and the left
+/// eye's last frame of the fixture's cameras with nothing in view, so every pixel is sky
+/// (the stereo pair's footprints are one source row, the turned camera's are gathered).
+fn sky(c: &mut Criterion) {
+    let f = Fixture::new();
+    let empty = stereotrace_kernels::synth::AnalyticScene::default();
+    let render = |frame: &stereotrace_kernels::synth::SynthFrame| empty.render(&frame.surfaces.camera, [0.5, 0.6, 0.8]);
+    let (left, right, left_prev) = (render(&f.left), render(&f.right), render(&f.left_prev));
+    let mut out = Outputs::new(f.extent());
+    let mut group = c.benchmark_group("reproject_sky");
+    group.throughput(Throughput::Elements(f.extent().pixels() as u64));
+    for (name, source) in [("stereo", &right), ("temporal", &left_prev)] {
+        for threads in [1, 2] {
+            let pool = pool(threads);
+            for (body, isa) in bodies() {
+                group.bench_function(BenchmarkId::new(format!("{name}/{body}"), threads), |b| {
+                    let (t, s) = (left.compact(), source.compact());
+                    let optional = Optional { background: Some(&left.surfaces.camera), ..Optional::default() };
+                    b.iter(|| pool.install(|| run_reprojection(&t, &s, source, &f.params, &mut out, isa, optional)))
+                });
+            }
+        }
+    }
+    group.finish();
+}
+
 /// The paper-order left eye's temporal reprojection, which runs only where its stereo
 /// reprojection was discarded: the pixel mask is the stereo call's discarded pixels (0.9 %
 /// of this room, along its silhouettes and borders), the pair the temporal one.
@@ -146,6 +172,6 @@ fn band_rows(c: &mut Criterion) {
 criterion_group! {
     name = benches;
     config = common::criterion();
-    targets = reprojection, masked_temporal, band_rows, common::triad
+    targets = reprojection, masked_temporal, sky, band_rows, common::triad
 }
 criterion_main!(benches);

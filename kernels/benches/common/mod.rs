@@ -107,6 +107,8 @@ pub struct Optional<'a> {
     pub motion: Option<&'a [PlaneBuf; 3]>,
     /// Only the pixels where it is non-zero are reprojected.
     pub pixel_mask: Option<&'a PlaneBuf<u8>>,
+    /// The target camera: background pixels reprojected by direction.
+    pub background: Option<&'a stereotrace_kernels::CameraModel>,
 }
 
 pub fn run_reprojection<L: SurfaceLayout>(
@@ -127,7 +129,7 @@ pub fn run_reprojection<L: SurfaceLayout>(
         pixel_mask: optional.pixel_mask.map(|m| m.view()),
         motion: optional.motion.map(|m| m.each_ref().map(|p| p.view())),
         jitter: None,
-        background: None,
+        background: optional.background,
     };
     let o = ReprojectOutput { colour: out.colour.view_mut(), extra: None, reason: out.reason.view_mut(), weight: None };
     let counts = match body {
