@@ -4,9 +4,9 @@
 //! reference's lane-wise operations in its order, so it gives the reference's bits.
 
 use super::scalar::background_pixel;
-use super::simd::all_finite_simd;
+use super::simd::{all_finite_simd, footprints_at};
 use super::{Prepared, Reason, ReasonCounts, RowOut};
-use crate::bilinear::{Footprints, coherent_row, renormalise_simd};
+use crate::bilinear::{coherent_row, renormalise_simd};
 use crate::camera::CameraModel;
 use crate::gbuffer::SurfaceLayout;
 use crate::simd::{F32s, LANES, TapCoords, flush_subnormal, lane_offsets, store};
@@ -125,14 +125,7 @@ fn background_lanes<L: SurfaceLayout, const C: usize>(
     let r = &p.v.rows;
     let clip = |i: usize| r[i][0] * d[0] + r[i][1] * d[1] + r[i][2] * d[2];
     let (cx, cy, cw) = (clip(0), clip(1), clip(2));
-    let (hw, hh) = (p.v.half_width, p.v.half_height);
-    let inv_w = F32s::ONE / cw;
-    let mut sx = (cx * inv_w) * hw + hw;
-    let mut sy = (-(cy * inv_w)) * hh + hh;
-    if let Some([dx, dy]) = p.jitter_shift {
-        (sx, sy) = (sx + F32s::splat(dx), sy + F32s::splat(dy));
-    }
-    let mut fp = Footprints::new_splat(sx, sy, p.v.source_width, p.v.source_height);
+    let mut fp = footprints_at(p, cx, cy, cw);
     let active = cw.simd_gt(zero) & fp.inside;
     fp.inside = active;
     let weights = fp.weights();

@@ -58,15 +58,7 @@ pub(super) fn reproject_pixel_prepared<L: SurfaceLayout>(
     if !(cw > 0.0) {
         return (Reason::OutOfFrame, NONE, 0.0);
     }
-    let (hw, hh) = (p.half_width, p.half_height);
-    let inv_w = 1.0 / cw;
-    let mut sx = (cx * inv_w) * hw + hw;
-    let mut sy = (-(cy * inv_w)) * hh + hh;
-    if let Some([dx, dy]) = p.jitter_shift {
-        // Where the target pixel's unjittered centre lands on the unjittered colour grid.
-        (sx, sy) = (sx + dx, sy + dy);
-    }
-    let Some(fp) = Footprint::new(sx, sy, p.source_extent) else {
+    let Some(fp) = footprint_at(p, cx, cy, cw) else {
         return (Reason::OutOfFrame, NONE, 0.0);
     };
     let weights = fp.weights();
@@ -88,10 +80,7 @@ pub(super) fn reproject_pixel_prepared<L: SurfaceLayout>(
         }
         let (tx, ty) = (tx as usize, ty as usize);
         let s = p.source.surfel(tx, ty);
-        let mut values = NONE;
-        for c in 0..p.channel_count {
-            values[c] = p.channels[c].get(tx, ty);
-        }
+        let values = tap_values(p, tx, ty);
         let s_len2 = len2(s.normal);
         let verdict = if s.depth == f32::INFINITY {
             TapVerdict::Geometry
@@ -159,14 +148,7 @@ pub(super) fn background_pixel<L: SurfaceLayout>(
     if !(cw > 0.0) {
         return refused;
     }
-    let (hw, hh) = (p.half_width, p.half_height);
-    let inv_w = 1.0 / cw;
-    let mut sx = (cx * inv_w) * hw + hw;
-    let mut sy = (-(cy * inv_w)) * hh + hh;
-    if let Some([dx, dy]) = p.jitter_shift {
-        (sx, sy) = (sx + dx, sy + dy);
-    }
-    let Some(fp) = Footprint::new(sx, sy, p.source_extent) else {
+    let Some(fp) = footprint_at(p, cx, cy, cw) else {
         return refused;
     };
     let weights = fp.weights();
@@ -183,10 +165,7 @@ pub(super) fn background_pixel<L: SurfaceLayout>(
             continue;
         }
         let (tx, ty) = (tx as usize, ty as usize);
-        let mut values = NONE;
-        for c in 0..p.channel_count {
-            values[c] = p.channels[c].get(tx, ty);
-        }
+        let values = tap_values(p, tx, ty);
         let accepted =
             p.source.depth(tx, ty) == f32::INFINITY && values[..p.channel_count].iter().all(|v| v.is_finite());
         if accepted {
@@ -203,4 +182,29 @@ pub(super) fn background_pixel<L: SurfaceLayout>(
     }
     let inv_total = 1.0 / total;
     (Reason::Reprojected, sum.map(|s| flush_subnormal1(renormalise(s, inv_total))), total.min(1.0))
+}
+
+/// The bilinear footprint in the source of clip coordinates `(cx, cy, ·, cw)` with `cw > 0`
+/// (moved by the jitter's shift where there is one), or `None` outside the source frame.
+#[inline(always)]
+fn footprint_at<L: SurfaceLayout>(p: &Prepared<'_, L>, cx: f32, cy: f32, cw: f32) -> Option<Footprint> {
+    let (hw, hh) = (p.half_width, p.half_height);
+    let inv_w = 1.0 / cw;
+    let mut sx = (cx * inv_w) * hw + hw;
+    let mut sy = (-(cy * inv_w)) * hh + hh;
+    if let Some([dx, dy]) = p.jitter_shift {
+        // Where the target pixel's unjittered centre lands on the unjittered colour grid.
+        (sx, sy) = (sx + dx, sy + dy);
+    }
+    Footprint::new(sx, sy, p.source_extent)
+}
+
+/// The source samples of tap `(tx, ty)` (0 in the channels the input lacks).
+#[inline(always)]
+fn tap_values<L: SurfaceLayout>(p: &Prepared<'_, L>, tx: usize, ty: usize) -> [f32; MAX_CHANNELS] {
+    let mut values = [0.0; MAX_CHANNELS];
+    for c in 0..p.channel_count {
+        values[c] = p.channels[c].get(tx, ty);
+    }
+    values
 }

@@ -391,15 +391,7 @@ fn target_lanes<L: SurfaceLayout>(p: &Prepared<'_, L>, x: usize, y: usize) -> Ta
         r[i][0] * surface.position[0] + r[i][1] * surface.position[1] + r[i][2] * surface.position[2] + r[i][3]
     };
     let (cx, cy, cw) = (clip(0), clip(1), clip(2));
-    let (hw, hh) = (p.v.half_width, p.v.half_height);
-    let inv_w = F32s::ONE / cw;
-    let mut sx = (cx * inv_w) * hw + hw;
-    let mut sy = (-(cy * inv_w)) * hh + hh;
-    if let Some([dx, dy]) = p.jitter_shift {
-        // As the reference: the unjittered centre on the unjittered colour grid.
-        (sx, sy) = (sx + F32s::splat(dx), sy + F32s::splat(dy));
-    }
-    let mut footprints = Footprints::new_splat(sx, sy, p.v.source_width, p.v.source_height);
+    let mut footprints = footprints_at(p, cx, cy, cw);
     // Lanes that already have a reason take no further part.
     let active = plausible & cw.simd_gt(F32s::ZERO) & footprints.inside;
     footprints.inside = active;
@@ -412,6 +404,22 @@ fn target_lanes<L: SurfaceLayout>(p: &Prepared<'_, L>, x: usize, y: usize) -> Ta
         active,
         background,
     }
+}
+
+/// The bilinear footprints in the source of clip coordinates `(cx, cy, ·, cw)`, as the
+/// reference's `footprint_at` computes them lane by lane (lanes with `cw ≤ 0` are the
+/// caller's to mask).
+#[inline(always)]
+pub(super) fn footprints_at<L: SurfaceLayout>(p: &Prepared<'_, L>, cx: F32s, cy: F32s, cw: F32s) -> Footprints {
+    let (hw, hh) = (p.v.half_width, p.v.half_height);
+    let inv_w = F32s::ONE / cw;
+    let mut sx = (cx * inv_w) * hw + hw;
+    let mut sy = (-(cy * inv_w)) * hh + hh;
+    if let Some([dx, dy]) = p.jitter_shift {
+        // As the reference: the unjittered centre on the unjittered colour grid.
+        (sx, sy) = (sx + F32s::splat(dx), sy + F32s::splat(dy));
+    }
+    Footprints::new_splat(sx, sy, p.v.source_width, p.v.source_height)
 }
 
 /// Runs the tap tests over the four taps. With `CLASSIFY`, also records why taps failed.
