@@ -3,7 +3,7 @@
 //! surface bodies wrote it, on the pixels they marked [`Reason::Background`], and does the
 //! reference's lane-wise operations in its order, so it gives the reference's bits.
 
-use super::scalar::background_pixel;
+use super::scalar::{background_pixel, put_pixel};
 use super::simd::{all_finite_simd, footprints_at};
 use super::{Prepared, Reason, ReasonCounts, RowOut};
 use crate::bilinear::{coherent_row, renormalise_simd};
@@ -29,11 +29,14 @@ impl BackgroundRays {
     }
 }
 
-/// Reprojects the background pixels of row `y` by direction, where the input asks for it.
+/// Reprojects the background pixels of row `y` by direction, where the input asks for it:
+/// those of `0 .. end`, the part the SIMD bodies wrote (the row's tail went through the
+/// scalar reference, which already treated its background pixels).
 #[inline(always)]
 pub(super) fn background_row<L: SurfaceLayout, const C: usize>(
     p: &Prepared<'_, L>,
     y: usize,
+    end: usize,
     row: &mut RowOut<'_>,
     counts: &mut ReasonCounts,
 ) {
@@ -41,13 +44,12 @@ pub(super) fn background_row<L: SurfaceLayout, const C: usize>(
         return;
     };
     let background = Reason::Background as u8;
-    let width = row.reason.len();
     let mut x = 0;
     // Most rows of most frames hold no sky, or a few runs of it: jump from run to run.
-    while let Some(offset) = row.reason[x..].iter().position(|&r| r == background) {
+    while let Some(offset) = row.reason[x..end].iter().position(|&r| r == background) {
         x += offset;
-        if x + LANES > width {
-            for x in x..width {
+        if x + LANES > end {
+            for x in x..end {
                 if row.reason[x] == background {
                     keep(row, counts, x, background_pixel(p, &rays.camera, x, y));
                 }
@@ -86,19 +88,12 @@ pub(super) fn background_row<L: SurfaceLayout, const C: usize>(
 
 /// Writes a background pixel that was reprojected (and nothing for one that was not).
 #[inline(always)]
-fn keep(row: &mut RowOut<'_>, counts: &mut ReasonCounts, x: usize, (reason, values, weight): super::PixelResult) {
-    if reason != Reason::Reprojected {
-        return;
+fn keep(row: &mut RowOut<'_>, counts: &mut ReasonCounts, x: usize, result: super::PixelResult) {
+    if result.0 == Reason::Reprojected {
+        put_pixel(row, x, result);
+        counts.0[Reason::Background as usize] -= 1;
+        counts.0[Reason::Reprojected as usize] += 1;
     }
-    for c in 0..row.count {
-        row.channels[c][x] = values[c];
-    }
-    if let Some(w) = row.weight.as_deref_mut() {
-        w[x] = weight;
-    }
-    row.reason[x] = reason as u8;
-    counts.0[Reason::Background as usize] -= 1;
-    counts.0[Reason::Reprojected as usize] += 1;
 }
 
 /// The eight pixels `x .. x + LANES` of row `y` as background: their channels, weights and

@@ -1,7 +1,9 @@
 //! The scalar reference of backward reprojection: one target pixel at a time, the
 //! definition of the module notes written out; [`super::simd`] computes the same values.
 
-use super::{MAX_CHANNELS, Prepared, Reason, ReasonCounts, RowOut, TapVerdict, len2, normals_agree, usable};
+use super::{
+    MAX_CHANNELS, PixelResult, Prepared, Reason, ReasonCounts, RowOut, TapVerdict, len2, normals_agree, usable,
+};
 use crate::bilinear::{Footprint, renormalise};
 use crate::camera::CameraModel;
 use crate::gbuffer::SurfaceLayout;
@@ -20,7 +22,14 @@ pub(super) fn write_pixel<L: SurfaceLayout>(
         row.reason[x] = Reason::Invalid as u8;
         return;
     }
-    let (reason, values, weight) = reproject_pixel_prepared(p, x, y);
+    let result = reproject_pixel_prepared(p, x, y);
+    put_pixel(row, x, result);
+    counts.0[result.0 as usize] += 1;
+}
+
+/// Stores one pixel's result (its channels, weight and reason) in the output row.
+#[inline(always)]
+pub(super) fn put_pixel(row: &mut RowOut<'_>, x: usize, (reason, values, weight): PixelResult) {
     for c in 0..row.count {
         row.channels[c][x] = values[c];
     }
@@ -28,14 +37,9 @@ pub(super) fn write_pixel<L: SurfaceLayout>(
         w[x] = weight;
     }
     row.reason[x] = reason as u8;
-    counts.0[reason as usize] += 1;
 }
 
-pub(super) fn reproject_pixel_prepared<L: SurfaceLayout>(
-    p: &Prepared<'_, L>,
-    x: usize,
-    y: usize,
-) -> (Reason, [f32; MAX_CHANNELS], f32) {
+pub(super) fn reproject_pixel_prepared<L: SurfaceLayout>(p: &Prepared<'_, L>, x: usize, y: usize) -> PixelResult {
     const NONE: [f32; MAX_CHANNELS] = [0.0; MAX_CHANNELS];
     let mut t = p.target.surfel(x, y);
     if let Some(motion) = &p.motion {
@@ -137,7 +141,7 @@ pub(super) fn background_pixel<L: SurfaceLayout>(
     target_camera: &CameraModel,
     x: usize,
     y: usize,
-) -> (Reason, [f32; MAX_CHANNELS], f32) {
+) -> PixelResult {
     const NONE: [f32; MAX_CHANNELS] = [0.0; MAX_CHANNELS];
     let refused = (Reason::Background, NONE, 0.0);
     let d = target_camera.ray(x as f32 + 0.5, y as f32 + 0.5);

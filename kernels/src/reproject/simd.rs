@@ -106,10 +106,10 @@ pub(super) fn simd_row<L: SurfaceLayout, const C: usize, const AVX512: bool>(
         }
         x += LANES;
     }
+    super::background::background_row::<L, C>(p, y, x, row, &mut counts);
     for x in x..width {
         write_pixel(p, x, y, row, &mut counts);
     }
-    super::background::background_row::<L, C>(p, y, row, &mut counts);
     counts
 }
 
